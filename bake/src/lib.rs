@@ -1,0 +1,2 @@
+//! Bake pipeline.
+pub mod traverse;

@@ -1,0 +1,16 @@
+//! On-disk formats of the CSSM toolchain.
+//!
+//! - [`scene`]: scene directories (`scene.toml` + OBJ/MTL, or plain OBJ directories).
+//! - [`cssm`]: the `.cssm` container of a baked Coherent Surface Shadow Map.
+//! - [`texel`]: the atlas texel table and traversal kinds.
+//! - [`visibility`]: the CPU reference visibility query over a baked CSSM (§3.2.2).
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod cssm;
+pub mod scene;
+pub mod texel;
+
+pub use cssm::{BakeParams, CssmFile, RunData, SceneRef};
+pub use scene::{Camera, Material, Scene, SpotLight};
+pub use texel::{Texel, Traversal};

@@ -1,0 +1,82 @@
+//! The atlas texel table (§3.2.3): one entry per *defined* atlas texel, the surface patch that a
+//! depth cube map stands for.
+
+use serde::{Deserialize, Serialize};
+
+/// One defined atlas texel: the surface patch whose centre carries a depth cube map.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Texel {
+    /// World-space position of the texel centre on the surface.
+    pub position: [f32; 3],
+    /// Unit geometric normal of the surface at the texel centre.
+    pub normal: [f32; 3],
+    /// World-space surface area that the texel stands for (scene units squared).
+    pub area: f32,
+    /// Index into the scene's material list.
+    pub material: u32,
+    /// Atlas chart the texel belongs to (dense ids `0..chart_count`).
+    pub chart: u32,
+    /// Atlas column of the texel, `0..atlas_resolution`.
+    pub x: u16,
+    /// Atlas row of the texel, `0..atlas_resolution`.
+    pub y: u16,
+}
+
+impl Texel {
+    /// Position as a glam vector.
+    pub fn pos(&self) -> glam::Vec3 {
+        glam::Vec3::from(self.position)
+    }
+    /// Normal as a glam vector.
+    pub fn nrm(&self) -> glam::Vec3 {
+        glam::Vec3::from(self.normal)
+    }
+}
+
+/// Order in which the atlas texels are visited, and so the order of the depth-map sequence
+/// (§3.2.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Traversal {
+    /// Chart by chart; inside a chart, rows of its bounding box alternately left-to-right and
+    /// right-to-left; next chart: the one whose first texel is closest in 3D.
+    Zigzag,
+    /// Chart by chart; inside a chart, walk along the border of the unvisited region keeping it on
+    /// the left, stepping back when stuck (outside in).
+    Spiral,
+    /// Nearest-first walk over texel positions, no use of the atlas layout.
+    Greedy,
+}
+
+impl Traversal {
+    /// All traversals, in the order the paper's Table 2 lists them.
+    pub const ALL: [Traversal; 3] = [Traversal::Greedy, Traversal::Zigzag, Traversal::Spiral];
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Traversal::Zigzag => "zigzag",
+            Traversal::Spiral => "spiral",
+            Traversal::Greedy => "greedy",
+        }
+    }
+}
+
+impl std::fmt::Display for Traversal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Traversal {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "zigzag" | "zig-zag" => Ok(Traversal::Zigzag),
+            "spiral" => Ok(Traversal::Spiral),
+            "greedy" => Ok(Traversal::Greedy),
+            other => Err(format!(
+                "unknown traversal '{other}': expected zigzag, spiral or greedy"
+            )),
+        }
+    }
+}
