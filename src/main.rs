@@ -1,1 +1,384 @@
-fn main() {}
+//! The `cssm` command line: a thin layer over the `cssm-formats` and `cssm-bake` libraries.
+//! Exit codes: 0 success, 1 a check ran and failed its threshold, 2 an error.
+
+use std::{
+    path::{Path, PathBuf},
+    process::ExitCode,
+    time::Instant,
+};
+
+use clap::{Parser, Subcommand};
+use cssm::{bake, builtin, formats};
+use formats::{CssmFile, Scene, Traversal, visibility::QueryOptions};
+
+#[derive(Parser)]
+#[command(
+    name = "cssm",
+    version,
+    about = "Bake and inspect Coherent Surface Shadow Maps (Ritschel et al. 2008)",
+    long_about = "Bake and inspect Coherent Surface Shadow Maps (Ritschel et al. 2008): precomputed \
+                  depth cube maps swept over every surface of a scene, compressed per pixel, that \
+                  answer visibility between any two surface points.\n\n\
+                  Start with `cssm bake`, which bakes the built-in Cornell box."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Bake a scene directory into a .cssm file.
+    #[command(after_help = "Examples:\n  cssm bake -o cornell.cssm\n  \
+        cssm bake ../shared/scenes/bunny -o bunny.cssm --atlas 128 --cube 32 --traversal zigzag")]
+    Bake(BakeArgs),
+    /// Print the header and sizes of a .cssm file.
+    #[command(after_help = "Examples:\n  cssm inspect cornell.cssm\n  cssm inspect cornell.cssm --json")]
+    Inspect {
+        /// The .cssm file.
+        file: PathBuf,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Measure a .cssm file's visibility against exact ray casts on random surface point pairs.
+    #[command(after_help = "Examples:\n  cssm check cornell.cssm\n  \
+        cssm check cornell.cssm --pairs 1000000 --pcf --min-agreement 0.98")]
+    Check(CheckArgs),
+}
+
+#[derive(clap::Args)]
+struct BakeArgs {
+    /// Scene directory (scene.toml + OBJ/MTL, or a directory of OBJ files). Default: the
+    /// built-in Cornell box.
+    scene: Option<PathBuf>,
+    /// Output file. Default: <scene name>.cssm in the current directory.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Atlas width and height in texels (32 to 1024).
+    #[arg(long, default_value_t = 64)]
+    atlas: u32,
+    /// Cube-map face resolution N; each map has 6 x N x N pixels (8 to 128).
+    #[arg(long, default_value_t = 32)]
+    cube: u32,
+    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3).
+    #[arg(long, default_value = "spiral")]
+    traversal: Traversal,
+    /// Distance the cube maps sit off the surface, in scene units. Default: 0.2% of the scene
+    /// diameter.
+    #[arg(long)]
+    near: Option<f32>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+struct CheckArgs {
+    /// The .cssm file.
+    file: PathBuf,
+    /// Scene directory to check against. Default: the directory recorded in the file.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Number of random surface point pairs.
+    #[arg(long, default_value_t = 100_000)]
+    pairs: u64,
+    /// Seed of the pairs.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Percentage-closer filtering over 2x2 pixels.
+    #[arg(long)]
+    pcf: bool,
+    /// Constant depth bias, in multiples of the bake's near distance.
+    #[arg(long, default_value_t = QueryOptions::default().bias_near)]
+    bias_near: f32,
+    /// Depth bias proportional to the query depth.
+    #[arg(long, default_value_t = QueryOptions::default().bias_relative)]
+    bias_relative: f32,
+    /// Exit with status 1 when the agreement is below this fraction.
+    #[arg(long)]
+    min_agreement: Option<f64>,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Bake(args) => run_bake(args),
+        Command::Inspect { file, json } => run_inspect(&file, json),
+        Command::Check(args) => run_check(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(message) => {
+            eprintln!("error: {message}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+type CliResult = Result<ExitCode, String>;
+
+fn load_scene(dir: &Path) -> Result<Scene, String> {
+    let scene = Scene::load(dir).map_err(|e| e.to_string())?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+fn run_bake(args: BakeArgs) -> CliResult {
+    let start = Instant::now();
+    let dir = match &args.scene {
+        Some(dir) => dir.clone(),
+        None => builtin::cornell_box().map_err(|e| format!("cannot prepare the built-in Cornell box: {e}"))?,
+    };
+    // Validate the cheap things before the expensive ones.
+    if !bake::ATLAS_RESOLUTION_RANGE.contains(&args.atlas) {
+        return Err(format!("--atlas {} is out of range 32..=1024", args.atlas));
+    }
+    if !bake::CUBE_RESOLUTION_RANGE.contains(&args.cube) {
+        return Err(format!("--cube {} is out of range 8..=128", args.cube));
+    }
+    let scene = load_scene(&dir)?;
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("{}.cssm", scene.name)));
+    check_writable(&output)?;
+    let options = bake::BakeOptions {
+        atlas_resolution: args.atlas,
+        cube_resolution: args.cube,
+        traversal: args.traversal,
+        near: args.near,
+    };
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, {per_sec}, eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_message(scene.name.clone());
+    let baked = bake::bake(&scene, &options, &mut |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    })
+    .map_err(|e| format!("{}: {e}", dir.display()))?;
+    bar.finish_and_clear();
+    let file_bytes = formats::cssm::write_atomic(&output, &baked.file).map_err(|e| e.to_string())?;
+    let seconds = start.elapsed().as_secs_f64();
+    let s = &baked.stats;
+    let summary = serde_json::json!({
+        "scene": scene.name,
+        "output": output.display().to_string(),
+        "triangles": scene.triangles.len(),
+        "atlas_resolution": args.atlas,
+        "cube_resolution": args.cube,
+        "traversal": args.traversal.name(),
+        "charts": s.charts,
+        "defined_texels": s.defined_texels,
+        "rays": s.rays,
+        "runs": s.runs,
+        "uncompressed_bytes": s.uncompressed_bytes,
+        "gpu_bytes": s.gpu_bytes,
+        "file_bytes": file_bytes,
+        "ratio_gpu": s.ratio_gpu(),
+        "ratio_file": s.uncompressed_bytes as f64 / file_bytes.max(1) as f64,
+        "atlas_seconds": s.atlas_time.as_secs_f64(),
+        "maps_seconds": s.maps_time.as_secs_f64(),
+        "total_seconds": seconds,
+        "rays_per_second": s.rays as f64 / s.maps_time.as_secs_f64().max(1e-9),
+        "threads": rayon_threads(),
+    });
+    if args.json {
+        println!("{summary}");
+    } else {
+        println!("baked {} -> {}", scene.name, output.display());
+        println!(
+            "  atlas {a}x{a}: {} defined texels (depth maps) in {} charts",
+            s.defined_texels,
+            s.charts,
+            a = args.atlas
+        );
+        println!(
+            "  cube 6x{c}x{c}, {} traversal, {} rays ({:.1} M rays/s, {:.0} maps/s)",
+            args.traversal,
+            s.rays,
+            s.rays as f64 / s.maps_time.as_secs_f64().max(1e-9) / 1e6,
+            s.defined_texels as f64 / s.maps_time.as_secs_f64().max(1e-9),
+            c = args.cube
+        );
+        println!("  uncompressed   {:>12}", human_bytes(s.uncompressed_bytes));
+        println!(
+            "  in memory      {:>12}  ratio {:.1} : 1  ({} runs)",
+            human_bytes(s.gpu_bytes),
+            s.ratio_gpu(),
+            s.runs
+        );
+        println!(
+            "  file           {:>12}  ratio {:.1} : 1",
+            human_bytes(file_bytes),
+            s.uncompressed_bytes as f64 / file_bytes.max(1) as f64
+        );
+        println!(
+            "  time {:.2} s (atlas {:.2} s, depth maps {:.2} s)",
+            seconds,
+            s.atlas_time.as_secs_f64(),
+            s.maps_time.as_secs_f64()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Fails early, before a long bake, when the output cannot be written.
+fn check_writable(output: &Path) -> Result<(), String> {
+    let parent = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !parent.is_dir() {
+        return Err(format!(
+            "cannot write {}: directory {} does not exist",
+            output.display(),
+            parent.display()
+        ));
+    }
+    if output.is_dir() {
+        return Err(format!("cannot write {}: it is a directory", output.display()));
+    }
+    let probe = parent.join(format!(".cssm-write-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .map_err(|e| format!("cannot write {}: {e}", output.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+fn human_bytes(b: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = b as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 { format!("{b} B") } else { format!("{v:.2} {}", UNITS[u]) }
+}
+
+fn read_file(path: &Path) -> Result<CssmFile, String> {
+    formats::cssm::read(path).map_err(|e| e.to_string())
+}
+
+fn inspect_json(file: &CssmFile, file_bytes: u64) -> serde_json::Value {
+    let p = &file.params;
+    let uncompressed = file.runs.uncompressed_bytes();
+    let gpu = file.runs.gpu_bytes();
+    serde_json::json!({
+        "format_version": formats::cssm::FORMAT_VERSION,
+        "scene": file.scene.name,
+        "scene_dir": file.scene.dir,
+        "scene_hash": formats::scene::hash_hex(&file.scene.content_hash),
+        "triangles": file.scene.triangle_count,
+        "atlas_resolution": p.atlas_resolution,
+        "cube_resolution": p.cube_resolution,
+        "near": p.near,
+        "far": p.far,
+        "traversal": p.traversal.name(),
+        "defined_texels": file.texels.len(),
+        "runs": file.runs.runs.len(),
+        "uncompressed_bytes": uncompressed,
+        "gpu_bytes": gpu,
+        "file_bytes": file_bytes,
+        "ratio_gpu": uncompressed as f64 / gpu.max(1) as f64,
+        "ratio_file": uncompressed as f64 / file_bytes.max(1) as f64,
+    })
+}
+
+fn run_inspect(path: &Path, json: bool) -> CliResult {
+    let file = read_file(path)?;
+    let file_bytes = std::fs::metadata(path).map_err(|e| format!("{}: {e}", path.display()))?.len();
+    let j = inspect_json(&file, file_bytes);
+    if json {
+        println!("{j}");
+        return Ok(ExitCode::SUCCESS);
+    }
+    let p = &file.params;
+    println!("{}: CSSM format version {}", path.display(), formats::cssm::FORMAT_VERSION);
+    println!("  scene          {} ({}, {} triangles)", file.scene.name, file.scene.dir, file.scene.triangle_count);
+    println!("  scene hash     {}", j["scene_hash"].as_str().unwrap_or(""));
+    println!("  atlas          {a}x{a}, {} defined texels", file.texels.len(), a = p.atlas_resolution);
+    println!("  cube maps      6x{c}x{c}, near {:.4}, far {:.4}", p.near, p.far, c = p.cube_resolution);
+    println!("  traversal      {}", p.traversal);
+    println!("  runs           {}", file.runs.runs.len());
+    println!("  uncompressed   {:>12}", human_bytes(file.runs.uncompressed_bytes()));
+    println!("  in memory      {:>12}  ratio {:.1} : 1", human_bytes(file.runs.gpu_bytes()), j["ratio_gpu"].as_f64().unwrap_or(0.0));
+    println!("  file           {:>12}  ratio {:.1} : 1", human_bytes(file_bytes), j["ratio_file"].as_f64().unwrap_or(0.0));
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_check(args: CheckArgs) -> CliResult {
+    let file = read_file(&args.file)?;
+    let dir = args.scene.clone().unwrap_or_else(|| PathBuf::from(&file.scene.dir));
+    if !dir.is_dir() {
+        return Err(format!(
+            "{}: the scene it was baked from, {}, is not there; pass --scene DIR",
+            args.file.display(),
+            dir.display()
+        ));
+    }
+    let scene = load_scene(&dir)?;
+    if scene.content_hash != file.scene.content_hash || scene.triangles.len() as u32 != file.scene.triangle_count {
+        return Err(format!(
+            "{}: the scene in {} has changed since the bake (content hash {} now, {} when baked); bake again",
+            args.file.display(),
+            dir.display(),
+            formats::scene::hash_hex(&scene.content_hash),
+            formats::scene::hash_hex(&file.scene.content_hash)
+        ));
+    }
+    let options = QueryOptions {
+        bias_near: args.bias_near,
+        bias_relative: args.bias_relative,
+        pcf: args.pcf,
+    };
+    let start = Instant::now();
+    let a = bake::check::measure(&scene, &file, args.pairs, args.seed, options);
+    let seconds = start.elapsed().as_secs_f64();
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "pairs": a.total(),
+                "unmapped": a.unmapped,
+                "visible_visible": a.visible_visible,
+                "visible_occluded": a.visible_occluded,
+                "occluded_visible": a.occluded_visible,
+                "occluded_occluded": a.occluded_occluded,
+                "agreement": a.agreement(),
+                "false_visible_rate": a.false_visible_rate(),
+                "false_occluded_rate": a.false_occluded_rate(),
+                "seconds": seconds,
+            })
+        );
+    } else {
+        println!("{}: {} random surface point pairs against exact ray casts", args.file.display(), a.total());
+        println!("{a}");
+        if a.unmapped > 0 {
+            println!("({} sender points had no texel and were skipped)", a.unmapped);
+        }
+    }
+    if let Some(min) = args.min_agreement {
+        if a.agreement() < min {
+            eprintln!("agreement {:.4} is below --min-agreement {min}", a.agreement());
+            return Ok(ExitCode::from(1));
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,2 +1,243 @@
-//! Bake pipeline.
+//! The CSSM bake pipeline (Ritschel et al. 2008, §3.2): scene → texture atlas (xatlas) →
+//! coherent traversal of its texels → a depth cube map per texel (ray cast with obvhs, in
+//! parallel with rayon) → per-pixel piecewise-constant compression → [`CssmFile`].
+//!
+//! ```no_run
+//! use cssm_bake::{BakeOptions, bake};
+//! use cssm_formats::{Scene, Traversal};
+//!
+//! let scene = Scene::load(std::path::Path::new("scenes/cornell-box"))?;
+//! let options = BakeOptions { atlas_resolution: 64, cube_resolution: 32, traversal: Traversal::Spiral, near: None };
+//! let baked = bake(&scene, &options, &mut |_done, _total| {})?;
+//! println!("{} depth maps, ratio {:.1}", baked.file.texels.len(), baked.stats.ratio_gpu());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![warn(missing_docs)]
+
+pub mod atlas;
+pub mod check;
+pub mod compress;
+pub mod cubemap;
+pub mod raycast;
 pub mod traverse;
+
+use std::time::{Duration, Instant};
+
+use cssm_formats::{
+    BakeParams, CssmFile, Scene, SceneRef, Traversal,
+    cube::DepthQuantizer,
+};
+use rayon::prelude::*;
+
+pub use atlas::ATLAS_RESOLUTION_RANGE;
+
+/// Smallest and largest cube-map face resolution accepted.
+pub const CUBE_RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 8..=128;
+
+/// Near distance as a fraction of the scene diameter when none is given (§3.2.1: "a small value
+/// for the near plane").
+pub const DEFAULT_NEAR_FRACTION: f32 = 0.002;
+
+/// Errors of the bake.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    /// A parameter out of range.
+    #[error("{0}")]
+    Parameter(String),
+    /// The scene cannot be baked.
+    #[error("scene: {0}")]
+    Scene(String),
+    /// The atlas could not be built.
+    #[error("atlas: {0}")]
+    Atlas(String),
+}
+
+/// What to bake.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeOptions {
+    /// Atlas width and height in texels (32..=1024).
+    pub atlas_resolution: u32,
+    /// Cube-map face resolution N (8..=128).
+    pub cube_resolution: u32,
+    /// Texel traversal order.
+    pub traversal: Traversal,
+    /// Near distance in scene units; `None`: [`DEFAULT_NEAR_FRACTION`] of the scene diameter.
+    pub near: Option<f32>,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        Self {
+            atlas_resolution: 64,
+            cube_resolution: 32,
+            traversal: Traversal::Spiral,
+            near: None,
+        }
+    }
+}
+
+/// Figures of one bake.
+#[derive(Clone, Debug, Default)]
+pub struct BakeStats {
+    /// Number of defined texels = depth maps.
+    pub defined_texels: u64,
+    /// Number of atlas charts.
+    pub charts: u32,
+    /// Rays cast (pixels that were not don't-care).
+    pub rays: u64,
+    /// 2 bytes per cube-map pixel.
+    pub uncompressed_bytes: u64,
+    /// GPU-resident random-access run data.
+    pub gpu_bytes: u64,
+    /// Number of runs.
+    pub runs: u64,
+    /// Time spent unwrapping and rasterising the atlas.
+    pub atlas_time: Duration,
+    /// Time spent in the traversal.
+    pub traversal_time: Duration,
+    /// Time spent rendering and compressing depth maps.
+    pub maps_time: Duration,
+}
+
+impl BakeStats {
+    /// Uncompressed / GPU-resident size: the ratio of the paper's tables.
+    pub fn ratio_gpu(&self) -> f64 {
+        self.uncompressed_bytes as f64 / self.gpu_bytes.max(1) as f64
+    }
+}
+
+/// A baked CSSM with its figures.
+pub struct Baked {
+    /// The file contents.
+    pub file: CssmFile,
+    /// Figures.
+    pub stats: BakeStats,
+}
+
+/// Bakes `scene`. `progress(done, total)` is called as depth maps are finished.
+pub fn bake(
+    scene: &Scene,
+    options: &BakeOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Baked, BakeError> {
+    let n = options.cube_resolution;
+    if !CUBE_RESOLUTION_RANGE.contains(&n) {
+        return Err(BakeError::Parameter(format!(
+            "cube resolution {n} is out of range {}..={}",
+            CUBE_RESOLUTION_RANGE.start(),
+            CUBE_RESOLUTION_RANGE.end()
+        )));
+    }
+    let far = scene.diameter();
+    if !(far.is_finite() && far > 0.0) {
+        return Err(BakeError::Scene("the scene has no extent".into()));
+    }
+    let near = options.near.unwrap_or(DEFAULT_NEAR_FRACTION * far);
+    if !(near.is_finite() && near > 0.0 && near < far) {
+        return Err(BakeError::Parameter(format!(
+            "near distance {near} must be positive and below the scene diameter {far}"
+        )));
+    }
+    let mut stats = BakeStats::default();
+
+    // 1. Atlas (§3.2.3).
+    let t0 = Instant::now();
+    let atlas = atlas::build(scene, options.atlas_resolution)?;
+    stats.atlas_time = t0.elapsed();
+    stats.charts = atlas.chart_count;
+    stats.defined_texels = atlas.texels.len() as u64;
+    if atlas.texels.is_empty() {
+        return Err(BakeError::Atlas("no atlas texel is covered by the scene".into()));
+    }
+
+    // 2. Coherent order of the texels (§3.2.3).
+    let t0 = Instant::now();
+    let sequence = traverse::traverse(&atlas.texels, atlas.resolution, options.traversal);
+    stats.traversal_time = t0.elapsed();
+
+    // 3. + 4. Depth cube maps, streamed in batches into the compressor (§3.2.1, §3.1).
+    let t0 = Instant::now();
+    let bvh = raycast::SceneBvh::new(scene);
+    let quantizer = DepthQuantizer::new(near, far);
+    let pixel_count = 6 * n * n;
+    let map_count = sequence.len() as u32;
+    let mut compressor = compress::Compressor::new(pixel_count, map_count);
+    // Enough maps per batch to keep every core busy, small enough to stay in cache-sized memory.
+    let batch_maps = (4 * rayon::current_num_threads()).max(8).min(map_count as usize);
+    let mut batch = vec![cubemap::DONT_CARE; batch_maps * pixel_count as usize];
+    for (b, ids) in sequence.chunks(batch_maps).enumerate() {
+        let slots = &mut batch[..ids.len() * pixel_count as usize];
+        let rays: u64 = slots
+            .par_chunks_mut(pixel_count as usize)
+            .zip(ids.par_iter())
+            .map(|(out, &texel)| {
+                cubemap::render(&bvh, &atlas.texels[texel as usize], n, near, &quantizer, out)
+            })
+            .sum();
+        stats.rays += rays;
+        compressor.push(slots);
+        progress((b * batch_maps + ids.len()) as u64, map_count as u64);
+    }
+    let runs = compressor.finish();
+    stats.maps_time = t0.elapsed();
+    stats.uncompressed_bytes = runs.uncompressed_bytes();
+    stats.gpu_bytes = runs.gpu_bytes();
+    stats.runs = runs.runs.len() as u64;
+
+    let file = CssmFile {
+        params: BakeParams {
+            atlas_resolution: atlas.resolution,
+            cube_resolution: n,
+            near,
+            far,
+            traversal: options.traversal,
+        },
+        scene: SceneRef {
+            dir: scene.dir.to_string_lossy().into_owned(),
+            name: scene.name.clone(),
+            content_hash: scene.content_hash,
+            triangle_count: scene.triangles.len() as u32,
+        },
+        texels: atlas.texels,
+        triangle_uvs: atlas.triangle_uvs,
+        sequence,
+        runs,
+    };
+    Ok(Baked { file, stats })
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use cssm_formats::{Camera, Material, Scene};
+    use glam::Vec3;
+
+    /// A bare scene from raw triangles, for unit tests.
+    pub fn scene_from(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
+        let count = triangles.len();
+        Scene {
+            name: "test".into(),
+            dir: std::path::PathBuf::from("/nonexistent"),
+            positions,
+            texcoords: Vec::new(),
+            triangles,
+            triangle_materials: vec![0; count],
+            materials: vec![Material {
+                name: "default".into(),
+                kd: [0.5; 3],
+                ks: [0.0; 3],
+                ns: 1.0,
+                map_kd: None,
+            }],
+            camera: Camera {
+                position: Vec3::new(0.0, 0.0, 5.0),
+                target: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y_deg: 40.0,
+                resolution: [64, 48],
+            },
+            lights: Vec::new(),
+            content_hash: [0; 32],
+            warnings: Vec::new(),
+        }
+    }
+}

@@ -2,7 +2,23 @@
 //! Coherent Surface Shadow Map (§3.2): the bake parameters, the atlas texel table, the
 //! traversal sequence and the piecewise-constant run data laid out for random access.
 //!
-//! TODO(helper): encode/decode, atomic write, validation. See the module's tests.
+//! # Layout
+//!
+//! | bytes | field |
+//! |-------|-------|
+//! | 8     | [`MAGIC`] |
+//! | 4     | format version, `u32` little-endian ([`FORMAT_VERSION`]) |
+//! | 4     | flags, `u32` LE, must be 0 |
+//! | 8     | uncompressed payload length, `u64` LE (at most [`MAX_UNCOMPRESSED_BYTES`]) |
+//! | 8     | compressed payload length, `u64` LE (= the rest of the file) |
+//! | 16    | checksum: first 16 bytes of BLAKE3 of the compressed payload |
+//! | ...   | payload: zstd (level [`ZSTD_LEVEL`]) of the bincode 2 (serde, standard config) encoding of [`CssmFile`] |
+//!
+//! Encoding is deterministic: the same [`CssmFile`] always gives the same bytes. Decoding checks
+//! every field before trusting it, bounds every allocation, and finishes with [`validate`].
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
@@ -15,6 +31,17 @@ pub const FORMAT_VERSION: u32 = 1;
 /// Number of consecutive depth maps per run-data segment: run starts are stored relative to
 /// their segment in 16 bits, so a segment holds at most 2^16 maps.
 pub const SEGMENT_MAPS: u32 = 1 << 16;
+/// Largest uncompressed payload a file may declare (8 GiB); larger ones are refused before any
+/// allocation.
+pub const MAX_UNCOMPRESSED_BYTES: u64 = 8 << 30;
+/// zstd compression level of the payload (19 is far too slow for large bakes).
+pub const ZSTD_LEVEL: i32 = 9;
+/// Size of the fixed header in bytes.
+pub const HEADER_LEN: usize = 8 + 4 + 4 + 8 + 8 + 16;
+/// Valid range of [`BakeParams::atlas_resolution`].
+pub const ATLAS_RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 32..=1024;
+/// Valid range of [`BakeParams::cube_resolution`].
+pub const CUBE_RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 8..=128;
 
 /// What the bake was asked to do.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -114,4 +141,467 @@ pub struct CssmFile {
     pub sequence: Vec<u32>,
     /// The compressed depth maps.
     pub runs: RunData,
+}
+
+/// Everything that can go wrong reading, writing or validating a `.cssm` file. Every message is
+/// complete on its own (it names the path where there is one); no error is chained as a
+/// `source`, so printing the error chain never repeats a message.
+#[derive(Debug, thiserror::Error)]
+pub enum CssmError {
+    /// An I/O operation on `path` failed.
+    #[error("{path}: {error}", path = .path.display())]
+    Io {
+        /// File (or temporary file) the operation was on.
+        path: PathBuf,
+        /// The underlying error.
+        error: std::io::Error,
+    },
+    /// A decode error of the file at `path` (wraps any other variant).
+    #[error("{path}: {inner}", path = .path.display())]
+    File {
+        /// The file being read.
+        path: PathBuf,
+        /// What was wrong with it.
+        inner: Box<CssmError>,
+    },
+    /// The input is shorter than the fixed header.
+    #[error("truncated .cssm file: {len} bytes, shorter than the {HEADER_LEN}-byte header")]
+    TooShort {
+        /// Length of the input.
+        len: usize,
+    },
+    /// The magic bytes do not match.
+    #[error("not a .cssm file (bad magic bytes)")]
+    NotCssm,
+    /// The file was written by a newer build.
+    #[error(
+        "file version {version} is newer than this build's version {FORMAT_VERSION}; upgrade cssm"
+    )]
+    NewerVersion {
+        /// Version found in the header.
+        version: u32,
+    },
+    /// The version is older than (or otherwise unknown to) this build.
+    #[error(
+        "file version {version} is not supported (this build reads version {FORMAT_VERSION}); re-bake it"
+    )]
+    UnsupportedVersion {
+        /// Version found in the header.
+        version: u32,
+    },
+    /// Reserved flag bits are set.
+    #[error("unsupported header flags {flags:#x} (this build knows none); corrupted or newer file")]
+    UnsupportedFlags {
+        /// Flags found in the header.
+        flags: u32,
+    },
+    /// The header's compressed length does not match the bytes that follow it.
+    #[error(
+        "header says {expected} payload bytes follow but {actual} do: file is {}",
+        if .actual < .expected { "truncated" } else { "followed by trailing garbage" }
+    )]
+    LengthMismatch {
+        /// Compressed length from the header.
+        expected: u64,
+        /// Bytes actually present after the header.
+        actual: u64,
+    },
+    /// The checksum of the compressed payload does not match.
+    #[error("payload checksum mismatch: the file is corrupted")]
+    ChecksumMismatch,
+    /// The declared uncompressed size is above [`MAX_UNCOMPRESSED_BYTES`].
+    #[error(
+        "declared uncompressed size {len} bytes exceeds the limit of {MAX_UNCOMPRESSED_BYTES} bytes"
+    )]
+    TooLarge {
+        /// Declared (or, when encoding, actual) uncompressed size.
+        len: u64,
+    },
+    /// Memory for the uncompressed payload could not be reserved.
+    #[error("cannot allocate {len} bytes for the uncompressed payload")]
+    OutOfMemory {
+        /// Requested size.
+        len: u64,
+    },
+    /// zstd failed to decompress the payload.
+    #[error("corrupted payload: zstd: {0}")]
+    Decompress(String),
+    /// The payload decompressed to a different size than the header declares.
+    #[error("corrupted payload: decompressed to {actual} bytes, header says {expected}")]
+    DecodedLength {
+        /// Size from the header.
+        expected: u64,
+        /// Size actually decompressed (capped at `expected + 1`).
+        actual: u64,
+    },
+    /// The decompressed payload is not a bincode-encoded [`CssmFile`].
+    #[error("malformed payload: {0}")]
+    Malformed(String),
+    /// Encoding (bincode or zstd) failed.
+    #[error("cannot encode .cssm: {0}")]
+    Encode(String),
+    /// The contents are inconsistent (see [`validate`]).
+    #[error("invalid .cssm contents: {0}")]
+    Invalid(String),
+}
+
+impl CssmError {
+    /// The error without any [`CssmError::File`] wrapper: handy to match on the kind.
+    pub fn root(&self) -> &CssmError {
+        match self {
+            CssmError::File { inner, .. } => inner.root(),
+            other => other,
+        }
+    }
+}
+
+const BINCODE_LIMIT: usize = if (usize::MAX as u64) < MAX_UNCOMPRESSED_BYTES {
+    usize::MAX
+} else {
+    MAX_UNCOMPRESSED_BYTES as usize
+};
+
+fn bincode_config() -> impl bincode::config::Config {
+    bincode::config::standard().with_limit::<BINCODE_LIMIT>()
+}
+
+fn checksum(payload: &[u8]) -> [u8; 16] {
+    let hash = blake3::hash(payload);
+    let mut out = [0u8; 16];
+    out.copy_from_slice(&hash.as_bytes()[..16]);
+    out
+}
+
+/// Assembles header and payload from an uncompressed (bincode) payload.
+fn frame(uncompressed: &[u8]) -> Result<Vec<u8>, CssmError> {
+    if uncompressed.len() as u64 > MAX_UNCOMPRESSED_BYTES {
+        return Err(CssmError::TooLarge {
+            len: uncompressed.len() as u64,
+        });
+    }
+    let compressed = zstd::bulk::compress(uncompressed, ZSTD_LEVEL)
+        .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
+    let mut out = Vec::with_capacity(HEADER_LEN + compressed.len());
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(uncompressed.len() as u64).to_le_bytes());
+    out.extend_from_slice(&(compressed.len() as u64).to_le_bytes());
+    out.extend_from_slice(&checksum(&compressed));
+    out.extend_from_slice(&compressed);
+    Ok(out)
+}
+
+/// Encodes `file` into the bytes of a `.cssm` file. Validates it first ([`validate`]), so that
+/// nothing is written that [`decode`] would refuse. Deterministic.
+pub fn encode(file: &CssmFile) -> Result<Vec<u8>, CssmError> {
+    validate(file)?;
+    let raw = bincode::serde::encode_to_vec(file, bincode_config())
+        .map_err(|e| CssmError::Encode(format!("bincode: {e}")))?;
+    frame(&raw)
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"))
+}
+
+fn u64_at(b: &[u8], at: usize) -> u64 {
+    u64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"))
+}
+
+/// Checks the header and checksum, decompresses (bounded), and returns the raw payload.
+fn unframe(bytes: &[u8]) -> Result<Vec<u8>, CssmError> {
+    if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+        // A short prefix of a real file is "truncated", anything else is foreign.
+        if bytes.len() < MAGIC.len() && MAGIC.starts_with(bytes) {
+            return Err(CssmError::TooShort { len: bytes.len() });
+        }
+        return Err(CssmError::NotCssm);
+    }
+    if bytes.len() < HEADER_LEN {
+        return Err(CssmError::TooShort { len: bytes.len() });
+    }
+    let version = u32_at(bytes, 8);
+    if version > FORMAT_VERSION {
+        return Err(CssmError::NewerVersion { version });
+    }
+    if version != FORMAT_VERSION {
+        return Err(CssmError::UnsupportedVersion { version });
+    }
+    let flags = u32_at(bytes, 12);
+    if flags != 0 {
+        return Err(CssmError::UnsupportedFlags { flags });
+    }
+    let uncompressed_len = u64_at(bytes, 16);
+    let compressed_len = u64_at(bytes, 24);
+    let sum: [u8; 16] = bytes[32..48].try_into().expect("16 bytes");
+    let payload = &bytes[HEADER_LEN..];
+    if compressed_len != payload.len() as u64 {
+        return Err(CssmError::LengthMismatch {
+            expected: compressed_len,
+            actual: payload.len() as u64,
+        });
+    }
+    if checksum(payload) != sum {
+        return Err(CssmError::ChecksumMismatch);
+    }
+    if uncompressed_len > MAX_UNCOMPRESSED_BYTES || uncompressed_len > usize::MAX as u64 / 2 {
+        return Err(CssmError::TooLarge {
+            len: uncompressed_len,
+        });
+    }
+    let mut out = Vec::new();
+    out.try_reserve_exact(uncompressed_len as usize)
+        .map_err(|_| CssmError::OutOfMemory {
+            len: uncompressed_len,
+        })?;
+    let decoder = zstd::stream::read::Decoder::with_buffer(payload)
+        .map_err(|e| CssmError::Decompress(e.to_string()))?;
+    decoder
+        .take(uncompressed_len + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| CssmError::Decompress(e.to_string()))?;
+    if out.len() as u64 != uncompressed_len {
+        return Err(CssmError::DecodedLength {
+            expected: uncompressed_len,
+            actual: out.len() as u64,
+        });
+    }
+    Ok(out)
+}
+
+/// Decodes the bytes of a `.cssm` file: header, checksum, bounded decompression, bincode, then
+/// [`validate`]. Never panics on any input.
+pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
+    let raw = unframe(bytes)?;
+    let (file, used): (CssmFile, usize) = bincode::serde::decode_from_slice(&raw, bincode_config())
+        .map_err(|e| CssmError::Malformed(e.to_string()))?;
+    if used != raw.len() {
+        return Err(CssmError::Malformed(format!(
+            "{} trailing bytes after the encoded contents",
+            raw.len() - used
+        )));
+    }
+    validate(&file)?;
+    Ok(file)
+}
+
+/// Reads and decodes the `.cssm` file at `path`. Every error names the path.
+pub fn read(path: &Path) -> Result<CssmFile, CssmError> {
+    let bytes = std::fs::read(path).map_err(|error| CssmError::Io {
+        path: path.to_path_buf(),
+        error,
+    })?;
+    decode(&bytes).map_err(|e| CssmError::File {
+        path: path.to_path_buf(),
+        inner: Box::new(e),
+    })
+}
+
+/// Writes `file` to `path` atomically: encodes, writes a temporary file `.NAME.tmp-PID` in the
+/// same directory, fsyncs it, and renames it over `path`. On any error the temporary file is
+/// removed and `path` is left untouched. Returns the number of bytes written.
+pub fn write_atomic(path: &Path, file: &CssmFile) -> Result<u64, CssmError> {
+    let bytes = encode(file)?;
+    let name = path.file_name().ok_or_else(|| CssmError::Io {
+        path: path.to_path_buf(),
+        error: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
+    })?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(".tmp-{}", std::process::id()));
+    let tmp = dir.join(tmp_name);
+
+    let result = (|| -> Result<(), CssmError> {
+        let io = |error| CssmError::Io {
+            path: tmp.clone(),
+            error,
+        };
+        let mut f = std::fs::File::create(&tmp).map_err(io)?;
+        f.write_all(&bytes).map_err(io)?;
+        f.sync_all().map_err(io)?;
+        drop(f);
+        std::fs::rename(&tmp, path).map_err(|error| CssmError::Io {
+            path: path.to_path_buf(),
+            error,
+        })?;
+        Ok(())
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        // Name the destination too when the failure was on the temporary file.
+        return Err(match e {
+            CssmError::Io { path: p, error } if p == tmp => CssmError::Io {
+                path: path.to_path_buf(),
+                error: std::io::Error::new(
+                    error.kind(),
+                    format!("writing temporary file {}: {error}", p.display()),
+                ),
+            },
+            other => other,
+        });
+    }
+    // Best effort: persist the rename itself.
+    #[cfg(unix)]
+    if let Ok(d) = std::fs::File::open(&dir) {
+        let _ = d.sync_all();
+    }
+    Ok(bytes.len() as u64)
+}
+
+macro_rules! invalid {
+    ($($arg:tt)*) => {
+        return Err(CssmError::Invalid(format!($($arg)*)))
+    };
+}
+
+/// Semantic checks of a [`CssmFile`]: parameter ranges, table sizes, the sequence being a
+/// permutation, texel coordinates in range and unique, finite geometry, and the run-data layout
+/// (offsets, run starts) that [`RunData::lookup`] relies on. [`decode`] and [`encode`] call it;
+/// the bake can call it on its own output.
+pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
+    let p = &file.params;
+    if !ATLAS_RESOLUTION_RANGE.contains(&p.atlas_resolution) {
+        invalid!(
+            "atlas_resolution {} outside {}..={}",
+            p.atlas_resolution,
+            ATLAS_RESOLUTION_RANGE.start(),
+            ATLAS_RESOLUTION_RANGE.end()
+        );
+    }
+    if !CUBE_RESOLUTION_RANGE.contains(&p.cube_resolution) {
+        invalid!(
+            "cube_resolution {} outside {}..={}",
+            p.cube_resolution,
+            CUBE_RESOLUTION_RANGE.start(),
+            CUBE_RESOLUTION_RANGE.end()
+        );
+    }
+    if !(p.near.is_finite() && p.near > 0.0) {
+        invalid!("near {} must be finite and > 0", p.near);
+    }
+    if !(p.far.is_finite() && p.far > p.near) {
+        invalid!("far {} must be finite and > near {}", p.far, p.near);
+    }
+    let r = &file.runs;
+    let n = p.cube_resolution;
+    if r.pixel_count != 6 * n * n {
+        invalid!(
+            "pixel_count {} != 6 * {n} * {n} = {}",
+            r.pixel_count,
+            6 * n * n
+        );
+    }
+    let maps = r.map_count as usize;
+    if maps == 0 {
+        invalid!("no depth maps (map_count 0)");
+    }
+    if file.texels.len() != maps || file.sequence.len() != maps {
+        invalid!(
+            "map_count {maps}, {} texels and {} sequence entries must all be equal",
+            file.texels.len(),
+            file.sequence.len()
+        );
+    }
+    if file.triangle_uvs.len() as u64 != file.scene.triangle_count as u64 {
+        invalid!(
+            "{} triangle_uvs for a scene of {} triangles",
+            file.triangle_uvs.len(),
+            file.scene.triangle_count
+        );
+    }
+    if let Some(t) = file
+        .triangle_uvs
+        .iter()
+        .position(|uv| uv.iter().flatten().any(|c| !c.is_finite()))
+    {
+        invalid!("triangle_uvs[{t}] is not finite");
+    }
+    let mut seen = vec![false; maps];
+    for (k, &t) in file.sequence.iter().enumerate() {
+        match seen.get_mut(t as usize) {
+            None => invalid!("sequence[{k}] = {t} is not a texel index (< {maps})"),
+            Some(s) if *s => invalid!("sequence[{k}] = {t} repeats a texel: not a permutation"),
+            Some(s) => *s = true,
+        }
+    }
+    let res = p.atlas_resolution as usize;
+    let mut used = vec![false; res * res];
+    for (i, t) in file.texels.iter().enumerate() {
+        if t.x as usize >= res || t.y as usize >= res {
+            invalid!(
+                "texel {i} at ({}, {}) outside the {res}x{res} atlas",
+                t.x,
+                t.y
+            );
+        }
+        let slot = &mut used[t.y as usize * res + t.x as usize];
+        if *slot {
+            invalid!("texel {i} at ({}, {}) duplicates another texel", t.x, t.y);
+        }
+        *slot = true;
+        if !(t.position.iter().all(|c| c.is_finite()) && t.normal.iter().all(|c| c.is_finite())) {
+            invalid!("texel {i} has a non-finite position or normal");
+        }
+        if !(t.area.is_finite() && t.area >= 0.0) {
+            invalid!("texel {i} has invalid area {}", t.area);
+        }
+    }
+    let segments = r.segment_count() as u64;
+    let slots = segments * r.pixel_count as u64;
+    if r.offsets.len() as u64 != slots + 1 {
+        invalid!(
+            "{} run offsets, expected segment_count * pixel_count + 1 = {}",
+            r.offsets.len(),
+            slots + 1
+        );
+    }
+    if r.offsets[0] != 0 {
+        invalid!("first run offset is {}, not 0", r.offsets[0]);
+    }
+    if *r.offsets.last().expect("non-empty") as usize != r.runs.len() {
+        invalid!(
+            "last run offset {} != number of runs {}",
+            r.offsets.last().expect("non-empty"),
+            r.runs.len()
+        );
+    }
+    if let Some(i) = r.offsets.windows(2).position(|w| w[1] < w[0]) {
+        invalid!(
+            "run offsets decrease at segment {}, pixel {}",
+            i / r.pixel_count as usize,
+            i % r.pixel_count as usize
+        );
+    }
+    for slot in 0..slots as usize {
+        let (lo, hi) = (r.offsets[slot] as usize, r.offsets[slot + 1] as usize);
+        let (segment, pixel) = (slot / r.pixel_count as usize, slot % r.pixel_count as usize);
+        let in_segment = (maps - segment * SEGMENT_MAPS as usize).min(SEGMENT_MAPS as usize);
+        let runs = &r.runs[lo..hi];
+        let Some(first) = runs.first() else {
+            invalid!("segment {segment}, pixel {pixel} has no runs");
+        };
+        if first >> 16 != 0 {
+            invalid!(
+                "segment {segment}, pixel {pixel}: first run starts at {}, not 0",
+                first >> 16
+            );
+        }
+        for w in runs.windows(2) {
+            if w[1] >> 16 <= w[0] >> 16 {
+                invalid!("segment {segment}, pixel {pixel}: run starts not strictly increasing");
+            }
+        }
+        let last = (runs[runs.len() - 1] >> 16) as usize;
+        if last >= in_segment {
+            invalid!(
+                "segment {segment}, pixel {pixel}: run starts at map {last}, segment has {in_segment}"
+            );
+        }
+    }
+    Ok(())
 }

@@ -8,9 +8,11 @@
 #![warn(missing_docs)]
 
 pub mod cssm;
+pub mod cube;
 pub mod scene;
 pub mod texel;
+pub mod visibility;
 
-pub use cssm::{BakeParams, CssmFile, RunData, SceneRef};
-pub use scene::{Camera, Material, Scene, SpotLight};
+pub use cssm::{BakeParams, CssmError, CssmFile, RunData, SceneRef};
+pub use scene::{Camera, Material, Scene, SceneError, SpotLight, hash_hex};
 pub use texel::{Texel, Traversal};

@@ -1,11 +1,16 @@
 //! Scene description: a directory with `scene.toml` and OBJ/MTL meshes, or a plain directory of
 //! OBJ files (see `docs/scene-format.md`).
 //!
-//! TODO(helper): `Scene::load`, error types, tests.
+//! [`Scene::load`] reads either form, triangulates, merges everything into one indexed
+//! world-space mesh, validates it, and hashes every file it read ([`Scene::content_hash`]).
 
-use std::path::PathBuf;
+use std::cell::RefCell;
+use std::collections::HashSet;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
+use serde::Deserialize;
 
 /// A material from the MTL (conventions in `docs/architecture.md`).
 #[derive(Clone, Debug, PartialEq)]
@@ -100,5 +105,1223 @@ impl Scene {
     pub fn diameter(&self) -> f32 {
         let (lo, hi) = self.bounds();
         (hi - lo).length()
+    }
+}
+
+/// Largest OBJ (or MTL, or `scene.toml`) file the loader reads: 2 GiB.
+pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Default vertical field of view of the camera chosen when there is no `scene.toml`, degrees.
+pub const DEFAULT_FOV_Y_DEG: f32 = 40.0;
+/// Default image resolution chosen when there is no `scene.toml`.
+pub const DEFAULT_RESOLUTION: [u32; 2] = [640, 480];
+/// Cone half-angle of the default spot light, degrees.
+pub const DEFAULT_CUTOFF_DEG: f32 = 60.0;
+
+/// Why a scene could not be loaded. Every message names the file (or directory) and the problem;
+/// no error is chained as a `source`, so printing the chain never repeats a message.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The scene directory does not exist.
+    #[error("scene directory {} does not exist", .dir.display())]
+    DirNotFound {
+        /// The directory as given.
+        dir: PathBuf,
+    },
+    /// The scene path exists but is not a directory.
+    #[error("{} is not a directory (a scene is a directory with scene.toml and/or .obj files)", .path.display())]
+    NotADirectory {
+        /// The path as given.
+        path: PathBuf,
+    },
+    /// The directory has neither `scene.toml` nor any `.obj` file.
+    #[error("{} contains no .obj file (and no scene.toml)", .dir.display())]
+    NoObj {
+        /// The scene directory.
+        dir: PathBuf,
+    },
+    /// Reading a file failed.
+    #[error("{}: {error}", .path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        error: std::io::Error,
+    },
+    /// A file is larger than [`MAX_FILE_BYTES`].
+    #[error("{}: file is {size} bytes, larger than the limit of {MAX_FILE_BYTES} bytes", .path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        size: u64,
+    },
+    /// `scene.toml` is not valid TOML or does not match the schema (unknown key, wrong type,
+    /// missing field); the message carries the line and column.
+    #[error("{}: {message}", .path.display())]
+    Toml {
+        /// The `scene.toml`.
+        path: PathBuf,
+        /// The parser's message, with line, column and the offending key.
+        message: String,
+    },
+    /// A value in `scene.toml` is out of range or inconsistent (zero light direction, bad field
+    /// of view, missing mesh file, ...).
+    #[error("{}: {message}", .path.display())]
+    Invalid {
+        /// The `scene.toml` (or mesh) concerned.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The OBJ parser refused the file.
+    #[error("{}: parse error: {message}", .path.display())]
+    ObjParse {
+        /// The OBJ file.
+        path: PathBuf,
+        /// The parser's message.
+        message: String,
+    },
+    /// The MTL file exists but could not be parsed, or holds non-finite values.
+    #[error("{}: material library error: {message}", .path.display())]
+    Mtl {
+        /// The MTL file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A triangle uses a vertex with a NaN or infinite coordinate.
+    #[error("{}: triangle {triangle} has a NaN/infinite vertex", .path.display())]
+    NonFiniteVertex {
+        /// The OBJ file.
+        path: PathBuf,
+        /// Index of the triangle in the file (0-based, after triangulation).
+        triangle: usize,
+    },
+    /// A triangle refers to a vertex that does not exist.
+    #[error("{}: triangle {triangle} uses vertex {index}, but there are only {vertex_count}", .path.display())]
+    IndexOutOfRange {
+        /// The OBJ file.
+        path: PathBuf,
+        /// Index of the triangle in the file (0-based, after triangulation).
+        triangle: usize,
+        /// The bad vertex index.
+        index: u32,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// The OBJ file has no faces.
+    #[error("{}: no triangles", .path.display())]
+    NoTriangles {
+        /// The OBJ file.
+        path: PathBuf,
+    },
+    /// Every triangle of the OBJ file has zero area.
+    #[error("{}: all {count} triangles are degenerate (zero area)", .path.display())]
+    AllDegenerate {
+        /// The OBJ file.
+        path: PathBuf,
+        /// Number of triangles.
+        count: usize,
+    },
+}
+
+/// Lower-case hexadecimal form of a 32-byte hash (64 characters).
+pub fn hash_hex(hash: &[u8; 32]) -> String {
+    use std::fmt::Write;
+    hash.iter().fold(String::with_capacity(64), |mut s, b| {
+        let _ = write!(s, "{b:02x}");
+        s
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// scene.toml schema
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneToml {
+    name: Option<String>,
+    mesh: String,
+    camera: Option<CameraToml>,
+    #[serde(default)]
+    lights: Vec<LightToml>,
+    #[serde(default)]
+    objects: Vec<ObjectToml>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraToml {
+    position: [f32; 3],
+    target: [f32; 3],
+    up: [f32; 3],
+    fov_y_deg: f32,
+    resolution: [u32; 2],
+}
+
+#[derive(Deserialize)]
+enum LightKind {
+    #[serde(rename = "spot")]
+    Spot,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightToml {
+    #[serde(rename = "type")]
+    kind: LightKind,
+    position: [f32; 3],
+    direction: [f32; 3],
+    cutoff_deg: f32,
+    intensity: [f32; 3],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectToml {
+    name: String,
+    mesh: String,
+    #[serde(default)]
+    translation: [f32; 3],
+    #[serde(default)]
+    rotation_deg: [f32; 3],
+    #[serde(default = "one")]
+    scale: f32,
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+// ---------------------------------------------------------------------------------------------
+// Loading
+
+/// Files read so far, in order, fed into the content hash as (name, bytes).
+struct Hasher {
+    dir: PathBuf,
+    hasher: blake3::Hasher,
+}
+
+impl Hasher {
+    fn add(&mut self, path: &Path, bytes: &[u8]) {
+        // Name relative to the scene directory, so that moving the directory keeps the hash.
+        let name = path.strip_prefix(&self.dir).unwrap_or(path);
+        let name = name.to_string_lossy();
+        self.hasher.update(&(name.len() as u64).to_le_bytes());
+        self.hasher.update(name.as_bytes());
+        self.hasher.update(&(bytes.len() as u64).to_le_bytes());
+        self.hasher.update(bytes);
+    }
+}
+
+fn read_bounded(path: &Path) -> Result<Vec<u8>, SceneError> {
+    let io = |error| SceneError::Io {
+        path: path.to_path_buf(),
+        error,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let size = file.metadata().map_err(io)?.len();
+    if size > MAX_FILE_BYTES {
+        return Err(SceneError::TooLarge {
+            path: path.to_path_buf(),
+            size,
+        });
+    }
+    let mut bytes = Vec::with_capacity(size as usize);
+    // `take` guards against a file that grows while being read.
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(SceneError::TooLarge {
+            path: path.to_path_buf(),
+            size: bytes.len() as u64,
+        });
+    }
+    Ok(bytes)
+}
+
+/// An MTL library the OBJ asked for: its path and its bytes (or why they could not be read).
+type MtlRead = (PathBuf, Result<Vec<u8>, SceneError>);
+
+/// The mesh being assembled: all files merged.
+#[derive(Default)]
+struct Builder {
+    positions: Vec<Vec3>,
+    texcoords: Vec<[f32; 2]>,
+    all_have_texcoords: bool,
+    triangles: Vec<[u32; 3]>,
+    triangle_materials: Vec<u32>,
+    materials: Vec<Material>,
+    default_material: Option<u32>,
+    warnings: Vec<String>,
+}
+
+impl Builder {
+    fn new() -> Self {
+        Builder {
+            all_have_texcoords: true,
+            ..Default::default()
+        }
+    }
+
+    fn default_material(&mut self) -> u32 {
+        *self.default_material.get_or_insert_with(|| {
+            self.materials.push(Material {
+                name: "default".into(),
+                kd: [0.5; 3],
+                ks: [0.0; 3],
+                ns: 1.0,
+                map_kd: None,
+            });
+            (self.materials.len() - 1) as u32
+        })
+    }
+
+    /// Loads one OBJ file (with its MTL libraries), transforms it by `transform` and appends it.
+    fn add_obj(
+        &mut self,
+        path: &Path,
+        transform: Option<(Mat3, Vec3)>,
+        hasher: &mut Hasher,
+    ) -> Result<(), SceneError> {
+        let bytes = read_bounded(path)?;
+        hasher.add(path, &bytes);
+        let obj_dir = path.parent().unwrap_or(Path::new("."));
+
+        // MTL libraries: read them ourselves to bound their size and hash them.
+        let mtl_files: RefCell<Vec<MtlRead>> = RefCell::default();
+        let mtl_errors: RefCell<Vec<SceneError>> = RefCell::default();
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ..Default::default()
+        };
+        // tobj has a few panicking paths on malformed input: turn a panic into a parse error.
+        let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            tobj::load_obj_buf(&mut &bytes[..], &options, |mtl: &Path| {
+                let mtl_path = obj_dir.join(mtl);
+                match read_bounded(&mtl_path) {
+                    Ok(mtl_bytes) => {
+                        let parsed = normalise_mtl(&mtl_bytes).and_then(|text| {
+                            tobj::load_mtl_buf(&mut text.as_bytes()).map_err(|e| e.to_string())
+                        });
+                        let parsed = match parsed {
+                            Ok(p) => Ok(p),
+                            Err(message) => {
+                                mtl_errors.borrow_mut().push(SceneError::Mtl {
+                                    path: mtl_path.clone(),
+                                    message,
+                                });
+                                Err(tobj::LoadError::MaterialParseError)
+                            }
+                        };
+                        mtl_files.borrow_mut().push((mtl_path, Ok(mtl_bytes)));
+                        parsed
+                    }
+                    Err(e) => {
+                        mtl_files.borrow_mut().push((mtl_path, Err(e)));
+                        Err(tobj::LoadError::OpenFileFailed)
+                    }
+                }
+            })
+        }))
+        .map_err(|_| SceneError::ObjParse {
+            path: path.to_path_buf(),
+            message: "the OBJ/MTL parser failed on malformed input".into(),
+        })?;
+        if let Some(e) = mtl_errors.borrow_mut().drain(..).next() {
+            return Err(e);
+        }
+        let (models, materials) = loaded.map_err(|e| SceneError::ObjParse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        for (mtl_path, result) in mtl_files.into_inner() {
+            match result {
+                Ok(mtl_bytes) => hasher.add(&mtl_path, &mtl_bytes),
+                Err(SceneError::Io { error, .. })
+                    if error.kind() == std::io::ErrorKind::NotFound =>
+                {
+                    self.warnings.push(format!(
+                        "{}: material library {} not found; its materials become the grey \
+                         Lambertian `default` (Kd 0.5)",
+                        path.display(),
+                        mtl_path.display()
+                    ));
+                }
+                Err(e) => return Err(e),
+            }
+        }
+
+        // Materials of this file.
+        let materials = materials.unwrap_or_default();
+        let material_base = self.materials.len() as u32;
+        for m in &materials {
+            let kd = m.diffuse.unwrap_or([0.5; 3]);
+            let ks = m.specular.unwrap_or([0.0; 3]);
+            let ns = m.shininess.unwrap_or(1.0);
+            if !kd
+                .iter()
+                .chain(&ks)
+                .chain([&ns])
+                .all(|v| v.is_finite() && *v >= 0.0)
+            {
+                return Err(SceneError::Mtl {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "material `{}` has a negative or non-finite Kd, Ks or Ns",
+                        m.name
+                    ),
+                });
+            }
+            let map_kd = m.diffuse_texture.as_ref().map(|t| obj_dir.join(t));
+            if let Some(t) = &map_kd
+                && !t.is_file()
+            {
+                self.warnings.push(format!(
+                    "{}: material `{}`: texture {} not found",
+                    path.display(),
+                    m.name,
+                    t.display()
+                ));
+            }
+            self.materials.push(Material {
+                name: m.name.clone(),
+                kd,
+                ks,
+                ns,
+                map_kd,
+            });
+        }
+
+        // Geometry.
+        let vertex_base = self.positions.len();
+        let mut positions: Vec<Vec3> = Vec::new();
+        let mut texcoords: Vec<[f32; 2]> = Vec::new();
+        let mut triangles: Vec<[u32; 3]> = Vec::new();
+        let mut tri_materials: Vec<u32> = Vec::new();
+        let mut without_material: Vec<String> = Vec::new();
+        let mut file_triangle = 0usize;
+        let mut degenerate = 0usize;
+        let mut total = 0usize;
+        for model in &models {
+            let mesh = &model.mesh;
+            let n = mesh.positions.len() / 3;
+            let has_uv = mesh.texcoords.len() == 2 * n && n > 0;
+            if !has_uv && !mesh.indices.is_empty() {
+                self.all_have_texcoords = false;
+            }
+            let material = match mesh.material_id {
+                Some(id) if id < materials.len() => material_base + id as u32,
+                _ => {
+                    if !mesh.indices.is_empty() {
+                        without_material.push(model.name.clone());
+                    }
+                    u32::MAX // resolved below
+                }
+            };
+            // Vertices of this model are compacted: only those used by kept triangles survive.
+            let mut remap = vec![u32::MAX; n];
+            for tri in mesh.indices.chunks(3) {
+                let t = file_triangle;
+                file_triangle += 1;
+                if tri.len() < 3 {
+                    // tobj triangulates, so this cannot happen; refuse rather than guess.
+                    return Err(SceneError::ObjParse {
+                        path: path.to_path_buf(),
+                        message: format!("face {t} has fewer than 3 vertices"),
+                    });
+                }
+                total += 1;
+                let mut corners = [Vec3::ZERO; 3];
+                for (c, &i) in corners.iter_mut().zip(tri) {
+                    if i as usize >= n {
+                        return Err(SceneError::IndexOutOfRange {
+                            path: path.to_path_buf(),
+                            triangle: t,
+                            index: i,
+                            vertex_count: n,
+                        });
+                    }
+                    let i = i as usize;
+                    let p = Vec3::new(
+                        mesh.positions[3 * i],
+                        mesh.positions[3 * i + 1],
+                        mesh.positions[3 * i + 2],
+                    );
+                    let p = match transform {
+                        Some((m, t)) => m * p + t,
+                        None => p,
+                    };
+                    if !p.is_finite() {
+                        return Err(SceneError::NonFiniteVertex {
+                            path: path.to_path_buf(),
+                            triangle: t,
+                        });
+                    }
+                    *c = p;
+                }
+                // Area test in f64, so that tiny but valid triangles are not lost to underflow.
+                let [a, b, c] = corners.map(|v| v.as_dvec3());
+                let cross = (b - a).cross(c - a).length_squared();
+                if cross.is_nan() || cross <= 0.0 {
+                    degenerate += 1;
+                    continue;
+                }
+                let mut out = [0u32; 3];
+                for ((o, &i), p) in out.iter_mut().zip(tri).zip(corners) {
+                    let i = i as usize;
+                    if remap[i] == u32::MAX {
+                        let global = vertex_base + positions.len();
+                        if global >= u32::MAX as usize {
+                            return Err(SceneError::Invalid {
+                                path: path.to_path_buf(),
+                                message: "scene has more than 2^32 - 1 vertices".into(),
+                            });
+                        }
+                        remap[i] = global as u32;
+                        positions.push(p);
+                        texcoords.push(if has_uv {
+                            [mesh.texcoords[2 * i], mesh.texcoords[2 * i + 1]]
+                        } else {
+                            [0.0; 2]
+                        });
+                    }
+                    *o = remap[i];
+                }
+                triangles.push(out);
+                tri_materials.push(material);
+            }
+        }
+        if total == 0 {
+            return Err(SceneError::NoTriangles {
+                path: path.to_path_buf(),
+            });
+        }
+        if triangles.is_empty() {
+            return Err(SceneError::AllDegenerate {
+                path: path.to_path_buf(),
+                count: total,
+            });
+        }
+        if degenerate > 0 {
+            self.warnings.push(format!(
+                "{}: dropped {degenerate} degenerate (zero-area) triangle(s) of {total}",
+                path.display()
+            ));
+        }
+        if tri_materials.contains(&u32::MAX) {
+            let default = self.default_material();
+            for m in &mut tri_materials {
+                if *m == u32::MAX {
+                    *m = default;
+                }
+            }
+            let names: Vec<String> = without_material
+                .iter()
+                .map(|n| {
+                    if n.is_empty() {
+                        "(unnamed)".into()
+                    } else {
+                        format!("`{n}`")
+                    }
+                })
+                .collect();
+            self.warnings.push(format!(
+                "{}: object(s) {} have no material; using the grey Lambertian `default` (Kd 0.5)",
+                path.display(),
+                names.join(", ")
+            ));
+        }
+        self.positions.extend(positions);
+        self.texcoords.extend(texcoords);
+        self.triangles.extend(triangles);
+        self.triangle_materials.extend(tri_materials);
+        Ok(())
+    }
+}
+
+/// Makes an MTL acceptable to tobj: a colour statement (`Ka`, `Kd`, `Ks`, `Ke`) with a single
+/// value means grey (MTL spec) but panics tobj, so it is expanded to three values; one with two
+/// values is an error naming the line.
+fn normalise_mtl(bytes: &[u8]) -> Result<String, String> {
+    let text = std::str::from_utf8(bytes).map_err(|_| "not valid UTF-8".to_string())?;
+    let mut out = String::with_capacity(text.len() + 64);
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let key = words.next();
+        let values: Vec<&str> = words.collect();
+        match key {
+            Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")) if values.len() < 3 => match values[..] {
+                [v] => out.push_str(&format!("{k} {v} {v} {v}")),
+                _ => {
+                    return Err(format!(
+                        "line {}: `{k}` needs 1 or 3 values, got {}",
+                        i + 1,
+                        values.len()
+                    ));
+                }
+            },
+            _ => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+fn vec3(v: [f32; 3]) -> Vec3 {
+    Vec3::from(v)
+}
+
+fn fmt3(v: Vec3) -> String {
+    format!("[{}, {}, {}]", v.x, v.y, v.z)
+}
+
+/// Camera on the +z side of the box centre looking at it, y up, [`DEFAULT_FOV_Y_DEG`], distance
+/// so that the bounding sphere fits the vertical field of view.
+fn default_camera(lo: Vec3, hi: Vec3) -> Camera {
+    let centre = 0.5 * (lo + hi);
+    let radius = 0.5 * (hi - lo).length();
+    let half = (0.5 * DEFAULT_FOV_Y_DEG).to_radians();
+    let distance = radius / half.sin();
+    Camera {
+        position: centre + Vec3::Z * distance,
+        target: centre,
+        up: Vec3::Y,
+        fov_y_deg: DEFAULT_FOV_Y_DEG,
+        resolution: DEFAULT_RESOLUTION,
+    }
+}
+
+/// Spot light at the centre xz, slightly below the top of the box (or well above it when the
+/// scene is flat), pointing down.
+fn default_light(lo: Vec3, hi: Vec3) -> SpotLight {
+    let centre = 0.5 * (lo + hi);
+    let diameter = (hi - lo).length();
+    let height = hi.y - lo.y;
+    let y = if height < 0.1 * diameter {
+        hi.y + 0.5 * diameter
+    } else {
+        hi.y - 0.02 * height
+    };
+    SpotLight {
+        position: Vec3::new(centre.x, y, centre.z),
+        direction: Vec3::NEG_Y,
+        cutoff_deg: DEFAULT_CUTOFF_DEG,
+        intensity: [diameter * diameter; 3],
+    }
+}
+
+fn bounds_of(positions: &[Vec3]) -> (Vec3, Vec3) {
+    positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    )
+}
+
+fn check_camera(c: &CameraToml, path: &Path) -> Result<Camera, SceneError> {
+    let bad = |message: String| SceneError::Invalid {
+        path: path.to_path_buf(),
+        message: format!("[camera]: {message}"),
+    };
+    let (position, target, up) = (vec3(c.position), vec3(c.target), vec3(c.up));
+    if !(position.is_finite() && target.is_finite() && up.is_finite()) {
+        return Err(bad("position, target and up must be finite".into()));
+    }
+    let view = target - position;
+    if view.length_squared() == 0.0 {
+        return Err(bad("position and target are the same point".into()));
+    }
+    if up.length_squared() == 0.0 || view.normalize().cross(up.normalize()).length() < 1e-6 {
+        return Err(bad("up is zero or parallel to the viewing direction".into()));
+    }
+    if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
+        return Err(bad(format!(
+            "fov_y_deg {} must be in (0, 180)",
+            c.fov_y_deg
+        )));
+    }
+    let [w, h] = c.resolution;
+    if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
+        return Err(bad(format!(
+            "resolution [{w}, {h}] must be between 1 and 16384 in each axis"
+        )));
+    }
+    Ok(Camera {
+        position,
+        target,
+        up: up.normalize(),
+        fov_y_deg: c.fov_y_deg,
+        resolution: c.resolution,
+    })
+}
+
+fn check_light(i: usize, l: &LightToml, path: &Path) -> Result<SpotLight, SceneError> {
+    let LightKind::Spot = l.kind;
+    let bad = |message: String| SceneError::Invalid {
+        path: path.to_path_buf(),
+        message: format!("lights[{i}]: {message}"),
+    };
+    let position = vec3(l.position);
+    let direction = vec3(l.direction);
+    if !position.is_finite() {
+        return Err(bad("position must be finite".into()));
+    }
+    if !direction.is_finite() || direction.length_squared() == 0.0 {
+        return Err(bad(format!(
+            "direction {} must be a finite non-zero vector",
+            fmt3(direction)
+        )));
+    }
+    if !(l.cutoff_deg > 0.0 && l.cutoff_deg < 180.0) {
+        return Err(bad(format!(
+            "cutoff_deg {} must be in (0, 180)",
+            l.cutoff_deg
+        )));
+    }
+    if !l.intensity.iter().all(|v| v.is_finite() && *v >= 0.0) {
+        return Err(bad("intensity must be finite and non-negative".into()));
+    }
+    Ok(SpotLight {
+        position,
+        direction: direction.normalize(),
+        cutoff_deg: l.cutoff_deg,
+        intensity: l.intensity,
+    })
+}
+
+fn object_transform(o: &ObjectToml, path: &Path) -> Result<(Mat3, Vec3), SceneError> {
+    let bad = |message: String| SceneError::Invalid {
+        path: path.to_path_buf(),
+        message: format!("object `{}`: {message}", o.name),
+    };
+    let t = vec3(o.translation);
+    let r = vec3(o.rotation_deg);
+    if !(t.is_finite() && r.is_finite()) {
+        return Err(bad("translation and rotation_deg must be finite".into()));
+    }
+    if !(o.scale.is_finite() && o.scale > 0.0) {
+        return Err(bad(format!("scale {} must be finite and > 0", o.scale)));
+    }
+    // XYZ Euler angles applied X, then Y, then Z.
+    let rot = Mat3::from_rotation_z(r.z.to_radians())
+        * Mat3::from_rotation_y(r.y.to_radians())
+        * Mat3::from_rotation_x(r.x.to_radians());
+    Ok((rot * Mat3::from_diagonal(Vec3::splat(o.scale)), t))
+}
+
+/// Resolves a mesh path relative to `scene.toml`; it must be an existing file.
+fn mesh_path(dir: &Path, toml_path: &Path, what: &str, mesh: &str) -> Result<PathBuf, SceneError> {
+    let p = dir.join(mesh);
+    if !p.is_file() {
+        return Err(SceneError::Invalid {
+            path: toml_path.to_path_buf(),
+            message: format!("{what} `{mesh}`: {} does not exist", p.display()),
+        });
+    }
+    Ok(p)
+}
+
+impl Scene {
+    /// Loads the scene directory `dir`: `dir/scene.toml` and the meshes it names, or, without
+    /// a `scene.toml`, every `*.obj` in `dir` (sorted by file name) with a default camera and
+    /// light (see `docs/scene-format.md`). Degenerate triangles are dropped with a warning;
+    /// everything else that is wrong is an error naming the file.
+    pub fn load(dir: &Path) -> Result<Scene, SceneError> {
+        let dir = match std::fs::canonicalize(dir) {
+            Ok(d) => d,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(SceneError::DirNotFound {
+                    dir: dir.to_path_buf(),
+                });
+            }
+            Err(error) => {
+                return Err(SceneError::Io {
+                    path: dir.to_path_buf(),
+                    error,
+                });
+            }
+        };
+        if !dir.is_dir() {
+            return Err(SceneError::NotADirectory { path: dir });
+        }
+        let mut hasher = Hasher {
+            dir: dir.clone(),
+            hasher: blake3::Hasher::new(),
+        };
+        let mut b = Builder::new();
+        let toml_path = dir.join("scene.toml");
+        let dir_name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into());
+
+        let (name, camera, lights) = if toml_path.exists() {
+            let bytes = read_bounded(&toml_path)?;
+            hasher.add(&toml_path, &bytes);
+            let text = String::from_utf8(bytes).map_err(|_| SceneError::Toml {
+                path: toml_path.clone(),
+                message: "not valid UTF-8".into(),
+            })?;
+            let desc: SceneToml = toml::from_str(&text).map_err(|e| SceneError::Toml {
+                path: toml_path.clone(),
+                message: e.to_string().trim_end().to_string(),
+            })?;
+            // Check the small things before loading any mesh.
+            let camera = desc
+                .camera
+                .as_ref()
+                .map(|c| check_camera(c, &toml_path))
+                .transpose()?;
+            let lights = desc
+                .lights
+                .iter()
+                .enumerate()
+                .map(|(i, l)| check_light(i, l, &toml_path))
+                .collect::<Result<Vec<_>, _>>()?;
+            let transforms = desc
+                .objects
+                .iter()
+                .map(|o| object_transform(o, &toml_path))
+                .collect::<Result<Vec<_>, _>>()?;
+            let mut names = HashSet::new();
+            for o in &desc.objects {
+                if !names.insert(o.name.as_str()) {
+                    return Err(SceneError::Invalid {
+                        path: toml_path.clone(),
+                        message: format!("two objects are named `{}`", o.name),
+                    });
+                }
+            }
+            let main = mesh_path(&dir, &toml_path, "mesh", &desc.mesh)?;
+            b.add_obj(&main, None, &mut hasher)?;
+            for (o, t) in desc.objects.iter().zip(transforms) {
+                let p = mesh_path(
+                    &dir,
+                    &toml_path,
+                    &format!("object `{}`: mesh", o.name),
+                    &o.mesh,
+                )?;
+                b.add_obj(&p, Some(t), &mut hasher)?;
+                b.warnings.push(format!(
+                    "object `{}`: rigid objects are baked as static geometry for now (no \
+                     per-object CSSM/CSM yet)",
+                    o.name
+                ));
+            }
+            (desc.name.unwrap_or(dir_name), camera, lights)
+        } else {
+            let mut objs = Vec::new();
+            let entries = std::fs::read_dir(&dir).map_err(|error| SceneError::Io {
+                path: dir.clone(),
+                error,
+            })?;
+            for entry in entries {
+                let entry = entry.map_err(|error| SceneError::Io {
+                    path: dir.clone(),
+                    error,
+                })?;
+                let p = entry.path();
+                let is_obj = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+                if is_obj && p.is_file() {
+                    objs.push(p);
+                }
+            }
+            objs.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
+            if objs.is_empty() {
+                return Err(SceneError::NoObj { dir });
+            }
+            let names: Vec<String> = objs
+                .iter()
+                .map(|p| {
+                    p.file_name()
+                        .unwrap_or_default()
+                        .to_string_lossy()
+                        .into_owned()
+                })
+                .collect();
+            b.warnings.push(format!(
+                "{}: no scene.toml; loading every .obj: {}",
+                dir.display(),
+                names.join(", ")
+            ));
+            for p in &objs {
+                b.add_obj(p, None, &mut hasher)?;
+            }
+            (dir_name, None, Vec::new())
+        };
+
+        let (lo, hi) = bounds_of(&b.positions);
+        if !(lo.is_finite() && hi.is_finite() && (hi - lo).length().is_finite()) {
+            return Err(SceneError::Invalid {
+                path: dir.clone(),
+                message: "scene bounds are not finite (coordinates too large)".into(),
+            });
+        }
+        let camera = camera.unwrap_or_else(|| {
+            let c = default_camera(lo, hi);
+            b.warnings.push(format!(
+                "default camera: position {}, looking at the bounding-box centre {}, up [0, 1, 0], \
+                 fov_y_deg {}, resolution {}x{}",
+                fmt3(c.position),
+                fmt3(c.target),
+                c.fov_y_deg,
+                c.resolution[0],
+                c.resolution[1]
+            ));
+            c
+        });
+        let lights = if lights.is_empty() {
+            let l = default_light(lo, hi);
+            b.warnings.push(format!(
+                "default light: spot at {}, direction [0, -1, 0], cutoff_deg {}, intensity {} W/sr",
+                fmt3(l.position),
+                l.cutoff_deg,
+                l.intensity[0]
+            ));
+            vec![l]
+        } else {
+            lights
+        };
+        let texcoords = if b.all_have_texcoords {
+            b.texcoords
+        } else {
+            Vec::new()
+        };
+        Ok(Scene {
+            name,
+            dir,
+            positions: b.positions,
+            texcoords,
+            triangles: b.triangles,
+            triangle_materials: b.triangle_materials,
+            materials: b.materials,
+            camera,
+            lights,
+            content_hash: *hasher.hasher.finalize().as_bytes(),
+            warnings: b.warnings,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const QUAD_OBJ: &str = "mtllib quad.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                            vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl white\nf 1/1 2/2 3/3 4/4\n";
+    const QUAD_MTL: &str = "newmtl white\nKd 0.8 0.7 0.6\nKs 0.1 0.1 0.1\nNs 20\nmap_Kd wood.png\n";
+    const SCENE_TOML: &str = r#"name = "quad"
+mesh = "quad.obj"
+
+[camera]
+position   = [0.5, 0.5, 3.0]
+target     = [0.5, 0.5, 0.0]
+up         = [0.0, 1.0, 0.0]
+fov_y_deg  = 40.0
+resolution = [320, 240]
+
+[[lights]]
+type       = "spot"
+position   = [0.5, 0.5, 2.0]
+direction  = [0.0, 0.0, -2.0]
+cutoff_deg = 45.0
+intensity  = [10.0, 10.0, 10.0]
+"#;
+
+    fn write(dir: &Path, files: &[(&str, &str)]) {
+        for (name, text) in files {
+            std::fs::write(dir.join(name), text).unwrap();
+        }
+    }
+
+    fn scene(files: &[(&str, &str)]) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), files);
+        dir
+    }
+
+    fn err(files: &[(&str, &str)]) -> String {
+        let dir = scene(files);
+        Scene::load(dir.path()).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn loads_scene_toml_with_obj_and_mtl() {
+        let dir = scene(&[
+            ("scene.toml", SCENE_TOML),
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", QUAD_MTL),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.name, "quad");
+        assert!(s.dir.is_absolute());
+        assert_eq!(s.dir, std::fs::canonicalize(dir.path()).unwrap());
+        assert_eq!(s.triangles.len(), 2);
+        assert_eq!(s.positions.len(), 4);
+        assert_eq!(s.texcoords.len(), 4);
+        assert_eq!(s.triangle_materials, vec![0, 0]);
+        assert_eq!(s.materials.len(), 1);
+        let m = &s.materials[0];
+        assert_eq!(m.name, "white");
+        assert_eq!(m.kd, [0.8, 0.7, 0.6]);
+        assert_eq!(m.ks, [0.1, 0.1, 0.1]);
+        assert_eq!(m.ns, 20.0);
+        assert_eq!(m.map_kd.as_deref(), Some(s.dir.join("wood.png").as_path()));
+        assert_eq!(s.camera.resolution, [320, 240]);
+        assert_eq!(s.camera.fov_y_deg, 40.0);
+        assert_eq!(s.lights.len(), 1);
+        assert_eq!(s.lights[0].direction, Vec3::NEG_Z);
+        assert_eq!(s.lights[0].cutoff_deg, 45.0);
+        // Only the missing texture is worth a warning.
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        assert!(s.warnings[0].contains("wood.png"));
+        for t in 0..s.triangles.len() {
+            let [a, b, c] = s.triangle(t);
+            assert!((b - a).cross(c - a).length() > 0.0);
+        }
+        assert!((s.diameter() - 2f32.sqrt()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn unknown_key_names_key_and_line() {
+        let toml = SCENE_TOML.replace("fov_y_deg  = 40.0", "fov_y_deg  = 40.0\nfoo = 1");
+        let e = err(&[("scene.toml", &toml), ("quad.obj", QUAD_OBJ)]);
+        assert!(e.contains("scene.toml"), "{e}");
+        assert!(e.contains("foo"), "{e}");
+        assert!(e.contains("line 9"), "{e}");
+        let toml = format!("bar = true\n{SCENE_TOML}");
+        let e = err(&[("scene.toml", &toml), ("quad.obj", QUAD_OBJ)]);
+        assert!(e.contains("bar") && e.contains("line 1"), "{e}");
+        // Unknown light type.
+        let toml = SCENE_TOML.replace("\"spot\"", "\"point\"");
+        let e = err(&[("scene.toml", &toml), ("quad.obj", QUAD_OBJ)]);
+        assert!(e.contains("point") && e.contains("line 12"), "{e}");
+    }
+
+    #[test]
+    fn missing_dir_and_dir_without_obj() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("nope");
+        let e = Scene::load(&missing).unwrap_err();
+        assert!(matches!(e, SceneError::DirNotFound { .. }));
+        assert!(e.to_string().contains("does not exist"), "{e}");
+        assert!(e.to_string().contains("nope"), "{e}");
+
+        write(dir.path(), &[("readme.txt", "hi")]);
+        let e = Scene::load(dir.path()).unwrap_err();
+        assert!(matches!(e, SceneError::NoObj { .. }), "{e:?}");
+        assert!(e.to_string().contains("contains no .obj file"), "{e}");
+
+        let e = Scene::load(&dir.path().join("readme.txt")).unwrap_err();
+        assert!(matches!(e, SceneError::NotADirectory { .. }), "{e:?}");
+    }
+
+    #[test]
+    fn scene_toml_naming_missing_mesh() {
+        let e = err(&[("scene.toml", SCENE_TOML)]);
+        assert!(e.contains("scene.toml") && e.contains("quad.obj"), "{e}");
+    }
+
+    #[test]
+    fn nan_vertex_is_an_error() {
+        let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 nan\nf 1 2 3\nf 1 2 4\n";
+        let dir = scene(&[("bad.obj", obj)]);
+        let e = Scene::load(dir.path()).unwrap_err();
+        assert!(
+            matches!(e, SceneError::NonFiniteVertex { triangle: 1, .. }),
+            "{e:?}"
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("bad.obj") && msg.contains("triangle 1"),
+            "{msg}"
+        );
+        // An unused infinite vertex is harmless and dropped.
+        let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv inf 0 0\nf 1 2 3\n";
+        let dir = scene(&[("ok.obj", obj)]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.positions.len(), 3);
+        assert!(s.bounds().1.is_finite());
+    }
+
+    #[test]
+    fn obj_without_mtl_gets_grey_default_and_warnings() {
+        let dir = scene(&[("quad.obj", QUAD_OBJ)]); // names quad.mtl, which is missing
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.materials.len(), 1);
+        assert_eq!(s.materials[0].name, "default");
+        assert_eq!(s.materials[0].kd, [0.5; 3]);
+        assert_eq!(s.materials[0].ks, [0.0; 3]);
+        assert_eq!(s.triangle_materials, vec![0, 0]);
+        let w = s.warnings.join("\n");
+        assert!(w.contains("quad.mtl") && w.contains("not found"), "{w}");
+        assert!(w.contains("no material"), "{w}");
+        // Defaults chosen without scene.toml are announced.
+        assert!(w.contains("no scene.toml"), "{w}");
+        assert!(w.contains("default camera"), "{w}");
+        assert!(w.contains("default light"), "{w}");
+        let dirname = s.dir.file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(s.name, dirname);
+
+        // OBJ with no mtllib at all.
+        let dir = scene(&[("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.materials[0].name, "default");
+        assert!(s.texcoords.is_empty());
+    }
+
+    #[test]
+    fn default_camera_and_light_frame_the_box() {
+        let obj = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv -1 2 -1\nv 1 2 -1\nv 1 2 1\n\
+                   f 1 2 3\nf 1 3 4\nf 5 6 7\n";
+        let dir = scene(&[("box.obj", obj)]);
+        let s = Scene::load(dir.path()).unwrap();
+        let centre = Vec3::new(0.0, 1.0, 0.0);
+        assert_eq!(s.camera.target, centre);
+        assert!(s.camera.position.z > 1.0 && s.camera.position.x == 0.0);
+        assert_eq!(s.camera.fov_y_deg, DEFAULT_FOV_Y_DEG);
+        assert_eq!(s.camera.resolution, DEFAULT_RESOLUTION);
+        // The bounding sphere fits the view cone.
+        let radius = 0.5 * s.diameter();
+        let d = (s.camera.position - centre).length();
+        assert!(radius / d <= (20f32).to_radians().sin() + 1e-6);
+        let l = &s.lights[0];
+        assert_eq!(l.direction, Vec3::NEG_Y);
+        assert!(l.position.y < 2.0 && l.position.y > 1.9, "{:?}", l.position);
+        assert_eq!((l.position.x, l.position.z), (0.0, 0.0));
+        assert!(l.intensity[0] > 0.0);
+    }
+
+    #[test]
+    fn multiple_objs_are_merged_in_name_order() {
+        let a = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let b = "v 5 0 0\nv 6 0 0\nv 5 1 0\nf 1 2 3\n";
+        let dir = scene(&[("b.obj", b), ("a.obj", a)]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(s.positions[3], Vec3::new(5.0, 0.0, 0.0));
+        // One shared default material.
+        assert_eq!(s.materials.len(), 1);
+        assert_eq!(s.triangle_materials, vec![0, 0]);
+    }
+
+    #[test]
+    fn empty_and_degenerate_objs() {
+        let e = err(&[("empty.obj", "# nothing\nv 0 0 0\n")]);
+        assert!(e.contains("empty.obj") && e.contains("no triangles"), "{e}");
+
+        let obj = "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n";
+        let e = err(&[("flat.obj", obj)]);
+        assert!(e.contains("flat.obj") && e.contains("degenerate"), "{e}");
+
+        // Some degenerate: dropped with a warning.
+        let obj = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n";
+        let dir = scene(&[("some.obj", obj)]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.triangles.len(), 1);
+        assert_eq!(s.positions.len(), 3);
+        let w = s.warnings.join("\n");
+        assert!(w.contains("dropped 1 degenerate"), "{w}");
+    }
+
+    #[test]
+    fn parse_errors_name_the_file() {
+        let e = err(&[("broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")]);
+        assert!(e.contains("broken.obj"), "{e}");
+        let e = err(&[("broken.obj", "v 0 zero 0\n")]);
+        assert!(e.contains("broken.obj") && e.contains("parse error"), "{e}");
+        // A malformed MTL colour that would panic tobj.
+        let e = err(&[
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", "newmtl white\nKd 0.5 0.5\n"),
+        ]);
+        assert!(e.contains("quad.mtl") && e.contains("line 2"), "{e}");
+        // A single-value colour is grey (MTL spec).
+        let dir = scene(&[
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", "newmtl white\nKd 0.25\n"),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.materials[0].kd, [0.25; 3]);
+    }
+
+    #[test]
+    fn invalid_lights_and_camera() {
+        let toml = SCENE_TOML.replace("[0.0, 0.0, -2.0]", "[0.0, 0.0, 0.0]");
+        let e = err(&[("scene.toml", &toml), ("quad.obj", QUAD_OBJ)]);
+        assert!(e.contains("scene.toml") && e.contains("lights[0]"), "{e}");
+        assert!(e.contains("direction"), "{e}");
+        let toml = SCENE_TOML.replace("fov_y_deg  = 40.0", "fov_y_deg  = 0.0");
+        let e = err(&[("scene.toml", &toml), ("quad.obj", QUAD_OBJ)]);
+        assert!(e.contains("fov_y_deg"), "{e}");
+        let toml = SCENE_TOML.replace("cutoff_deg = 45.0", "");
+        let e = err(&[("scene.toml", &toml), ("quad.obj", QUAD_OBJ)]);
+        assert!(e.contains("cutoff_deg"), "{e}");
+    }
+
+    #[test]
+    fn objects_are_transformed_and_merged() {
+        let toml = format!(
+            "{SCENE_TOML}\n[[objects]]\nname = \"bunny\"\nmesh = \"tri.obj\"\n\
+             translation = [10.0, 0.0, 0.0]\nrotation_deg = [0.0, 0.0, 90.0]\nscale = 2.0\n"
+        );
+        let dir = scene(&[
+            ("scene.toml", &toml),
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", QUAD_MTL),
+            ("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.triangles.len(), 3);
+        // (1,0,0) scaled by 2, rotated 90° about z -> (0,2,0), translated -> (10,2,0).
+        assert!((s.positions[5] - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-5);
+        assert!((s.positions[6] - Vec3::new(8.0, 0.0, 0.0)).length() < 1e-5);
+        let w = s.warnings.join("\n");
+        assert!(w.contains("object `bunny`: rigid objects are baked as static geometry"));
+        // tri.obj has no texcoords, so the merged scene has none.
+        assert!(s.texcoords.is_empty());
+        assert_eq!(s.triangle_materials, vec![0, 0, 1]);
+        assert_eq!(s.materials[1].name, "default");
+    }
+
+    #[test]
+    fn content_hash_tracks_every_byte() {
+        let files = [
+            ("scene.toml", SCENE_TOML),
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", QUAD_MTL),
+        ];
+        let d1 = scene(&files);
+        let d2 = scene(&files);
+        let h1 = Scene::load(d1.path()).unwrap().content_hash;
+        assert_eq!(h1, Scene::load(d1.path()).unwrap().content_hash);
+        // Same content elsewhere: same hash.
+        assert_eq!(h1, Scene::load(d2.path()).unwrap().content_hash);
+        // One byte of the OBJ.
+        write(
+            d2.path(),
+            &[("quad.obj", &QUAD_OBJ.replace("v 1 1 0", "v 1 1 1"))],
+        );
+        let h2 = Scene::load(d2.path()).unwrap().content_hash;
+        assert_ne!(h1, h2);
+        // One byte of the MTL.
+        let d3 = scene(&files);
+        write(
+            d3.path(),
+            &[("quad.mtl", &QUAD_MTL.replace("Ns 20", "Ns 21"))],
+        );
+        assert_ne!(h1, Scene::load(d3.path()).unwrap().content_hash);
+        // One byte of scene.toml.
+        let d4 = scene(&files);
+        write(
+            d4.path(),
+            &[("scene.toml", &SCENE_TOML.replace("320", "321"))],
+        );
+        assert_ne!(h1, Scene::load(d4.path()).unwrap().content_hash);
+        assert_eq!(hash_hex(&h1).len(), 64);
+        assert_eq!(&hash_hex(&[0xab; 32])[..4], "abab");
     }
 }

@@ -1,0 +1,246 @@
+//! Texture atlas over the whole scene (§3.2.3): unwrap with xatlas into one square page of the
+//! requested resolution, then rasterise every chart so that each covered texel records its
+//! world position, normal, the world-space area it stands for, its material and its chart.
+//!
+//! A texel is *defined* when its centre lies inside a triangle of the atlas (first triangle in
+//! scene order wins on shared edges). A triangle too small to cover any texel centre hands its
+//! area, and if that texel is still free its centroid, to the texel under its centroid, so no
+//! surface is lost and the texel areas add up to the scene's surface area.
+
+use cssm_formats::{Scene, Texel};
+use glam::{Vec2, Vec3};
+
+use crate::BakeError;
+
+/// Smallest and largest atlas resolution accepted.
+pub const ATLAS_RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 32..=1024;
+
+/// A rasterised atlas.
+#[derive(Clone, Debug)]
+pub struct Atlas {
+    /// Width and height in texels.
+    pub resolution: u32,
+    /// Defined texels in row-major order (y, then x).
+    pub texels: Vec<Texel>,
+    /// Atlas coordinates (texel units) of the corners of every scene triangle.
+    pub triangle_uvs: Vec<[[f32; 2]; 3]>,
+    /// Number of charts.
+    pub chart_count: u32,
+}
+
+/// Unwraps `scene` into an atlas of `resolution` x `resolution` texels.
+///
+/// xatlas picks its scale from a texels-per-unit figure; we start from the scale that would fill
+/// 75% of the page and shrink it until every chart fits on the single page.
+pub fn build(scene: &Scene, resolution: u32) -> Result<Atlas, BakeError> {
+    if !ATLAS_RESOLUTION_RANGE.contains(&resolution) {
+        return Err(BakeError::Parameter(format!(
+            "atlas resolution {resolution} is out of range {}..={}",
+            ATLAS_RESOLUTION_RANGE.start(),
+            ATLAS_RESOLUTION_RANGE.end()
+        )));
+    }
+    let area: f64 = (0..scene.triangles.len())
+        .map(|t| triangle_area(scene.triangle(t)) as f64)
+        .sum();
+    if area <= 0.0 || !area.is_finite() {
+        return Err(BakeError::Scene("the scene has no surface area".into()));
+    }
+    let texels_per_unit = (resolution as f64 * (0.75 / area).sqrt()) as f32;
+    let (uvs, charts) = unwrap(scene, resolution, texels_per_unit)?;
+    let texels = rasterise(scene, resolution, &uvs, &charts);
+    let chart_count = texels.iter().map(|t| t.chart + 1).max().unwrap_or(0);
+    Ok(Atlas {
+        resolution,
+        texels,
+        triangle_uvs: uvs,
+        chart_count,
+    })
+}
+
+/// Charts the scene once with xatlas, then packs it at a shrinking scale until every chart
+/// fits on one page. Returns per-triangle atlas coordinates and chart ids.
+fn unwrap(
+    scene: &Scene,
+    resolution: u32,
+    mut texels_per_unit: f32,
+) -> Result<(Vec<[[f32; 2]; 3]>, Vec<u32>), BakeError> {
+    let positions: Vec<f32> = scene.positions.iter().flat_map(|p| p.to_array()).collect();
+    let indices: Vec<u32> = scene.triangles.iter().flatten().copied().collect();
+    let mut atlas = xatlas_rs::Xatlas::new();
+    atlas.add_mesh(&xatlas_rs::MeshDecl {
+        vertex_count: scene.positions.len() as u32,
+        vertex_position_data: bytemuck::cast_slice(&positions),
+        vertex_position_stride: 12,
+        index_count: indices.len() as u32,
+        index_data: bytemuck::cast_slice(&indices),
+        index_format: xatlas_rs::IndexFormat::Uint32,
+        ..Default::default()
+    });
+    atlas.compute_charts(xatlas_rs::ChartOptions::default());
+    atlas.parameterize_charts();
+    let mut fits = false;
+    for _attempt in 0..32 {
+        atlas.pack_charts(xatlas_rs::PackOptions {
+            attempts: 256,
+            texels_per_unit,
+            resolution,
+            padding: 1,
+            ..Default::default()
+        });
+        if atlas.atlas_count() == 1 {
+            fits = true;
+            break;
+        }
+        texels_per_unit *= 0.92;
+    }
+    if !fits {
+        return Err(BakeError::Atlas(format!(
+            "xatlas could not fit the scene's charts on one {resolution}x{resolution} page"
+        )));
+    }
+    let meshes = atlas.meshes();
+    let Some(mesh) = meshes.first() else {
+        return Err(BakeError::Atlas("xatlas returned no mesh".into()));
+    };
+    if mesh.indices.len() != indices.len() {
+        return Err(BakeError::Atlas(format!(
+            "xatlas returned {} triangles for {} input triangles",
+            mesh.indices.len() / 3,
+            indices.len() / 3
+        )));
+    }
+    // Chart of every output vertex: xatlas splits vertices along chart seams.
+    let mut vertex_chart = vec![u32::MAX; mesh.vertices.len()];
+    for (c, chart) in mesh.charts.iter().enumerate() {
+        for &i in chart.indices {
+            vertex_chart[i as usize] = c as u32;
+        }
+    }
+    let mut next_chart = mesh.charts.len() as u32;
+    let mut uvs = Vec::with_capacity(scene.triangles.len());
+    let mut charts = Vec::with_capacity(scene.triangles.len());
+    for tri in mesh.indices.chunks_exact(3) {
+        let corner = |k: usize| mesh.vertices[tri[k] as usize].uv;
+        uvs.push([corner(0), corner(1), corner(2)]);
+        let mut chart = vertex_chart[tri[0] as usize];
+        if chart == u32::MAX {
+            // A triangle xatlas left out of every chart becomes a chart of its own.
+            chart = next_chart;
+            next_chart += 1;
+        }
+        charts.push(chart);
+    }
+    Ok((uvs, charts))
+}
+
+/// World-space area of a triangle.
+pub fn triangle_area([a, b, c]: [Vec3; 3]) -> f32 {
+    0.5 * (b - a).cross(c - a).length()
+}
+
+/// Barycentric coordinates of `p` in the 2D triangle `abc`, or `None` for a degenerate one.
+fn barycentric(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> Option<Vec3> {
+    let det = (b - a).perp_dot(c - a);
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let l1 = (p - a).perp_dot(c - a) / det;
+    let l2 = (b - a).perp_dot(p - a) / det;
+    Some(Vec3::new(1.0 - l1 - l2, l1, l2))
+}
+
+#[derive(Clone, Copy)]
+struct Slot {
+    triangle: u32,
+    bary: Vec3,
+    area: f32,
+}
+
+/// Rasterises every triangle into the atlas; returns the defined texels in row-major order.
+fn rasterise(scene: &Scene, resolution: u32, uvs: &[[[f32; 2]; 3]], charts: &[u32]) -> Vec<Texel> {
+    let r = resolution as usize;
+    let mut grid: Vec<Option<Slot>> = vec![None; r * r];
+    let mut owned: Vec<Vec<usize>> = vec![Vec::new(); scene.triangles.len()];
+    let mut small: Vec<usize> = Vec::new();
+    for (t, uv) in uvs.iter().enumerate() {
+        let [a, b, c] = uv.map(Vec2::from);
+        let lo = a.min(b).min(c);
+        let hi = a.max(b).max(c);
+        let x0 = (lo.x - 0.5).ceil().max(0.0) as usize;
+        let y0 = (lo.y - 0.5).ceil().max(0.0) as usize;
+        let x1 = ((hi.x - 0.5).floor() as i64).min(r as i64 - 1);
+        let y1 = ((hi.y - 0.5).floor() as i64).min(r as i64 - 1);
+        for y in y0 as i64..=y1 {
+            for x in x0 as i64..=x1 {
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let Some(l) = barycentric(p, a, b, c) else { continue };
+                if l.min_element() < -1e-6 {
+                    continue;
+                }
+                let cell = y as usize * r + x as usize;
+                if grid[cell].is_none() {
+                    grid[cell] = Some(Slot { triangle: t as u32, bary: l.max(Vec3::ZERO) / l.max(Vec3::ZERO).element_sum(), area: 0.0 });
+                    owned[t].push(cell);
+                }
+            }
+        }
+        if owned[t].is_empty() {
+            small.push(t);
+        }
+    }
+    // Area: each triangle's world area shared evenly by the texels it owns (§3.2.3 "area").
+    for (t, cells) in owned.iter().enumerate() {
+        if cells.is_empty() {
+            continue;
+        }
+        let share = triangle_area(scene.triangle(t)) / cells.len() as f32;
+        for &cell in cells {
+            if let Some(slot) = grid[cell].as_mut() {
+                slot.area += share;
+            }
+        }
+    }
+    // Triangles below texel size: give them the texel under their centroid.
+    for t in small {
+        let centroid = uvs[t].map(Vec2::from).iter().copied().sum::<Vec2>() / 3.0;
+        let x = (centroid.x.floor() as i64).clamp(0, r as i64 - 1) as usize;
+        let y = (centroid.y.floor() as i64).clamp(0, r as i64 - 1) as usize;
+        let cell = y * r + x;
+        let area = triangle_area(scene.triangle(t));
+        match grid[cell].as_mut() {
+            Some(slot) => slot.area += area,
+            None => {
+                grid[cell] = Some(Slot { triangle: t as u32, bary: Vec3::splat(1.0 / 3.0), area });
+            }
+        }
+    }
+    let mut texels = Vec::new();
+    // Dense chart ids in order of first appearance (charts without texels vanish).
+    let mut dense = vec![u32::MAX; charts.iter().copied().max().map_or(0, |m| m as usize + 1)];
+    let mut next_chart = 0u32;
+    for (cell, slot) in grid.iter().enumerate() {
+        let Some(slot) = slot else { continue };
+        let t = slot.triangle as usize;
+        let [a, b, c] = scene.triangle(t);
+        let position = a * slot.bary.x + b * slot.bary.y + c * slot.bary.z;
+        let normal = (b - a).cross(c - a).normalize_or_zero();
+        texels.push(Texel {
+            position: position.to_array(),
+            normal: normal.to_array(),
+            area: slot.area,
+            material: scene.triangle_materials[t],
+            chart: {
+                let c = &mut dense[charts[t] as usize];
+                if *c == u32::MAX {
+                    *c = next_chart;
+                    next_chart += 1;
+                }
+                *c
+            },
+            x: (cell % r) as u16,
+            y: (cell / r) as u16,
+        });
+    }
+    texels
+}

@@ -1,0 +1,192 @@
+//! Measures a baked CSSM against exact ray casts (§3.2.2): random pairs of surface points, drawn
+//! uniformly by area, are tested with the CSSM query and with an obvhs ray cast, and the
+//! agreement is reported as a confusion matrix.
+//!
+//! Ground truth is *front-side* visibility, the visibility light transport needs: the segment
+//! from `p_j` lifted off its surface along its normal to `p_i` lifted towards `p_j`'s side of
+//! its own surface must hit nothing. (A CSSM, like any shadow map, only sees out of a surface's
+//! front side; whether `p_i` is seen from its back is the receiver's cosine term, not visibility.)
+
+use cssm_formats::{
+    CssmFile, Scene,
+    visibility::{QueryOptions, VisibilityQuery},
+};
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::raycast::SceneBvh;
+
+/// Confusion matrix of CSSM answers against exact ray casts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Agreement {
+    /// Truly visible, reported visible.
+    pub visible_visible: u64,
+    /// Truly visible, reported occluded.
+    pub visible_occluded: u64,
+    /// Truly occluded, reported visible.
+    pub occluded_visible: u64,
+    /// Truly occluded, reported occluded.
+    pub occluded_occluded: u64,
+    /// Pairs whose sender point had no texel (skipped).
+    pub unmapped: u64,
+}
+
+impl Agreement {
+    /// Pairs tested.
+    pub fn total(&self) -> u64 {
+        self.visible_visible + self.visible_occluded + self.occluded_visible + self.occluded_occluded
+    }
+    /// Fraction of pairs where the CSSM agrees with the ray cast.
+    pub fn agreement(&self) -> f64 {
+        (self.visible_visible + self.occluded_occluded) as f64 / self.total().max(1) as f64
+    }
+    /// Truly occluded pairs reported visible, as a fraction of the truly occluded.
+    pub fn false_visible_rate(&self) -> f64 {
+        self.occluded_visible as f64 / (self.occluded_visible + self.occluded_occluded).max(1) as f64
+    }
+    /// Truly visible pairs reported occluded, as a fraction of the truly visible.
+    pub fn false_occluded_rate(&self) -> f64 {
+        self.visible_occluded as f64 / (self.visible_visible + self.visible_occluded).max(1) as f64
+    }
+    fn add(self, o: Self) -> Self {
+        Self {
+            visible_visible: self.visible_visible + o.visible_visible,
+            visible_occluded: self.visible_occluded + o.visible_occluded,
+            occluded_visible: self.occluded_visible + o.occluded_visible,
+            occluded_occluded: self.occluded_occluded + o.occluded_occluded,
+            unmapped: self.unmapped + o.unmapped,
+        }
+    }
+}
+
+impl std::fmt::Display for Agreement {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "                     CSSM visible  CSSM occluded")?;
+        writeln!(f, "ray cast visible   {:>14} {:>14}", self.visible_visible, self.visible_occluded)?;
+        writeln!(f, "ray cast occluded  {:>14} {:>14}", self.occluded_visible, self.occluded_occluded)?;
+        write!(
+            f,
+            "agreement {:.3}% of {} pairs; occluded reported visible {:.3}%; visible reported occluded {:.3}%",
+            100.0 * self.agreement(),
+            self.total(),
+            100.0 * self.false_visible_rate(),
+            100.0 * self.false_occluded_rate()
+        )
+    }
+}
+
+/// A point on the scene surface.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    /// Triangle index.
+    pub triangle: usize,
+    /// Barycentric coordinates.
+    pub bary: [f32; 3],
+    /// Position.
+    pub position: Vec3,
+    /// Unit geometric normal.
+    pub normal: Vec3,
+}
+
+/// Area-uniform sampler of surface points, with a small deterministic generator of its own so
+/// the same seed gives the same pairs on every platform and crate version.
+pub struct SurfaceSampler<'a> {
+    scene: &'a Scene,
+    cdf: Vec<f64>,
+}
+
+impl<'a> SurfaceSampler<'a> {
+    /// Sampler over all triangles of `scene`.
+    pub fn new(scene: &'a Scene) -> Self {
+        let mut acc = 0.0;
+        let cdf = (0..scene.triangles.len())
+            .map(|t| {
+                acc += crate::atlas::triangle_area(scene.triangle(t)) as f64;
+                acc
+            })
+            .collect();
+        Self { scene, cdf }
+    }
+
+    /// The surface point for three uniform numbers in `[0, 1)`.
+    pub fn point(&self, r: [f64; 3]) -> SurfacePoint {
+        let total = *self.cdf.last().unwrap_or(&0.0);
+        let t = self
+            .cdf
+            .partition_point(|&c| c <= r[0] * total)
+            .min(self.cdf.len() - 1);
+        let su = r[1].sqrt() as f32;
+        let bary = [1.0 - su, su * (1.0 - r[2] as f32), su * r[2] as f32];
+        let [a, b, c] = self.scene.triangle(t);
+        SurfacePoint {
+            triangle: t,
+            bary,
+            position: a * bary[0] + b * bary[1] + c * bary[2],
+            normal: (b - a).cross(c - a).normalize_or_zero(),
+        }
+    }
+}
+
+/// SplitMix64: tiny, fast, and fixed forever, so sample sets are reproducible.
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    /// Next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in `[0, 1)`.
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Exact front-side visibility of `p_i` from `p_j` by ray casting (see the module docs).
+pub fn exact_visible(bvh: &SceneBvh, p_j: &SurfacePoint, p_i: &SurfacePoint, eps: f32) -> bool {
+    let from = p_j.position + p_j.normal * eps;
+    let side = if (p_j.position - p_i.position).dot(p_i.normal) >= 0.0 { 1.0 } else { -1.0 };
+    let to = p_i.position + p_i.normal * (side * eps);
+    bvh.segment_clear(from, to)
+}
+
+/// Tests `pairs` random pairs (seeded) of `scene` with the CSSM `file` and with ray casts.
+pub fn measure(scene: &Scene, file: &CssmFile, pairs: u64, seed: u64, options: QueryOptions) -> Agreement {
+    let sampler = SurfaceSampler::new(scene);
+    let mut rng = SplitMix64(seed);
+    let samples: Vec<(SurfacePoint, SurfacePoint)> = (0..pairs)
+        .map(|_| {
+            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+            let a = sampler.point(r());
+            let b = sampler.point(r());
+            (a, b)
+        })
+        .collect();
+    let bvh = SceneBvh::new(scene);
+    let query = VisibilityQuery::new(file, options);
+    let eps = 1e-4 * scene.diameter();
+    samples
+        .par_chunks(1024)
+        .map(|chunk| {
+            let mut a = Agreement::default();
+            for (p_j, p_i) in chunk {
+                let Some(texel) = query.texel_at(p_j.triangle, p_j.bary) else {
+                    a.unmapped += 1;
+                    continue;
+                };
+                let truth = exact_visible(&bvh, p_j, p_i, eps);
+                let cssm = query.visible(texel, p_i.position);
+                match (truth, cssm) {
+                    (true, true) => a.visible_visible += 1,
+                    (true, false) => a.visible_occluded += 1,
+                    (false, true) => a.occluded_visible += 1,
+                    (false, false) => a.occluded_occluded += 1,
+                }
+            }
+            a
+        })
+        .reduce(Agreement::default, Agreement::add)
+}

@@ -1,0 +1,61 @@
+//! Depth cube maps (§3.2.1): for one texel, a `6 x N x N` map of linear depth seen from the
+//! texel position pushed off the surface by the near distance. Every pixel records the codes of
+//! all depths between its ray's first and second intersection, any of which is a correct
+//! stand-in (dual depth layers); pixels wholly behind the tangent plane are "don't care".
+
+use cssm_formats::{
+    Texel,
+    cube::{self, DEPTH_MAX, DepthQuantizer},
+};
+
+use crate::raycast::SceneBvh;
+
+/// Acceptable code range `[lo, hi]` of one pixel; `[0, DEPTH_MAX]` means "don't care".
+pub type Interval = (u16, u16);
+
+/// The don't-care interval.
+pub const DONT_CARE: Interval = (0, DEPTH_MAX);
+
+/// Renders one texel's cube map into `out` (`6 * n * n` intervals). Returns the number of rays
+/// cast (pixels that were not don't-care).
+pub fn render(
+    bvh: &SceneBvh,
+    texel: &Texel,
+    n: u32,
+    near: f32,
+    quantizer: &DepthQuantizer,
+    out: &mut [Interval],
+) -> u64 {
+    let normal = texel.nrm();
+    let centre = texel.pos() + normal * near;
+    // Hits closer together than a tenth of a depth code are the same surface.
+    let separation = 0.1 * quantizer.far() / DEPTH_MAX as f32;
+    let mut rays = 0;
+    for (pixel, slot) in out.iter_mut().enumerate() {
+        let pixel = pixel as u32;
+        if cube::pixel_is_dont_care(n, pixel, normal) {
+            *slot = DONT_CARE;
+            continue;
+        }
+        rays += 1;
+        let mut dir = cube::pixel_direction(n, pixel);
+        // A pixel straddling the tangent plane whose centre ray points below it would only see
+        // the texel's own surface a few near-distances away. Cast it along the plane instead
+        // (at height `near`), so it records what blocks the view *along* the surface: the
+        // occluders of coplanar and nearly coplanar receivers.
+        let below = dir.dot(normal);
+        let mut depth_scale = 1.0;
+        if below < 0.0 {
+            dir -= normal * below;
+            let major = (pixel / (n * n) / 2) as usize;
+            depth_scale = dir.to_array()[major].abs();
+            if depth_scale < 1e-3 {
+                *slot = DONT_CARE;
+                continue;
+            }
+        }
+        let hit = bvh.dual_hit(centre, dir, separation);
+        *slot = quantizer.interval(hit.first * depth_scale, hit.second * depth_scale);
+    }
+    rays
+}

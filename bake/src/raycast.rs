@@ -1,0 +1,154 @@
+//! Exact ray casting against the scene with obvhs: the reference for every visibility answer,
+//! and the tool that renders the depth cube maps (§3.2.1).
+
+use std::time::Duration;
+
+use cssm_formats::Scene;
+use glam::{UVec2, Vec3, Vec3A};
+use obvhs::{
+    BvhBuildParams,
+    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    ray::Ray,
+    traverse,
+    triangle::Triangle,
+};
+
+/// A BVH over the scene's triangles.
+pub struct SceneBvh {
+    bvh: CwBvh,
+    /// Triangles in BVH primitive order (so no indirection while traversing).
+    triangles: Vec<Triangle>,
+}
+
+/// First and second intersection along a ray (dual depth layers, §3.2 after Weiskopf and Ertl).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DualHit {
+    /// Ray parameter of the first hit, `INFINITY` if none.
+    pub first: f32,
+    /// Ray parameter of the next hit at least `separation` beyond the first, `INFINITY` if none.
+    pub second: f32,
+}
+
+impl SceneBvh {
+    /// Builds the BVH (deterministic for a given scene).
+    pub fn new(scene: &Scene) -> Self {
+        let tris: Vec<Triangle> = (0..scene.triangles.len())
+            .map(|t| {
+                let [a, b, c] = scene.triangle(t);
+                Triangle {
+                    v0: a.into(),
+                    v1: b.into(),
+                    v2: c.into(),
+                }
+            })
+            .collect();
+        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
+        let triangles = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        Self { bvh, triangles }
+    }
+
+    /// Closest hit parameter along `origin + t * dir` for `t` in `(tmin, tmax)`, if any.
+    pub fn closest(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
+        let mut traverse_ray = ray;
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        let mut best = f32::INFINITY;
+        traverse!(
+            self.bvh,
+            node,
+            state,
+            node.intersect_ray(&traverse_ray, state.oct_inv4),
+            {
+                let t = self.triangles[state.primitive_id as usize].intersect(&traverse_ray);
+                if t > tmin && t < traverse_ray.tmax {
+                    best = t;
+                    traverse_ray.tmax = t;
+                }
+            }
+        );
+        best.is_finite().then_some(best)
+    }
+
+    /// True when the open segment from `a` to `b` hits nothing.
+    pub fn segment_clear(&self, a: Vec3, b: Vec3) -> bool {
+        let d = b - a;
+        self.closest(a, d, 1e-5, 1.0 - 1e-5).is_none()
+    }
+
+    /// First and second hit of `origin + t * dir`, `t > 0`; hits closer than `separation` to the
+    /// first count as the first (a ray through a shared edge meets both triangles at one `t`).
+    /// One traversal keeps the two nearest distinct hits and prunes beyond the second.
+    pub fn dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> DualHit {
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, f32::INFINITY);
+        let mut traverse_ray = ray;
+        let mut state = self.bvh.new_traversal(ray.direction);
+        let mut node;
+        let (mut first, mut second) = (f32::INFINITY, f32::INFINITY);
+        traverse!(
+            self.bvh,
+            node,
+            state,
+            node.intersect_ray(&traverse_ray, state.oct_inv4),
+            {
+                let t = self.triangles[state.primitive_id as usize].intersect(&traverse_ray);
+                if t > 0.0 && t < traverse_ray.tmax {
+                    if t < first {
+                        if first - t > separation {
+                            second = first;
+                        }
+                        first = t;
+                        // Keep second clear of the new first.
+                        if second - first <= separation {
+                            second = f32::INFINITY;
+                        }
+                    } else if t - first > separation && t < second {
+                        second = t;
+                    }
+                    traverse_ray.tmax = second;
+                }
+            }
+        );
+        DualHit { first, second }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_planes() -> Scene {
+        // Two parallel quads at z = 1 and z = 3.
+        let positions = vec![
+            Vec3::new(-1.0, -1.0, 1.0),
+            Vec3::new(1.0, -1.0, 1.0),
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(-1.0, 1.0, 1.0),
+            Vec3::new(-1.0, -1.0, 3.0),
+            Vec3::new(1.0, -1.0, 3.0),
+            Vec3::new(1.0, 1.0, 3.0),
+            Vec3::new(-1.0, 1.0, 3.0),
+        ];
+        crate::tests::scene_from(positions, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+    }
+
+    #[test]
+    fn dual_hit_finds_both_layers_even_through_a_shared_edge() {
+        let bvh = SceneBvh::new(&two_planes());
+        let h = bvh.dual_hit(Vec3::new(0.3, 0.2, 0.0), Vec3::Z, 1e-3);
+        assert!((h.first - 1.0).abs() < 1e-5 && (h.second - 3.0).abs() < 1e-5, "{h:?}");
+        // Through the diagonal shared by both triangles of each quad.
+        let h = bvh.dual_hit(Vec3::new(0.25, 0.25, 0.0), Vec3::Z, 1e-3);
+        assert!((h.first - 1.0).abs() < 1e-5 && (h.second - 3.0).abs() < 1e-5, "{h:?}");
+        let h = bvh.dual_hit(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, 1e-3);
+        assert!((h.first - 1.0).abs() < 1e-5 && h.second.is_infinite(), "{h:?}");
+        let h = bvh.dual_hit(Vec3::new(5.0, 0.0, 0.0), Vec3::Z, 1e-3);
+        assert!(h.first.is_infinite() && h.second.is_infinite());
+        assert!(!bvh.segment_clear(Vec3::ZERO, Vec3::new(0.0, 0.0, 2.0)));
+        assert!(bvh.segment_clear(Vec3::new(0.0, 0.0, 1.5), Vec3::new(0.0, 0.0, 2.5)));
+    }
+}

@@ -1,0 +1,202 @@
+//! Depth cube-map geometry shared by the bake and every query (§3.2.1, §3.2.2): face and pixel
+//! layout, directions, the "don't care" half-space, and 16-bit linear depth quantisation.
+//!
+//! A cube map of resolution `N` has `6 * N * N` pixels, `pixel = face * N * N + row * N + col`.
+//! Face `f` looks along axis `f / 2` (x, y, z), positive for even `f`. Its image axes are the two
+//! other world axes in cyclic order (x: y,z; y: z,x; z: x,y) without sign flips, so the direction
+//! through the centre of `(col, row)` is `major + u * e_u + v * e_v` with
+//! `u = (col + 0.5) / N * 2 - 1` and likewise `v` from `row`. Directions are *not* normalised:
+//! their major component is ±1, so the ray parameter `t` of a hit is its linear depth (distance
+//! along the face axis), the depth the paper stores (§3.2.1, after Brabec et al.).
+
+use glam::Vec3;
+
+/// Largest quantised depth; stands for "nothing within the far plane".
+pub const DEPTH_MAX: u16 = u16::MAX;
+
+/// Axis indices (major, u, v) of face `face`.
+#[inline]
+pub fn face_axes(face: u32) -> (usize, usize, usize) {
+    let major = (face / 2) as usize;
+    (major, (major + 1) % 3, (major + 2) % 3)
+}
+
+/// Sign of the major axis of face `face`: +1 for even faces, -1 for odd ones.
+#[inline]
+pub fn face_sign(face: u32) -> f32 {
+    if face % 2 == 0 { 1.0 } else { -1.0 }
+}
+
+/// Unnormalised direction through face coordinates `(u, v)` in `[-1, 1]` of face `face`.
+#[inline]
+pub fn face_direction(face: u32, u: f32, v: f32) -> Vec3 {
+    let (major, ua, va) = face_axes(face);
+    let mut d = [0.0f32; 3];
+    d[major] = face_sign(face);
+    d[ua] = u;
+    d[va] = v;
+    Vec3::from(d)
+}
+
+/// Direction through the centre of pixel `pixel` of a cube map of resolution `n`.
+#[inline]
+pub fn pixel_direction(n: u32, pixel: u32) -> Vec3 {
+    let (face, row, col) = split_pixel(n, pixel);
+    let u = (col as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+    let v = (row as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+    face_direction(face, u, v)
+}
+
+/// `(face, row, col)` of a pixel index.
+#[inline]
+pub fn split_pixel(n: u32, pixel: u32) -> (u32, u32, u32) {
+    let face = pixel / (n * n);
+    let rest = pixel % (n * n);
+    (face, rest / n, rest % n)
+}
+
+/// Where a direction from the cube centre lands: `(face, u, v, depth)` with `u, v` in `[-1, 1]`
+/// and `depth` the linear depth of the point `centre + d` (its major-axis distance).
+/// `d` must not be zero.
+#[inline]
+pub fn project(d: Vec3) -> (u32, f32, f32, f32) {
+    let a = d.abs();
+    let major = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    let arr = d.to_array();
+    let face = major as u32 * 2 + u32::from(arr[major] < 0.0);
+    let depth = arr[major].abs();
+    let (_, ua, va) = face_axes(face);
+    (face, arr[ua] / depth, arr[va] / depth, depth)
+}
+
+/// Pixel index for face coordinates, clamped into the face.
+#[inline]
+pub fn pixel_index(n: u32, face: u32, u: f32, v: f32) -> u32 {
+    let col = (((u + 1.0) * 0.5 * n as f32) as i64).clamp(0, n as i64 - 1) as u32;
+    let row = (((v + 1.0) * 0.5 * n as f32) as i64).clamp(0, n as i64 - 1) as u32;
+    face * n * n + row * n + col
+}
+
+/// True when the whole pixel lies strictly behind the surface's tangent plane (all four corner
+/// directions have a negative dot product with the normal). Such pixels only see the inside of
+/// the object: their depth is "don't care" and may take any value after compression (§3.2.1).
+/// Pixels that straddle the plane are kept, so coplanar neighbours stay queryable.
+#[inline]
+pub fn pixel_is_dont_care(n: u32, pixel: u32, normal: Vec3) -> bool {
+    let (face, row, col) = split_pixel(n, pixel);
+    let step = 2.0 / n as f32;
+    let u0 = col as f32 * step - 1.0;
+    let v0 = row as f32 * step - 1.0;
+    [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+        .iter()
+        .all(|&(du, dv)| face_direction(face, u0 + du * step, v0 + dv * step).dot(normal) < 0.0)
+}
+
+/// Linear-depth quantiser between the near and the far plane (16 bits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DepthQuantizer {
+    near: f32,
+    far: f32,
+    scale: f32,
+}
+
+impl DepthQuantizer {
+    /// Quantiser over `[near, far]`.
+    pub fn new(near: f32, far: f32) -> Self {
+        Self {
+            near,
+            far,
+            scale: DEPTH_MAX as f32 / (far - near),
+        }
+    }
+
+    /// Continuous position of `depth` on the 16-bit scale (not clamped).
+    #[inline]
+    pub fn scaled(&self, depth: f32) -> f32 {
+        (depth - self.near) * self.scale
+    }
+
+    /// Smallest code whose depth is `>= depth`, clamped into the code range.
+    #[inline]
+    pub fn ceil(&self, depth: f32) -> u16 {
+        self.scaled(depth).ceil().clamp(0.0, DEPTH_MAX as f32) as u16
+    }
+
+    /// Depth a code stands for.
+    #[inline]
+    pub fn depth(&self, code: u16) -> f32 {
+        if code == DEPTH_MAX {
+            f32::INFINITY
+        } else {
+            self.near + code as f32 / self.scale
+        }
+    }
+
+    /// Far plane.
+    pub fn far(&self) -> f32 {
+        self.far
+    }
+
+    /// Codes `[lo, hi]` whose depths lie in `[first, second)` (dual depth layers, §3.2): any of
+    /// them is a correct stand-in for the pixel. `second = INFINITY` when the ray leaves the
+    /// scene after the first hit, `first = INFINITY` when it hits nothing. When the layers are
+    /// closer than one code apart the range collapses to the code of `first`.
+    pub fn interval(&self, first: f32, second: f32) -> (u16, u16) {
+        if !first.is_finite() || first >= self.far {
+            return (DEPTH_MAX, DEPTH_MAX);
+        }
+        let lo = self.ceil(first);
+        let hi = if !second.is_finite() || second >= self.far {
+            DEPTH_MAX
+        } else {
+            (self.scaled(second).ceil() - 1.0).clamp(0.0, DEPTH_MAX as f32) as u16
+        };
+        (lo, hi.max(lo))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn project_inverts_pixel_direction() {
+        for n in [1u32, 4, 8, 33] {
+            for pixel in 0..6 * n * n {
+                let d = pixel_direction(n, pixel) * 3.7;
+                let (face, u, v, depth) = project(d);
+                assert_eq!(pixel_index(n, face, u, v), pixel, "n {n} pixel {pixel}");
+                assert!((depth - 3.7).abs() < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn half_of_the_pixels_of_an_axis_aligned_normal_are_dont_care() {
+        let n = 8;
+        let count = (0..6 * n * n)
+            .filter(|&p| pixel_is_dont_care(n, p, Vec3::Y))
+            .count() as u32;
+        // The -y face and the lower halves of the four side faces, less the row or column of
+        // pixels touching the horizon (a corner on the plane keeps a pixel).
+        assert_eq!(count, n * n + 4 * n * (n / 2 - 1));
+    }
+
+    #[test]
+    fn interval_brackets_the_layers() {
+        let q = DepthQuantizer::new(1.0, 101.0);
+        let (lo, hi) = q.interval(10.0, 20.0);
+        assert!(q.depth(lo) >= 10.0 && q.depth(hi) < 20.0 && lo <= hi);
+        assert!(q.depth(lo - 1) < 10.0 && q.depth(hi + 1) >= 20.0 - 1e-3);
+        assert_eq!(q.interval(f32::INFINITY, f32::INFINITY), (DEPTH_MAX, DEPTH_MAX));
+        assert_eq!(q.interval(50.0, f32::INFINITY).1, DEPTH_MAX);
+        let (lo, hi) = q.interval(10.0, 10.0 + 1e-6);
+        assert_eq!(lo, hi);
+    }
+}

@@ -1,0 +1,485 @@
+//! Tests of the `.cssm` container: roundtrip, determinism, every refusal, atomic writes, and
+//! fuzzing that decoding never panics.
+
+use std::path::Path;
+
+use cssm_formats::cssm::{
+    self, BakeParams, CssmError, CssmFile, FORMAT_VERSION, HEADER_LEN, MAGIC, RunData, SceneRef,
+};
+use cssm_formats::{Texel, Traversal};
+use proptest::prelude::*;
+
+/// A small hand-built file: 2 texels, cube 8 (384 pixels), one run per pixel except pixel 5,
+/// which changes depth at map 1.
+fn sample() -> CssmFile {
+    let n = 8u32;
+    let pixel_count = 6 * n * n;
+    let mut offsets = vec![0u32];
+    let mut runs = Vec::new();
+    for p in 0..pixel_count {
+        runs.push(p & 0xFFFF);
+        if p == 5 {
+            runs.push((1 << 16) | 0xABCD);
+        }
+        offsets.push(runs.len() as u32);
+    }
+    let texel = |x: u16, y: u16| Texel {
+        position: [x as f32, y as f32, 0.5],
+        normal: [0.0, 0.0, 1.0],
+        area: 0.25,
+        material: 0,
+        chart: 0,
+        x,
+        y,
+    };
+    CssmFile {
+        params: BakeParams {
+            atlas_resolution: 32,
+            cube_resolution: n,
+            near: 0.01,
+            far: 10.0,
+            traversal: Traversal::Zigzag,
+        },
+        scene: SceneRef {
+            dir: "/tmp/scene".into(),
+            name: "sample".into(),
+            content_hash: [7; 32],
+            triangle_count: 2,
+        },
+        texels: vec![texel(1, 2), texel(3, 4)],
+        triangle_uvs: vec![[[0.0, 0.0], [4.0, 0.0], [0.0, 4.0]]; 2],
+        sequence: vec![1, 0],
+        runs: RunData {
+            map_count: 2,
+            pixel_count,
+            offsets,
+            runs,
+        },
+    }
+}
+
+fn root(e: &CssmError) -> &CssmError {
+    e.root()
+}
+
+/// Builds a file from a raw (bincode) payload with a correct header, following the documented
+/// layout independently of the crate's encoder.
+fn frame_raw(raw: &[u8]) -> Vec<u8> {
+    let compressed = zstd::bulk::compress(raw, 3).unwrap();
+    let mut out = Vec::new();
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(raw.len() as u64).to_le_bytes());
+    out.extend_from_slice(&(compressed.len() as u64).to_le_bytes());
+    out.extend_from_slice(&blake3::hash(&compressed).as_bytes()[..16]);
+    out.extend_from_slice(&compressed);
+    out
+}
+
+fn raw_payload(file: &CssmFile) -> Vec<u8> {
+    bincode::serde::encode_to_vec(file, bincode::config::standard()).unwrap()
+}
+
+#[test]
+fn roundtrip_and_lookup() {
+    let f = sample();
+    let bytes = cssm::encode(&f).unwrap();
+    assert_eq!(&bytes[..8], &MAGIC);
+    let back = cssm::decode(&bytes).unwrap();
+    assert_eq!(back, f);
+    assert_eq!(back.runs.lookup(0, 5), 5);
+    assert_eq!(back.runs.lookup(1, 5), 0xABCD);
+    assert_eq!(back.runs.lookup(1, 7), 7);
+}
+
+#[test]
+fn header_layout_matches_documentation() {
+    let f = sample();
+    let ours = cssm::encode(&f).unwrap();
+    // Same header fields as an independent framing of the same payload (zstd level may differ).
+    let theirs = frame_raw(&raw_payload(&f));
+    assert_eq!(ours[..24], theirs[..24]);
+    assert_eq!(cssm::decode(&theirs).unwrap(), f);
+}
+
+#[test]
+fn encode_is_deterministic() {
+    let f = sample();
+    let a = cssm::encode(&f).unwrap();
+    let b = cssm::encode(&f.clone()).unwrap();
+    assert_eq!(a, b);
+    let c = cssm::encode(&cssm::decode(&a).unwrap()).unwrap();
+    assert_eq!(a, c);
+}
+
+#[test]
+fn truncated_files_are_refused() {
+    let bytes = cssm::encode(&sample()).unwrap();
+    for len in [
+        0,
+        3,
+        8,
+        12,
+        20,
+        HEADER_LEN - 1,
+        HEADER_LEN,
+        HEADER_LEN + 1,
+        bytes.len() - 1,
+    ] {
+        let err = cssm::decode(&bytes[..len]).unwrap_err();
+        match err {
+            CssmError::TooShort { .. } => assert!(len < HEADER_LEN, "len {len}"),
+            CssmError::LengthMismatch { .. } => {
+                assert!(len >= HEADER_LEN);
+                assert!(err.to_string().contains("truncated"), "{err}");
+            }
+            other => panic!("len {len}: unexpected {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn trailing_garbage_is_refused() {
+    let mut bytes = cssm::encode(&sample()).unwrap();
+    bytes.extend_from_slice(b"junk");
+    let err = cssm::decode(&bytes).unwrap_err();
+    assert!(matches!(err, CssmError::LengthMismatch { .. }), "{err:?}");
+    assert!(err.to_string().contains("trailing garbage"), "{err}");
+}
+
+#[test]
+fn flipped_payload_byte_is_a_checksum_error() {
+    let bytes = cssm::encode(&sample()).unwrap();
+    for at in [HEADER_LEN, HEADER_LEN + 7, bytes.len() - 1] {
+        let mut b = bytes.clone();
+        b[at] ^= 0x40;
+        let err = cssm::decode(&b).unwrap_err();
+        assert!(matches!(err, CssmError::ChecksumMismatch), "{err:?}");
+        assert!(err.to_string().contains("corrupted"));
+    }
+    // A flipped checksum byte too.
+    let mut b = bytes.clone();
+    b[40] ^= 1;
+    assert!(matches!(cssm::decode(&b), Err(CssmError::ChecksumMismatch)));
+}
+
+#[test]
+fn foreign_files_are_refused() {
+    let mut bytes = cssm::encode(&sample()).unwrap();
+    bytes[0] = b'X';
+    let err = cssm::decode(&bytes).unwrap_err();
+    assert!(matches!(err, CssmError::NotCssm));
+    assert!(err.to_string().contains("not a .cssm file"));
+    assert!(matches!(
+        cssm::decode(b"# a text file, certainly not a cssm container\n"),
+        Err(CssmError::NotCssm)
+    ));
+    assert!(matches!(cssm::decode(b"PK"), Err(CssmError::NotCssm)));
+}
+
+#[test]
+fn versions_and_flags() {
+    let bytes = cssm::encode(&sample()).unwrap();
+    let mut newer = bytes.clone();
+    newer[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let err = cssm::decode(&newer).unwrap_err();
+    assert!(matches!(err, CssmError::NewerVersion { version: 2 }));
+    assert!(
+        err.to_string()
+            .contains("file version 2 is newer than this build's version 1; upgrade cssm"),
+        "{err}"
+    );
+    let mut older = bytes.clone();
+    older[8..12].copy_from_slice(&0u32.to_le_bytes());
+    assert!(matches!(
+        cssm::decode(&older),
+        Err(CssmError::UnsupportedVersion { version: 0 })
+    ));
+    let mut flags = bytes.clone();
+    flags[12] = 1;
+    assert!(matches!(
+        cssm::decode(&flags),
+        Err(CssmError::UnsupportedFlags { flags: 1 })
+    ));
+}
+
+#[test]
+fn huge_uncompressed_len_is_refused_before_allocating() {
+    let bytes = cssm::encode(&sample()).unwrap();
+    for len in [u64::MAX, cssm::MAX_UNCOMPRESSED_BYTES + 1] {
+        let mut b = bytes.clone();
+        b[16..24].copy_from_slice(&len.to_le_bytes());
+        let err = cssm::decode(&b).unwrap_err();
+        assert!(matches!(err, CssmError::TooLarge { .. }), "{err:?}");
+    }
+    // A lie within the limit is caught after bounded decompression.
+    let real = u64::from_le_bytes(bytes[16..24].try_into().unwrap());
+    for len in [0, real - 1, real + 1, 1 << 20] {
+        let mut b = bytes.clone();
+        b[16..24].copy_from_slice(&len.to_le_bytes());
+        let err = cssm::decode(&b).unwrap_err();
+        assert!(matches!(err, CssmError::DecodedLength { .. }), "{err:?}");
+    }
+}
+
+#[test]
+fn malformed_payloads() {
+    let err = cssm::decode(&frame_raw(b"definitely not bincode")).unwrap_err();
+    assert!(matches!(err, CssmError::Malformed(_)), "{err:?}");
+    let mut raw = raw_payload(&sample());
+    raw.push(0);
+    let err = cssm::decode(&frame_raw(&raw)).unwrap_err();
+    assert!(matches!(err, CssmError::Malformed(_)), "{err:?}");
+    let err = cssm::decode(&frame_raw(&[])).unwrap_err();
+    assert!(matches!(err, CssmError::Malformed(_)), "{err:?}");
+}
+
+type Mutation = (&'static str, fn(&mut CssmFile));
+
+#[test]
+fn every_validation_failure_is_reported() {
+    let cases: &[Mutation] = &[
+        ("atlas_resolution", |f| f.params.atlas_resolution = 16),
+        ("atlas_resolution", |f| f.params.atlas_resolution = 2048),
+        ("cube_resolution", |f| f.params.cube_resolution = 4),
+        ("cube_resolution", |f| f.params.cube_resolution = 256),
+        ("near", |f| f.params.near = 0.0),
+        ("near", |f| f.params.near = f32::NAN),
+        ("far", |f| f.params.far = 0.001),
+        ("far", |f| f.params.far = f32::INFINITY),
+        ("pixel_count", |f| f.runs.pixel_count += 1),
+        ("map_count", |f| f.runs.map_count = 3),
+        ("map_count", |f| {
+            f.sequence.push(2);
+        }),
+        ("no depth maps", |f| {
+            f.runs.map_count = 0;
+            f.texels.clear();
+            f.sequence.clear();
+        }),
+        ("permutation", |f| f.sequence = vec![1, 1]),
+        ("not a texel index", |f| f.sequence = vec![0, 2]),
+        ("outside the 32x32 atlas", |f| f.texels[1].x = 32),
+        ("outside the 32x32 atlas", |f| f.texels[0].y = 40),
+        ("duplicates another texel", |f| f.texels[1] = f.texels[0]),
+        ("non-finite position or normal", |f| {
+            f.texels[0].position[1] = f32::NAN
+        }),
+        ("non-finite position or normal", |f| {
+            f.texels[1].normal[2] = f32::INFINITY
+        }),
+        ("invalid area", |f| f.texels[1].area = -1.0),
+        ("triangle_uvs", |f| f.scene.triangle_count = 3),
+        ("triangle_uvs[1] is not finite", |f| {
+            f.triangle_uvs[1][2][0] = f32::NAN
+        }),
+        ("run offsets", |f| {
+            f.runs.offsets.pop();
+        }),
+        ("first run offset", |f| f.runs.offsets[0] = 1),
+        ("last run offset", |f| {
+            f.runs.runs.push(0);
+        }),
+        ("offsets decrease", |f| {
+            f.runs.offsets[3] = 100;
+            f.runs.offsets[4] = 2;
+        }),
+        ("has no runs", |f| {
+            // Pixel 2 and 3 swap a run: pixel 2 empty, pixel 3 two runs.
+            f.runs.offsets[3] = f.runs.offsets[2];
+            f.runs.runs[2] = 0;
+            f.runs.runs[3] = 1 << 16;
+        }),
+        ("not 0", |f| f.runs.runs[0] = 1 << 16),
+        ("strictly increasing", |f| f.runs.runs[6] = 0x1234),
+        ("segment has 2", |f| f.runs.runs[6] = (2 << 16) | 1),
+    ];
+    for (expect, mutate) in cases {
+        let mut f = sample();
+        mutate(&mut f);
+        let err = cssm::validate(&f).expect_err(expect);
+        assert!(matches!(err, CssmError::Invalid(_)), "{expect}: {err:?}");
+        assert!(
+            err.to_string().contains(expect),
+            "expected `{expect}` in: {err}"
+        );
+        // decode of such a file refuses it too, and encode never writes it.
+        assert!(matches!(
+            cssm::decode(&frame_raw(&raw_payload(&f))),
+            Err(CssmError::Invalid(_))
+        ));
+        assert!(matches!(cssm::encode(&f), Err(CssmError::Invalid(_))));
+    }
+    cssm::validate(&sample()).unwrap();
+}
+
+/// Recognises the expected error kind.
+type ErrorCheck = fn(&CssmError) -> bool;
+
+/// The damaged files of `tests/bad/`, generated at run time into `dir`.
+fn write_bad_files(dir: &Path) -> Vec<(&'static str, ErrorCheck)> {
+    let good = cssm::encode(&sample()).unwrap();
+    let mut corrupt = good.clone();
+    let mid = HEADER_LEN + (good.len() - HEADER_LEN) / 2;
+    corrupt[mid] ^= 0xFF;
+    let mut newer = good.clone();
+    newer[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
+    let files: [(&str, Vec<u8>); 4] = [
+        ("truncated.cssm", good[..good.len() / 2].to_vec()),
+        ("corrupt.cssm", corrupt),
+        (
+            "foreign.cssm",
+            b"\x89PNG\r\n\x1a\n0000000000000000000000000000000000000000".to_vec(),
+        ),
+        ("newer-version.cssm", newer),
+    ];
+    for (name, bytes) in &files {
+        std::fs::write(dir.join(name), bytes).unwrap();
+    }
+    vec![
+        ("truncated.cssm", |e| {
+            matches!(e, CssmError::LengthMismatch { .. })
+        }),
+        ("corrupt.cssm", |e| matches!(e, CssmError::ChecksumMismatch)),
+        ("foreign.cssm", |e| matches!(e, CssmError::NotCssm)),
+        ("newer-version.cssm", |e| {
+            matches!(e, CssmError::NewerVersion { .. })
+        }),
+    ]
+}
+
+#[test]
+fn bad_files_are_refused_with_their_path() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, is_expected) in write_bad_files(dir.path()) {
+        let path = dir.path().join(name);
+        let err = cssm::read(&path).unwrap_err();
+        assert!(is_expected(root(&err)), "{name}: {err:?}");
+        assert!(
+            err.to_string().contains(&path.display().to_string()),
+            "{err}"
+        );
+    }
+    let missing = dir.path().join("missing.cssm");
+    let err = cssm::read(&missing).unwrap_err();
+    assert!(matches!(err, CssmError::Io { .. }));
+    assert!(err.to_string().contains("missing.cssm"), "{err}");
+}
+
+#[test]
+fn write_atomic_success_leaves_only_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.cssm");
+    let f = sample();
+    let n = cssm::write_atomic(&path, &f).unwrap();
+    assert_eq!(n, std::fs::metadata(&path).unwrap().len());
+    assert_eq!(cssm::read(&path).unwrap(), f);
+    // Overwrite with a different file.
+    let mut g = f.clone();
+    g.scene.name = "other".into();
+    cssm::write_atomic(&path, &g).unwrap();
+    assert_eq!(cssm::read(&path).unwrap(), g);
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(names, vec!["out.cssm".to_string()]);
+}
+
+#[test]
+fn write_atomic_failure_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("no-such-dir").join("out.cssm");
+    let err = cssm::write_atomic(&path, &sample()).unwrap_err();
+    assert!(matches!(err, CssmError::Io { .. }), "{err:?}");
+    assert!(
+        err.to_string().contains(&path.display().to_string()),
+        "{err}"
+    );
+    assert!(!path.exists());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+
+    // An invalid file is refused before anything is written, and an existing file survives.
+    let path = dir.path().join("keep.cssm");
+    cssm::write_atomic(&path, &sample()).unwrap();
+    let mut bad = sample();
+    bad.sequence = vec![0, 0];
+    assert!(matches!(
+        cssm::write_atomic(&path, &bad),
+        Err(CssmError::Invalid(_))
+    ));
+    assert_eq!(cssm::read(&path).unwrap(), sample());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+
+    // Renaming over a directory fails: the temporary file is cleaned up.
+    let path = dir.path().join("a-directory");
+    std::fs::create_dir(&path).unwrap();
+    std::fs::write(path.join("x"), b"x").unwrap();
+    assert!(cssm::write_atomic(&path, &sample()).is_err());
+    let mut names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        vec!["a-directory".to_string(), "keep.cssm".to_string()]
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn decoding_arbitrary_bytes_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let _ = cssm::decode(&bytes);
+        let mut with_magic = MAGIC.to_vec();
+        with_magic.extend_from_slice(&bytes);
+        let _ = cssm::decode(&with_magic);
+    }
+
+    #[test]
+    fn decoding_mutated_files_never_panics(
+        flips in proptest::collection::vec((any::<prop::sample::Index>(), 1u8..=255), 1..8),
+        cut in any::<prop::sample::Index>(),
+        truncate in any::<bool>(),
+    ) {
+        let mut bytes = cssm::encode(&sample()).unwrap();
+        for (at, x) in &flips {
+            let i = at.index(bytes.len());
+            bytes[i] ^= x;
+        }
+        if truncate {
+            bytes.truncate(cut.index(bytes.len()));
+        }
+        prop_assert!(cssm::decode(&bytes).is_err());
+    }
+
+    #[test]
+    fn decoding_mutated_payloads_never_panics(
+        flips in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+        cut in any::<prop::sample::Index>(),
+        truncate in any::<bool>(),
+    ) {
+        // Mutate the bincode payload and re-frame it with a valid checksum, to reach the
+        // bincode decoder and the validation.
+        let mut raw = raw_payload(&sample());
+        for (at, x) in &flips {
+            let i = at.index(raw.len());
+            raw[i] = *x;
+        }
+        if truncate {
+            raw.truncate(cut.index(raw.len()));
+        }
+        if let Ok(f) = cssm::decode(&frame_raw(&raw)) {
+            // Whatever decodes is valid, and every lookup stays in bounds.
+            cssm::validate(&f).unwrap();
+            for m in 0..f.runs.map_count {
+                for p in 0..f.runs.pixel_count {
+                    let _ = f.runs.lookup(m, p);
+                }
+            }
+        }
+    }
+}
