@@ -7,9 +7,18 @@ use std::path::{Path, PathBuf};
 
 /// The built-in Cornell box: (file name, contents).
 const CORNELL_BOX: &[(&str, &str)] = &[
-    ("scene.toml", include_str!("../scenes/cornell-box/scene.toml")),
-    ("cornell-box.obj", include_str!("../scenes/cornell-box/cornell-box.obj")),
-    ("cornell-box.mtl", include_str!("../scenes/cornell-box/cornell-box.mtl")),
+    (
+        "scene.toml",
+        include_str!("../scenes/cornell-box/scene.toml"),
+    ),
+    (
+        "cornell-box.obj",
+        include_str!("../scenes/cornell-box/cornell-box.obj"),
+    ),
+    (
+        "cornell-box.mtl",
+        include_str!("../scenes/cornell-box/cornell-box.mtl"),
+    ),
 ];
 
 /// Directory of the built-in Cornell box, extracting it if this is not a source checkout.
@@ -22,7 +31,9 @@ pub fn cornell_box() -> std::io::Result<PathBuf> {
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
         .unwrap_or_else(std::env::temp_dir);
-    let dir = base.join(format!("cssm-{}", env!("CARGO_PKG_VERSION"))).join("cornell-box");
+    let dir = base
+        .join(format!("cssm-{}", env!("CARGO_PKG_VERSION")))
+        .join("cornell-box");
     std::fs::create_dir_all(&dir)?;
     for (name, contents) in CORNELL_BOX {
         let path = dir.join(name);

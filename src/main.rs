@@ -33,7 +33,9 @@ enum Command {
         cssm bake ../shared/scenes/bunny -o bunny.cssm --atlas 128 --cube 32 --traversal zigzag")]
     Bake(BakeArgs),
     /// Print the header and sizes of a .cssm file.
-    #[command(after_help = "Examples:\n  cssm inspect cornell.cssm\n  cssm inspect cornell.cssm --json")]
+    #[command(
+        after_help = "Examples:\n  cssm inspect cornell.cssm\n  cssm inspect cornell.cssm --json"
+    )]
     Inspect {
         /// The .cssm file.
         file: PathBuf,
@@ -133,7 +135,8 @@ fn run_bake(args: BakeArgs) -> CliResult {
     let start = Instant::now();
     let dir = match &args.scene {
         Some(dir) => dir.clone(),
-        None => builtin::cornell_box().map_err(|e| format!("cannot prepare the built-in Cornell box: {e}"))?,
+        None => builtin::cornell_box()
+            .map_err(|e| format!("cannot prepare the built-in Cornell box: {e}"))?,
     };
     // Validate the cheap things before the expensive ones.
     if !bake::ATLAS_RESOLUTION_RANGE.contains(&args.atlas) {
@@ -169,7 +172,8 @@ fn run_bake(args: BakeArgs) -> CliResult {
     })
     .map_err(|e| format!("{}: {e}", dir.display()))?;
     bar.finish_and_clear();
-    let file_bytes = formats::cssm::write_atomic(&output, &baked.file).map_err(|e| e.to_string())?;
+    let file_bytes =
+        formats::cssm::write_atomic(&output, &baked.file).map_err(|e| e.to_string())?;
     let seconds = start.elapsed().as_secs_f64();
     let s = &baked.stats;
     let summary = serde_json::json!({
@@ -252,11 +256,13 @@ fn check_writable(output: &Path) -> Result<(), String> {
         ));
     }
     if output.is_dir() {
-        return Err(format!("cannot write {}: it is a directory", output.display()));
+        return Err(format!(
+            "cannot write {}: it is a directory",
+            output.display()
+        ));
     }
     let probe = parent.join(format!(".cssm-write-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"")
-        .map_err(|e| format!("cannot write {}: {e}", output.display()))?;
+    std::fs::write(&probe, b"").map_err(|e| format!("cannot write {}: {e}", output.display()))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }
@@ -269,7 +275,11 @@ fn human_bytes(b: u64) -> String {
         v /= 1024.0;
         u += 1;
     }
-    if u == 0 { format!("{b} B") } else { format!("{v:.2} {}", UNITS[u]) }
+    if u == 0 {
+        format!("{b} B")
+    } else {
+        format!("{v:.2} {}", UNITS[u])
+    }
 }
 
 fn read_file(path: &Path) -> Result<CssmFile, String> {
@@ -303,29 +313,64 @@ fn inspect_json(file: &CssmFile, file_bytes: u64) -> serde_json::Value {
 
 fn run_inspect(path: &Path, json: bool) -> CliResult {
     let file = read_file(path)?;
-    let file_bytes = std::fs::metadata(path).map_err(|e| format!("{}: {e}", path.display()))?.len();
+    let file_bytes = std::fs::metadata(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .len();
     let j = inspect_json(&file, file_bytes);
     if json {
         println!("{j}");
         return Ok(ExitCode::SUCCESS);
     }
     let p = &file.params;
-    println!("{}: CSSM format version {}", path.display(), formats::cssm::FORMAT_VERSION);
-    println!("  scene          {} ({}, {} triangles)", file.scene.name, file.scene.dir, file.scene.triangle_count);
-    println!("  scene hash     {}", j["scene_hash"].as_str().unwrap_or(""));
-    println!("  atlas          {a}x{a}, {} defined texels", file.texels.len(), a = p.atlas_resolution);
-    println!("  cube maps      6x{c}x{c}, near {:.4}, far {:.4}", p.near, p.far, c = p.cube_resolution);
+    println!(
+        "{}: CSSM format version {}",
+        path.display(),
+        formats::cssm::FORMAT_VERSION
+    );
+    println!(
+        "  scene          {} ({}, {} triangles)",
+        file.scene.name, file.scene.dir, file.scene.triangle_count
+    );
+    println!(
+        "  scene hash     {}",
+        j["scene_hash"].as_str().unwrap_or("")
+    );
+    println!(
+        "  atlas          {a}x{a}, {} defined texels",
+        file.texels.len(),
+        a = p.atlas_resolution
+    );
+    println!(
+        "  cube maps      6x{c}x{c}, near {:.4}, far {:.4}",
+        p.near,
+        p.far,
+        c = p.cube_resolution
+    );
     println!("  traversal      {}", p.traversal);
     println!("  runs           {}", file.runs.runs.len());
-    println!("  uncompressed   {:>12}", human_bytes(file.runs.uncompressed_bytes()));
-    println!("  in memory      {:>12}  ratio {:.1} : 1", human_bytes(file.runs.gpu_bytes()), j["ratio_gpu"].as_f64().unwrap_or(0.0));
-    println!("  file           {:>12}  ratio {:.1} : 1", human_bytes(file_bytes), j["ratio_file"].as_f64().unwrap_or(0.0));
+    println!(
+        "  uncompressed   {:>12}",
+        human_bytes(file.runs.uncompressed_bytes())
+    );
+    println!(
+        "  in memory      {:>12}  ratio {:.1} : 1",
+        human_bytes(file.runs.gpu_bytes()),
+        j["ratio_gpu"].as_f64().unwrap_or(0.0)
+    );
+    println!(
+        "  file           {:>12}  ratio {:.1} : 1",
+        human_bytes(file_bytes),
+        j["ratio_file"].as_f64().unwrap_or(0.0)
+    );
     Ok(ExitCode::SUCCESS)
 }
 
 fn run_check(args: CheckArgs) -> CliResult {
     let file = read_file(&args.file)?;
-    let dir = args.scene.clone().unwrap_or_else(|| PathBuf::from(&file.scene.dir));
+    let dir = args
+        .scene
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(&file.scene.dir));
     if !dir.is_dir() {
         return Err(format!(
             "{}: the scene it was baked from, {}, is not there; pass --scene DIR",
@@ -334,7 +379,9 @@ fn run_check(args: CheckArgs) -> CliResult {
         ));
     }
     let scene = load_scene(&dir)?;
-    if scene.content_hash != file.scene.content_hash || scene.triangles.len() as u32 != file.scene.triangle_count {
+    if scene.content_hash != file.scene.content_hash
+        || scene.triangles.len() as u32 != file.scene.triangle_count
+    {
         return Err(format!(
             "{}: the scene in {} has changed since the bake (content hash {} now, {} when baked); bake again",
             args.file.display(),
@@ -368,15 +415,25 @@ fn run_check(args: CheckArgs) -> CliResult {
             })
         );
     } else {
-        println!("{}: {} random surface point pairs against exact ray casts", args.file.display(), a.total());
+        println!(
+            "{}: {} random surface point pairs against exact ray casts",
+            args.file.display(),
+            a.total()
+        );
         println!("{a}");
         if a.unmapped > 0 {
-            println!("({} sender points had no texel and were skipped)", a.unmapped);
+            println!(
+                "({} sender points had no texel and were skipped)",
+                a.unmapped
+            );
         }
     }
     if let Some(min) = args.min_agreement {
         if a.agreement() < min {
-            eprintln!("agreement {:.4} is below --min-agreement {min}", a.agreement());
+            eprintln!(
+                "agreement {:.4} is below --min-agreement {min}",
+                a.agreement()
+            );
             return Ok(ExitCode::from(1));
         }
     }

@@ -15,6 +15,9 @@ use crate::BakeError;
 /// Smallest and largest atlas resolution accepted.
 pub const ATLAS_RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 32..=1024;
 
+/// Atlas coordinates (texel units) of a triangle's three corners.
+pub type TriangleUv = [[f32; 2]; 3];
+
 /// A rasterised atlas.
 #[derive(Clone, Debug)]
 pub struct Atlas {
@@ -64,7 +67,7 @@ fn unwrap(
     scene: &Scene,
     resolution: u32,
     mut texels_per_unit: f32,
-) -> Result<(Vec<[[f32; 2]; 3]>, Vec<u32>), BakeError> {
+) -> Result<(Vec<TriangleUv>, Vec<u32>), BakeError> {
     let positions: Vec<f32> = scene.positions.iter().flat_map(|p| p.to_array()).collect();
     let indices: Vec<u32> = scene.triangles.iter().flatten().copied().collect();
     let mut atlas = xatlas_rs::Xatlas::new();
@@ -174,13 +177,19 @@ fn rasterise(scene: &Scene, resolution: u32, uvs: &[[[f32; 2]; 3]], charts: &[u3
         for y in y0 as i64..=y1 {
             for x in x0 as i64..=x1 {
                 let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let Some(l) = barycentric(p, a, b, c) else { continue };
+                let Some(l) = barycentric(p, a, b, c) else {
+                    continue;
+                };
                 if l.min_element() < -1e-6 {
                     continue;
                 }
                 let cell = y as usize * r + x as usize;
                 if grid[cell].is_none() {
-                    grid[cell] = Some(Slot { triangle: t as u32, bary: l.max(Vec3::ZERO) / l.max(Vec3::ZERO).element_sum(), area: 0.0 });
+                    grid[cell] = Some(Slot {
+                        triangle: t as u32,
+                        bary: l.max(Vec3::ZERO) / l.max(Vec3::ZERO).element_sum(),
+                        area: 0.0,
+                    });
                     owned[t].push(cell);
                 }
             }
@@ -211,7 +220,11 @@ fn rasterise(scene: &Scene, resolution: u32, uvs: &[[[f32; 2]; 3]], charts: &[u3
         match grid[cell].as_mut() {
             Some(slot) => slot.area += area,
             None => {
-                grid[cell] = Some(Slot { triangle: t as u32, bary: Vec3::splat(1.0 / 3.0), area });
+                grid[cell] = Some(Slot {
+                    triangle: t as u32,
+                    bary: Vec3::splat(1.0 / 3.0),
+                    area,
+                });
             }
         }
     }

@@ -34,7 +34,10 @@ pub struct Agreement {
 impl Agreement {
     /// Pairs tested.
     pub fn total(&self) -> u64 {
-        self.visible_visible + self.visible_occluded + self.occluded_visible + self.occluded_occluded
+        self.visible_visible
+            + self.visible_occluded
+            + self.occluded_visible
+            + self.occluded_occluded
     }
     /// Fraction of pairs where the CSSM agrees with the ray cast.
     pub fn agreement(&self) -> f64 {
@@ -42,7 +45,8 @@ impl Agreement {
     }
     /// Truly occluded pairs reported visible, as a fraction of the truly occluded.
     pub fn false_visible_rate(&self) -> f64 {
-        self.occluded_visible as f64 / (self.occluded_visible + self.occluded_occluded).max(1) as f64
+        self.occluded_visible as f64
+            / (self.occluded_visible + self.occluded_occluded).max(1) as f64
     }
     /// Truly visible pairs reported occluded, as a fraction of the truly visible.
     pub fn false_occluded_rate(&self) -> f64 {
@@ -62,8 +66,16 @@ impl Agreement {
 impl std::fmt::Display for Agreement {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(f, "                     CSSM visible  CSSM occluded")?;
-        writeln!(f, "ray cast visible   {:>14} {:>14}", self.visible_visible, self.visible_occluded)?;
-        writeln!(f, "ray cast occluded  {:>14} {:>14}", self.occluded_visible, self.occluded_occluded)?;
+        writeln!(
+            f,
+            "ray cast visible   {:>14} {:>14}",
+            self.visible_visible, self.visible_occluded
+        )?;
+        writeln!(
+            f,
+            "ray cast occluded  {:>14} {:>14}",
+            self.occluded_visible, self.occluded_occluded
+        )?;
         write!(
             f,
             "agreement {:.3}% of {} pairs; occluded reported visible {:.3}%; visible reported occluded {:.3}%",
@@ -148,13 +160,23 @@ impl SplitMix64 {
 /// Exact front-side visibility of `p_i` from `p_j` by ray casting (see the module docs).
 pub fn exact_visible(bvh: &SceneBvh, p_j: &SurfacePoint, p_i: &SurfacePoint, eps: f32) -> bool {
     let from = p_j.position + p_j.normal * eps;
-    let side = if (p_j.position - p_i.position).dot(p_i.normal) >= 0.0 { 1.0 } else { -1.0 };
+    let side = if (p_j.position - p_i.position).dot(p_i.normal) >= 0.0 {
+        1.0
+    } else {
+        -1.0
+    };
     let to = p_i.position + p_i.normal * (side * eps);
     bvh.segment_clear(from, to)
 }
 
 /// Tests `pairs` random pairs (seeded) of `scene` with the CSSM `file` and with ray casts.
-pub fn measure(scene: &Scene, file: &CssmFile, pairs: u64, seed: u64, options: QueryOptions) -> Agreement {
+pub fn measure(
+    scene: &Scene,
+    file: &CssmFile,
+    pairs: u64,
+    seed: u64,
+    options: QueryOptions,
+) -> Agreement {
     let sampler = SurfaceSampler::new(scene);
     let mut rng = SplitMix64(seed);
     let samples: Vec<(SurfacePoint, SurfacePoint)> = (0..pairs)

@@ -47,7 +47,14 @@ impl Compressor {
             pixel_count,
             map_count,
             maps_seen: 0,
-            open: vec![Open { start: 0, lo: 0, hi: u16::MAX }; pixel_count as usize],
+            open: vec![
+                Open {
+                    start: 0,
+                    lo: 0,
+                    hi: u16::MAX
+                };
+                pixel_count as usize
+            ],
             segment_runs: vec![Vec::new(); pixel_count as usize],
             offsets: vec![0],
             runs: Vec::new(),
@@ -81,7 +88,11 @@ impl Compressor {
                             open.hi = hi;
                         } else {
                             closed.push(pack(open));
-                            *open = Open { start: first_map + k as u32, lo: a, hi: b };
+                            *open = Open {
+                                start: first_map + k as u32,
+                                lo: a,
+                                hi: b,
+                            };
                         }
                     }
                 });
@@ -100,7 +111,11 @@ impl Compressor {
             self.runs.extend_from_slice(closed);
             self.offsets.push(self.runs.len() as u32);
             closed.clear();
-            *open = Open { start: next_start, lo: 0, hi: u16::MAX };
+            *open = Open {
+                start: next_start,
+                lo: 0,
+                hi: u16::MAX,
+            };
         }
     }
 
@@ -146,7 +161,12 @@ mod tests {
 
     #[test]
     fn a_disjoint_interval_starts_a_new_run() {
-        let maps = vec![vec![(10u16, 20u16)], vec![(15, 30)], vec![(25, 40)], vec![(0, u16::MAX)]];
+        let maps = vec![
+            vec![(10u16, 20u16)],
+            vec![(15, 30)],
+            vec![(25, 40)],
+            vec![(0, u16::MAX)],
+        ];
         let rd = compress(&maps, 1);
         assert_eq!(rd.runs.len(), 2);
         assert_eq!(rd.lookup(0, 0), 17);

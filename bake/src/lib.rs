@@ -23,10 +23,7 @@ pub mod traverse;
 
 use std::time::{Duration, Instant};
 
-use cssm_formats::{
-    BakeParams, CssmFile, Scene, SceneRef, Traversal,
-    cube::DepthQuantizer,
-};
+use cssm_formats::{BakeParams, CssmFile, Scene, SceneRef, Traversal, cube::DepthQuantizer};
 use rayon::prelude::*;
 
 pub use atlas::ATLAS_RESOLUTION_RANGE;
@@ -147,7 +144,9 @@ pub fn bake(
     stats.charts = atlas.chart_count;
     stats.defined_texels = atlas.texels.len() as u64;
     if atlas.texels.is_empty() {
-        return Err(BakeError::Atlas("no atlas texel is covered by the scene".into()));
+        return Err(BakeError::Atlas(
+            "no atlas texel is covered by the scene".into(),
+        ));
     }
 
     // 2. Coherent order of the texels (§3.2.3).
@@ -163,7 +162,9 @@ pub fn bake(
     let map_count = sequence.len() as u32;
     let mut compressor = compress::Compressor::new(pixel_count, map_count);
     // Enough maps per batch to keep every core busy, small enough to stay in cache-sized memory.
-    let batch_maps = (4 * rayon::current_num_threads()).max(8).min(map_count as usize);
+    let batch_maps = (4 * rayon::current_num_threads())
+        .max(8)
+        .min(map_count as usize);
     let mut batch = vec![cubemap::DONT_CARE; batch_maps * pixel_count as usize];
     for (b, ids) in sequence.chunks(batch_maps).enumerate() {
         let slots = &mut batch[..ids.len() * pixel_count as usize];
@@ -171,7 +172,14 @@ pub fn bake(
             .par_chunks_mut(pixel_count as usize)
             .zip(ids.par_iter())
             .map(|(out, &texel)| {
-                cubemap::render(&bvh, &atlas.texels[texel as usize], n, near, &quantizer, out)
+                cubemap::render(
+                    &bvh,
+                    &atlas.texels[texel as usize],
+                    n,
+                    near,
+                    &quantizer,
+                    out,
+                )
             })
             .sum();
         stats.rays += rays;

@@ -42,7 +42,11 @@ impl SceneBvh {
                 }
             })
             .collect();
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
+        let bvh = build_cwbvh_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
         let triangles = bvh
             .primitive_indices
             .iter()
@@ -140,12 +144,21 @@ mod tests {
     fn dual_hit_finds_both_layers_even_through_a_shared_edge() {
         let bvh = SceneBvh::new(&two_planes());
         let h = bvh.dual_hit(Vec3::new(0.3, 0.2, 0.0), Vec3::Z, 1e-3);
-        assert!((h.first - 1.0).abs() < 1e-5 && (h.second - 3.0).abs() < 1e-5, "{h:?}");
+        assert!(
+            (h.first - 1.0).abs() < 1e-5 && (h.second - 3.0).abs() < 1e-5,
+            "{h:?}"
+        );
         // Through the diagonal shared by both triangles of each quad.
         let h = bvh.dual_hit(Vec3::new(0.25, 0.25, 0.0), Vec3::Z, 1e-3);
-        assert!((h.first - 1.0).abs() < 1e-5 && (h.second - 3.0).abs() < 1e-5, "{h:?}");
+        assert!(
+            (h.first - 1.0).abs() < 1e-5 && (h.second - 3.0).abs() < 1e-5,
+            "{h:?}"
+        );
         let h = bvh.dual_hit(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, 1e-3);
-        assert!((h.first - 1.0).abs() < 1e-5 && h.second.is_infinite(), "{h:?}");
+        assert!(
+            (h.first - 1.0).abs() < 1e-5 && h.second.is_infinite(),
+            "{h:?}"
+        );
         let h = bvh.dual_hit(Vec3::new(5.0, 0.0, 0.0), Vec3::Z, 1e-3);
         assert!(h.first.is_infinite() && h.second.is_infinite());
         assert!(!bvh.segment_clear(Vec3::ZERO, Vec3::new(0.0, 0.0, 2.0)));

@@ -194,7 +194,10 @@ mod tests {
         let (lo, hi) = q.interval(10.0, 20.0);
         assert!(q.depth(lo) >= 10.0 && q.depth(hi) < 20.0 && lo <= hi);
         assert!(q.depth(lo - 1) < 10.0 && q.depth(hi + 1) >= 20.0 - 1e-3);
-        assert_eq!(q.interval(f32::INFINITY, f32::INFINITY), (DEPTH_MAX, DEPTH_MAX));
+        assert_eq!(
+            q.interval(f32::INFINITY, f32::INFINITY),
+            (DEPTH_MAX, DEPTH_MAX)
+        );
         assert_eq!(q.interval(50.0, f32::INFINITY).1, DEPTH_MAX);
         let (lo, hi) = q.interval(10.0, 10.0 + 1e-6);
         assert_eq!(lo, hi);

@@ -31,7 +31,7 @@ impl Default for QueryOptions {
     fn default() -> Self {
         Self {
             bias_near: 1.0,
-            bias_relative: 0.02,
+            bias_relative: 0.0,
             pcf: false,
         }
     }
@@ -82,7 +82,8 @@ impl<'a> VisibilityQuery<'a> {
     /// (chart borders), the nearest defined cell of the same chart within two texels.
     pub fn texel_at(&self, triangle: usize, bary: [f32; 3]) -> Option<u32> {
         let uv = self.file.triangle_uvs.get(triangle)?;
-        let p = Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2];
+        let p =
+            Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2];
         let r = self.file.params.atlas_resolution as i64;
         let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
         let cell = |x: i64, y: i64| -> u32 {
@@ -117,7 +118,9 @@ impl<'a> VisibilityQuery<'a> {
     /// Quantised depth stored for `texel` at cube-map `pixel`.
     #[inline]
     pub fn depth_code(&self, texel: u32, pixel: u32) -> u16 {
-        self.file.runs.lookup(self.map_of_texel[texel as usize], pixel)
+        self.file
+            .runs
+            .lookup(self.map_of_texel[texel as usize], pixel)
     }
 
     /// Centre of `texel`'s cube map.
@@ -135,7 +138,8 @@ impl<'a> VisibilityQuery<'a> {
             return 1.0;
         }
         let (face, u, v, depth) = cube::project(d);
-        let bias = self.options.bias_near * self.file.params.near + self.options.bias_relative * depth;
+        let bias =
+            self.options.bias_near * self.file.params.near + self.options.bias_relative * depth;
         let test = |pixel: u32| -> f32 {
             if cube::pixel_is_dont_care(n, pixel, normal) {
                 return 0.0;
@@ -154,7 +158,8 @@ impl<'a> VisibilityQuery<'a> {
         let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
         let base = face * n * n;
         let at = |x: u32, y: u32| test(base + y * n + x);
-        (1.0 - wy) * ((1.0 - wx) * at(x0, y0) + wx * at(x1, y0)) + wy * ((1.0 - wx) * at(x0, y1) + wx * at(x1, y1))
+        (1.0 - wy) * ((1.0 - wx) * at(x0, y0) + wx * at(x1, y0))
+            + wy * ((1.0 - wx) * at(x0, y1) + wx * at(x1, y1))
     }
 
     /// Whether `p_i` is visible from the cube map of `texel` (PCF: at least half visible).
