@@ -45,7 +45,7 @@ enum Command {
     },
     /// Measure a .cssm file's visibility against exact ray casts on random surface point pairs.
     #[command(after_help = "Examples:\n  cssm check cornell.cssm\n  \
-        cssm check cornell.cssm --pairs 1000000 --pcf --min-agreement 0.98")]
+        cssm check cornell.cssm --pairs 1000000 --no-pcf --min-agreement 0.98")]
     Check(CheckArgs),
 }
 
@@ -88,9 +88,12 @@ struct CheckArgs {
     /// Seed of the pairs.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Percentage-closer filtering over 2x2 pixels.
+    /// Turn off percentage-closer filtering over the 2x2 pixels around each projection.
     #[arg(long)]
-    pcf: bool,
+    no_pcf: bool,
+    /// Use only the texel under each sender point (no filtering across neighbouring cube maps).
+    #[arg(long)]
+    no_sender_filter: bool,
     /// Constant depth bias, in multiples of the bake's near distance.
     #[arg(long, default_value_t = QueryOptions::default().bias_near)]
     bias_near: f32,
@@ -393,7 +396,8 @@ fn run_check(args: CheckArgs) -> CliResult {
     let options = QueryOptions {
         bias_near: args.bias_near,
         bias_relative: args.bias_relative,
-        pcf: args.pcf,
+        pcf: !args.no_pcf,
+        sender_filter: !args.no_sender_filter,
     };
     let start = Instant::now();
     let a = bake::check::measure(&scene, &file, args.pairs, args.seed, options);

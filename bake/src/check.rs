@@ -160,7 +160,8 @@ impl SplitMix64 {
 /// Exact front-side visibility of `p_i` from `p_j` by ray casting (see the module docs).
 pub fn exact_visible(bvh: &SceneBvh, p_j: &SurfacePoint, p_i: &SurfacePoint, eps: f32) -> bool {
     let from = p_j.position + p_j.normal * eps;
-    let side = if (p_j.position - p_i.position).dot(p_i.normal) >= 0.0 {
+    // Coplanar pairs (a zero dot product up to rounding) are lifted on the front side.
+    let side = if (p_j.position - p_i.position).dot(p_i.normal) >= -eps {
         1.0
     } else {
         -1.0
@@ -195,12 +196,17 @@ pub fn measure(
         .map(|chunk| {
             let mut a = Agreement::default();
             for (p_j, p_i) in chunk {
-                let Some(texel) = query.texel_at(p_j.triangle, p_j.bary) else {
+                let Some(fraction) = query.visibility_from_surface(
+                    p_j.triangle,
+                    p_j.bary,
+                    p_i.position,
+                    Some(p_i.normal),
+                ) else {
                     a.unmapped += 1;
                     continue;
                 };
                 let truth = exact_visible(&bvh, p_j, p_i, eps);
-                let cssm = query.visible(texel, p_i.position);
+                let cssm = fraction >= 0.5;
                 match (truth, cssm) {
                     (true, true) => a.visible_visible += 1,
                     (true, false) => a.visible_occluded += 1,

@@ -134,7 +134,13 @@ impl Compressor {
 /// Packs a closed run: start within its segment, and the middle code of its interval.
 #[inline]
 fn pack(open: &Open) -> u32 {
-    let value = ((open.lo as u32 + open.hi as u32) / 2) as u16;
+    let value = match std::env::var("CSSM_FRONT_MARGIN")
+        .ok()
+        .and_then(|v| v.parse::<f32>().ok())
+    {
+        Some(f) => (open.lo as u32 + 1 + (open.lo as f32 * f) as u32).min(open.hi as u32) as u16,
+        None => ((open.lo as u32 + open.hi as u32) / 2) as u16,
+    };
     ((open.start % SEGMENT_MAPS) << 16) | value as u32
 }
 

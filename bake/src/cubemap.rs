@@ -38,21 +38,12 @@ pub fn render(
             continue;
         }
         rays += 1;
-        let mut dir = cube::pixel_direction(n, pixel);
-        // A pixel straddling the tangent plane whose centre ray points below it would only see
-        // the texel's own surface a few near-distances away. Cast it along the plane instead
-        // (at height `near`), so it records what blocks the view *along* the surface: the
-        // occluders of coplanar and nearly coplanar receivers.
-        let below = dir.dot(normal);
-        let mut depth_scale = 1.0;
-        if below < 0.0 {
-            dir -= normal * below;
-            let major = (pixel / (n * n) / 2) as usize;
-            depth_scale = dir.to_array()[major].abs();
-            if depth_scale < 1e-3 {
-                *slot = DONT_CARE;
-                continue;
-            }
+        // Straddling pixels whose centre points below the plane are cast along it (see
+        // `cube::cast_direction`): otherwise they would only see the texel's own surface.
+        let (dir, depth_scale) = cube::cast_direction(n, pixel, normal);
+        if depth_scale < 1e-3 {
+            *slot = DONT_CARE;
+            continue;
         }
         let hit = bvh.dual_hit(centre, dir, separation);
         *slot = quantizer.interval(hit.first * depth_scale, hit.second * depth_scale);

@@ -29,6 +29,83 @@ pub struct DualHit {
     pub second: f32,
 }
 
+/// Per-ray constants of the watertight ray/triangle test of Woop, Benthin and Wald (JCGT 2013).
+/// Möller–Trumbore (obvhs' `Triangle::intersect`) lets rays through the edge shared by two
+/// triangles escape both, which would punch holes through walls at the quads' diagonals.
+#[derive(Clone, Copy)]
+struct WatertightRay {
+    origin: Vec3,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl WatertightRay {
+    fn new(origin: Vec3, dir: Vec3) -> Self {
+        let a = dir.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        let d = dir.to_array();
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        Self {
+            origin,
+            kx,
+            ky,
+            kz,
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
+        }
+    }
+
+    /// Ray parameter of the hit with `tri`, `INFINITY` for a miss. Points on a shared edge hit
+    /// both triangles (the caller merges equal distances).
+    #[inline]
+    fn intersect(&self, tri: &Triangle) -> f32 {
+        let o = self.origin;
+        let a = (Vec3::from(tri.v0) - o).to_array();
+        let b = (Vec3::from(tri.v1) - o).to_array();
+        let c = (Vec3::from(tri.v2) - o).to_array();
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            // Fall back to double precision on the edge, as the paper does.
+            u = (cx as f64 * by as f64 - cy as f64 * bx as f64) as f32;
+            v = (ax as f64 * cy as f64 - ay as f64 * cx as f64) as f32;
+            w = (bx as f64 * ay as f64 - by as f64 * ax as f64) as f32;
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return f32::INFINITY;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return f32::INFINITY;
+        }
+        let t = (u * self.sz * a[kz] + v * self.sz * b[kz] + w * self.sz * c[kz]) / det;
+        if t.is_finite() { t } else { f32::INFINITY }
+    }
+}
+
 impl SceneBvh {
     /// Builds the BVH (deterministic for a given scene).
     pub fn new(scene: &Scene) -> Self {
@@ -62,13 +139,14 @@ impl SceneBvh {
         let mut state = self.bvh.new_traversal(ray.direction);
         let mut node;
         let mut best = f32::INFINITY;
+        let wt = WatertightRay::new(origin, dir);
         traverse!(
             self.bvh,
             node,
             state,
             node.intersect_ray(&traverse_ray, state.oct_inv4),
             {
-                let t = self.triangles[state.primitive_id as usize].intersect(&traverse_ray);
+                let t = wt.intersect(&self.triangles[state.primitive_id as usize]);
                 if t > tmin && t < traverse_ray.tmax {
                     best = t;
                     traverse_ray.tmax = t;
@@ -93,13 +171,14 @@ impl SceneBvh {
         let mut state = self.bvh.new_traversal(ray.direction);
         let mut node;
         let (mut first, mut second) = (f32::INFINITY, f32::INFINITY);
+        let wt = WatertightRay::new(origin, dir);
         traverse!(
             self.bvh,
             node,
             state,
             node.intersect_ray(&traverse_ray, state.oct_inv4),
             {
-                let t = self.triangles[state.primitive_id as usize].intersect(&traverse_ray);
+                let t = wt.intersect(&self.triangles[state.primitive_id as usize]);
                 if t > 0.0 && t < traverse_ray.tmax {
                     if t < first {
                         if first - t > separation {

@@ -98,6 +98,23 @@ pub fn pixel_is_dont_care(n: u32, pixel: u32, normal: Vec3) -> bool {
         .all(|&(du, dv)| face_direction(face, u0 + du * step, v0 + dv * step).dot(normal) < 0.0)
 }
 
+/// The ray the bake casts for `pixel` of a texel with normal `normal`, and the factor that turns
+/// its ray parameter into linear depth. Normally the pixel's centre direction (factor 1); for a
+/// pixel that straddles the tangent plane with its centre below it, that direction projected onto
+/// the plane, so the ray runs along the surface at the near distance and records what blocks the
+/// view of coplanar receivers (the factor is then the projected major component).
+#[inline]
+pub fn cast_direction(n: u32, pixel: u32, normal: Vec3) -> (Vec3, f32) {
+    let dir = pixel_direction(n, pixel);
+    let below = dir.dot(normal);
+    if below >= 0.0 {
+        return (dir, 1.0);
+    }
+    let projected = dir - normal * below;
+    let major = (pixel / (n * n) / 2) as usize;
+    (projected, projected.to_array()[major].abs())
+}
+
 /// Linear-depth quantiser between the near and the far plane (16 bits).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DepthQuantizer {

@@ -25,14 +25,22 @@ pub struct QueryOptions {
     pub bias_relative: f32,
     /// Blend the 2x2 pixels around the projection (PCF) instead of one pixel.
     pub pcf: bool,
+    /// Blend the cube maps of the 2x2 atlas texels around the sender point (bilinear weights,
+    /// same chart), instead of taking the one texel under it: the generalised PCF of CSMs,
+    /// filtering across neighbouring depth maps as well as pixels.
+    pub sender_filter: bool,
 }
 
 impl Default for QueryOptions {
     fn default() -> Self {
         Self {
-            bias_near: 1.0,
+            // Measured on the Cornell box (atlas 64, cube 32, 100,000 pairs): with receiver-plane
+            // depth, PCF and sender filtering, a zero bias agrees best (98.2%); 1 near distance
+            // gives 98.0%, 4 gives 97.4%.
+            bias_near: 0.0,
             bias_relative: 0.0,
-            pcf: false,
+            pcf: true,
+            sender_filter: true,
         }
     }
 }
@@ -130,22 +138,65 @@ impl<'a> VisibilityQuery<'a> {
     }
 
     /// Fraction of `p_i` visible from the cube map of `texel` (0 or 1 without PCF).
+    ///
+    /// A receiver behind the sender's tangent plane (by more than the near distance) is
+    /// occluded: light leaves a surface on its front side. A receiver on or above the plane but
+    /// below the cube centre's horizon (a coplanar neighbour) is looked up along the plane,
+    /// where the bake cast the straddling pixels' rays.
     pub fn visibility(&self, texel: u32, p_i: Vec3) -> f32 {
+        self.visibility_oriented(texel, p_i, None)
+    }
+
+    /// [`Self::visibility`] for a receiver whose surface normal `n_i` is known. Each pixel then
+    /// compares its stored depth with the depth at which *its own* ray meets the receiver's
+    /// tangent plane, not with the receiver's depth (receiver-plane depth, after Isidoro 2006):
+    /// a surface seen at a grazing angle spans a wide range of depths across one pixel, and
+    /// without this the pixel's centre ray, hitting that surface nearer or farther, shadows it.
+    pub fn visibility_oriented(&self, texel: u32, p_i: Vec3, n_i: Option<Vec3>) -> f32 {
         let n = self.file.params.cube_resolution;
-        let normal = self.file.texels[texel as usize].nrm();
-        let d = p_i - self.cube_centre(texel);
-        if d == Vec3::ZERO {
+        let t = &self.file.texels[texel as usize];
+        let normal = t.nrm();
+        let near = self.file.params.near;
+        if (p_i - t.pos()).dot(normal) < -near {
+            return 0.0;
+        }
+        let centre = self.cube_centre(texel);
+        let mut d = p_i - centre;
+        let below = d.dot(normal);
+        if below < 0.0 {
+            d -= normal * below;
+        }
+        if d.length_squared() < near * near * 1e-6 {
             return 1.0;
         }
         let (face, u, v, depth) = cube::project(d);
         let bias =
             self.options.bias_near * self.file.params.near + self.options.bias_relative * depth;
+        // Depth of the receiver along the ray the bake cast for `pixel`.
+        let receiver_depth = |pixel: u32| -> f32 {
+            let Some(n_i) = n_i else { return depth };
+            let (ray, scale) = cube::cast_direction(n, pixel, normal);
+            let denom = ray.dot(n_i);
+            if denom.abs() < 1e-4 {
+                return depth;
+            }
+            let along = (p_i - centre).dot(n_i) / denom * scale;
+            if along.is_finite() && along > 0.0 {
+                along.clamp(0.5 * depth, 1.5 * depth)
+            } else {
+                depth
+            }
+        };
         let test = |pixel: u32| -> f32 {
             if cube::pixel_is_dont_care(n, pixel, normal) {
                 return 0.0;
             }
             let stored = self.quantizer.depth(self.depth_code(texel, pixel));
-            if stored >= depth - bias { 1.0 } else { 0.0 }
+            if stored >= receiver_depth(pixel) - bias {
+                1.0
+            } else {
+                0.0
+            }
         };
         if !self.options.pcf {
             return test(cube::pixel_index(n, face, u, v));
@@ -165,5 +216,71 @@ impl<'a> VisibilityQuery<'a> {
     /// Whether `p_i` is visible from the cube map of `texel` (PCF: at least half visible).
     pub fn visible(&self, texel: u32, p_i: Vec3) -> bool {
         self.visibility(texel, p_i) >= 0.5
+    }
+
+    /// Texels standing for the surface point (`triangle`, `bary`) with their weights: the 2x2
+    /// atlas texels around its atlas coordinates with bilinear weights, restricted to the chart
+    /// of the texel under it and renormalised; just that texel when sender filtering is off.
+    pub fn sender_texels(&self, triangle: usize, bary: [f32; 3]) -> Vec<(u32, f32)> {
+        let Some(centre) = self.texel_at(triangle, bary) else {
+            return Vec::new();
+        };
+        if !self.options.sender_filter {
+            return vec![(centre, 1.0)];
+        }
+        let uv = &self.file.triangle_uvs[triangle];
+        let p =
+            Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2];
+        let chart = self.file.texels[centre as usize].chart;
+        let r = self.file.params.atlas_resolution as i64;
+        let (fx, fy) = (p.x - 0.5, p.y - 0.5);
+        let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
+        let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
+        let mut out = Vec::with_capacity(4);
+        let mut total = 0.0;
+        for (dx, dy, w) in [
+            (0, 0, (1.0 - wx) * (1.0 - wy)),
+            (1, 0, wx * (1.0 - wy)),
+            (0, 1, (1.0 - wx) * wy),
+            (1, 1, wx * wy),
+        ] {
+            let (x, y) = (x0 + dx, y0 + dy);
+            if x < 0 || y < 0 || x >= r || y >= r || w <= 0.0 {
+                continue;
+            }
+            let t = self.grid[(y * r + x) as usize];
+            if t != NONE && self.file.texels[t as usize].chart == chart {
+                out.push((t, w));
+                total += w;
+            }
+        }
+        if total <= 0.0 {
+            return vec![(centre, 1.0)];
+        }
+        for (_, w) in out.iter_mut() {
+            *w /= total;
+        }
+        out
+    }
+
+    /// Fraction of `p_i` visible from the surface point (`triangle`, `bary`), or `None` when
+    /// no texel stands for that point.
+    pub fn visibility_from_surface(
+        &self,
+        triangle: usize,
+        bary: [f32; 3],
+        p_i: Vec3,
+        n_i: Option<Vec3>,
+    ) -> Option<f32> {
+        let senders = self.sender_texels(triangle, bary);
+        if senders.is_empty() {
+            return None;
+        }
+        Some(
+            senders
+                .iter()
+                .map(|&(t, w)| w * self.visibility_oriented(t, p_i, n_i))
+                .sum(),
+        )
     }
 }
