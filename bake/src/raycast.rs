@@ -16,8 +16,8 @@ use obvhs::{
 /// A BVH over the scene's triangles.
 pub struct SceneBvh {
     bvh: CwBvh,
-    /// Triangles in BVH primitive order (so no indirection while traversing).
-    triangles: Vec<Triangle>,
+    /// Triangle corners in BVH primitive order (so no indirection while traversing).
+    triangles: Vec<[Vec3; 3]>,
 }
 
 /// First and second intersection along a ray (dual depth layers, §3.2 after Weiskopf and Ertl).
@@ -73,11 +73,11 @@ impl WatertightRay {
     /// Ray parameter of the hit with `tri`, `INFINITY` for a miss. Points on a shared edge hit
     /// both triangles (the caller merges equal distances).
     #[inline]
-    fn intersect(&self, tri: &Triangle) -> f32 {
+    fn intersect(&self, tri: &[Vec3; 3]) -> f32 {
         let o = self.origin;
-        let a = (Vec3::from(tri.v0) - o).to_array();
-        let b = (Vec3::from(tri.v1) - o).to_array();
-        let c = (Vec3::from(tri.v2) - o).to_array();
+        let a = (tri[0] - o).to_array();
+        let b = (tri[1] - o).to_array();
+        let c = (tri[2] - o).to_array();
         let (kx, ky, kz) = (self.kx, self.ky, self.kz);
         let ax = a[kx] - self.sx * a[kz];
         let ay = a[ky] - self.sy * a[kz];
@@ -127,7 +127,10 @@ impl SceneBvh {
         let triangles = bvh
             .primitive_indices
             .iter()
-            .map(|&i| tris[i as usize])
+            .map(|&i| {
+                let t = tris[i as usize];
+                [t.v0.into(), t.v1.into(), t.v2.into()]
+            })
             .collect();
         Self { bvh, triangles }
     }

@@ -89,13 +89,13 @@ pub fn pixel_index(n: u32, face: u32, u: f32, v: f32) -> u32 {
 /// Pixels that straddle the plane are kept, so coplanar neighbours stay queryable.
 #[inline]
 pub fn pixel_is_dont_care(n: u32, pixel: u32, normal: Vec3) -> bool {
-    let (face, row, col) = split_pixel(n, pixel);
-    let step = 2.0 / n as f32;
-    let u0 = col as f32 * step - 1.0;
-    let v0 = row as f32 * step - 1.0;
-    [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
-        .iter()
-        .all(|&(du, dv)| face_direction(face, u0 + du * step, v0 + dv * step).dot(normal) < 0.0)
+    // `dot(normal, direction)` is linear in (u, v) over a face, so its largest value over the
+    // pixel's corners is the value at the centre plus half a pixel step times |n_u| + |n_v|.
+    let (face, _, _) = split_pixel(n, pixel);
+    let (_, ua, va) = face_axes(face);
+    let nrm = normal.to_array();
+    let half_step = 1.0 / n as f32;
+    pixel_direction(n, pixel).dot(normal) + half_step * (nrm[ua].abs() + nrm[va].abs()) < 0.0
 }
 
 /// The ray the bake casts for `pixel` of a texel with normal `normal`, and the factor that turns
@@ -190,6 +190,40 @@ mod tests {
                 let (face, u, v, depth) = project(d);
                 assert_eq!(pixel_index(n, face, u, v), pixel, "n {n} pixel {pixel}");
                 assert!((depth - 3.7).abs() < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn dont_care_is_all_four_corners_behind_the_plane() {
+        let n = 6;
+        for normal in [
+            Vec3::Y,
+            Vec3::new(0.3, -0.8, 0.52).normalize(),
+            Vec3::new(-0.9, 0.1, 0.42).normalize(),
+        ] {
+            for pixel in 0..6 * n * n {
+                let (face, row, col) = split_pixel(n, pixel);
+                let step = 2.0 / n as f32;
+                let (u0, v0) = (col as f32 * step - 1.0, row as f32 * step - 1.0);
+                let corners_behind =
+                    [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+                        .iter()
+                        .all(|&(du, dv)| {
+                            face_direction(face, u0 + du * step, v0 + dv * step).dot(normal) < -1e-6
+                        });
+                let corners_front =
+                    [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+                        .iter()
+                        .any(|&(du, dv)| {
+                            face_direction(face, u0 + du * step, v0 + dv * step).dot(normal) > 1e-6
+                        });
+                if corners_behind {
+                    assert!(pixel_is_dont_care(n, pixel, normal));
+                }
+                if corners_front {
+                    assert!(!pixel_is_dont_care(n, pixel, normal));
+                }
             }
         }
     }
