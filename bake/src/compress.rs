@@ -106,11 +106,14 @@ impl Compressor {
 
     fn close_segment(&mut self) {
         let next_start = self.maps_seen;
+        let closing: usize = self.segment_runs.iter().map(|c| c.len() + 1).sum();
+        self.runs.reserve_exact(closing);
         for (open, closed) in self.open.iter_mut().zip(self.segment_runs.iter_mut()) {
             closed.push(pack(open));
             self.runs.extend_from_slice(closed);
             self.offsets.push(self.runs.len() as u32);
-            closed.clear();
+            // Give the memory back: the next segment starts from nothing.
+            *closed = Vec::new();
             *open = Open {
                 start: next_start,
                 lo: 0,

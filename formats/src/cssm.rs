@@ -272,33 +272,61 @@ fn checksum(payload: &[u8]) -> [u8; 16] {
     out
 }
 
-/// Assembles header and payload from an uncompressed (bincode) payload.
-fn frame(uncompressed: &[u8]) -> Result<Vec<u8>, CssmError> {
-    if uncompressed.len() as u64 > MAX_UNCOMPRESSED_BYTES {
-        return Err(CssmError::TooLarge {
-            len: uncompressed.len() as u64,
-        });
-    }
-    let compressed = zstd::bulk::compress(uncompressed, ZSTD_LEVEL)
-        .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
+/// Header + payload for a zstd payload of `uncompressed_len` bytes once decompressed.
+fn frame_compressed(uncompressed_len: u64, compressed: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_LEN + compressed.len());
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     out.extend_from_slice(&0u32.to_le_bytes());
-    out.extend_from_slice(&(uncompressed.len() as u64).to_le_bytes());
+    out.extend_from_slice(&uncompressed_len.to_le_bytes());
     out.extend_from_slice(&(compressed.len() as u64).to_le_bytes());
-    out.extend_from_slice(&checksum(&compressed));
-    out.extend_from_slice(&compressed);
-    Ok(out)
+    out.extend_from_slice(&checksum(compressed));
+    out.extend_from_slice(compressed);
+    out
 }
 
 /// Encodes `file` into the bytes of a `.cssm` file. Validates it first ([`validate`]), so that
 /// nothing is written that [`decode`] would refuse. Deterministic.
 pub fn encode(file: &CssmFile) -> Result<Vec<u8>, CssmError> {
     validate(file)?;
-    let raw = bincode::serde::encode_to_vec(file, bincode_config())
+    // Stream bincode straight into zstd, counting the uncompressed bytes, so the uncompressed
+    // body (hundreds of MiB for a 512 atlas) never exists in memory as a whole.
+    let encoder = zstd::stream::Encoder::new(Vec::new(), ZSTD_LEVEL)
+        .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
+    let mut sink = CountingWriter {
+        inner: encoder,
+        count: 0,
+    };
+    bincode::serde::encode_into_std_write(file, &mut sink, bincode_config())
         .map_err(|e| CssmError::Encode(format!("bincode: {e}")))?;
-    frame(&raw)
+    let uncompressed_len = sink.count;
+    if uncompressed_len > MAX_UNCOMPRESSED_BYTES {
+        return Err(CssmError::TooLarge {
+            len: uncompressed_len,
+        });
+    }
+    let compressed = sink
+        .inner
+        .finish()
+        .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
+    Ok(frame_compressed(uncompressed_len, &compressed))
+}
+
+/// A writer that counts what passes through it.
+struct CountingWriter<W> {
+    inner: W,
+    count: u64,
+}
+
+impl<W: std::io::Write> std::io::Write for CountingWriter<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.count += n as u64;
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
 }
 
 fn u32_at(b: &[u8], at: usize) -> u32 {
