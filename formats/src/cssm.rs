@@ -35,7 +35,7 @@ pub const SEGMENT_MAPS: u32 = 1 << 16;
 /// allocation.
 pub const MAX_UNCOMPRESSED_BYTES: u64 = 8 << 30;
 /// zstd compression level of the payload (19 is far too slow for large bakes).
-pub const ZSTD_LEVEL: i32 = 9;
+pub const ZSTD_LEVEL: i32 = 3;
 /// Size of the fixed header in bytes.
 pub const HEADER_LEN: usize = 8 + 4 + 4 + 8 + 8 + 16;
 /// Valid range of [`BakeParams::atlas_resolution`].
