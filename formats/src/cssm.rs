@@ -35,7 +35,7 @@ pub const SEGMENT_MAPS: u32 = 1 << 16;
 /// allocation.
 pub const MAX_UNCOMPRESSED_BYTES: u64 = 8 << 30;
 /// zstd compression level of the payload (19 is far too slow for large bakes).
-pub const ZSTD_LEVEL: i32 = 3;
+pub const ZSTD_LEVEL: i32 = 9;
 /// Size of the fixed header in bytes.
 pub const HEADER_LEN: usize = 8 + 4 + 4 + 8 + 8 + 16;
 /// Valid range of [`BakeParams::atlas_resolution`].
@@ -291,7 +291,13 @@ pub fn encode(file: &CssmFile) -> Result<Vec<u8>, CssmError> {
     validate(file)?;
     // Stream bincode straight into zstd, counting the uncompressed bytes, so the uncompressed
     // body (hundreds of MiB for a 512 atlas) never exists in memory as a whole.
-    let encoder = zstd::stream::Encoder::new(Vec::new(), ZSTD_LEVEL)
+    let mut encoder = zstd::stream::Encoder::new(Vec::new(), ZSTD_LEVEL)
+        .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
+    // zstd's multi-threaded output is the same for any number of workers, so this stays
+    // deterministic while compressing on every core.
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get()) as u32;
+    encoder
+        .multithread(workers)
         .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
     let mut sink = CountingWriter {
         inner: encoder,
