@@ -12,8 +12,7 @@ use glam::{Vec2, Vec3};
 
 use crate::BakeError;
 
-/// Smallest and largest atlas resolution accepted.
-pub const ATLAS_RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 32..=1024;
+use cssm_formats::cssm::ATLAS_RESOLUTION_RANGE;
 
 /// Average number of faces per chart above which xatlas' charts are capped in area.
 const FACES_PER_CHART: f64 = 200.0;

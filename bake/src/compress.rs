@@ -13,14 +13,6 @@ use rayon::prelude::*;
 
 use crate::cubemap::Interval;
 
-/// How the code stored for a run is chosen inside the run's interval intersection `[lo, hi]`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum RunValue {
-    /// The middle of the intersection: the largest margin against both layers.
-    #[default]
-    Midpoint,
-}
-
 #[derive(Clone, Copy)]
 struct Open {
     start: u32,

@@ -26,10 +26,9 @@ use std::time::{Duration, Instant};
 use cssm_formats::{BakeParams, CssmFile, Scene, SceneRef, Traversal, cube::DepthQuantizer};
 use rayon::prelude::*;
 
-pub use atlas::ATLAS_RESOLUTION_RANGE;
-
-/// Smallest and largest cube-map face resolution accepted.
-pub const CUBE_RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 8..=128;
+/// Accepted atlas and cube-map resolutions: the container's own limits, so a bake never writes a
+/// file that `cssm::validate` refuses.
+pub use cssm_formats::cssm::{ATLAS_RESOLUTION_RANGE, CUBE_RESOLUTION_RANGE};
 
 /// Near distance as a fraction of the scene diameter when none is given (§3.2.1: "a small value
 /// for the near plane").

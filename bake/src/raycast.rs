@@ -135,13 +135,21 @@ impl SceneBvh {
         Self { bvh, triangles }
     }
 
-    /// Closest hit parameter along `origin + t * dir` for `t` in `(tmin, tmax)`, if any.
-    pub fn closest(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
+    /// Traverses the ray `origin + t * dir`, `t` in `(tmin, tmax)`, calling `on_hit(t)` for every
+    /// triangle hit (watertight test) inside the current range; `on_hit` returns the new upper
+    /// bound, which prunes the rest of the traversal.
+    fn for_each_hit(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        mut on_hit: impl FnMut(f32) -> f32,
+    ) {
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
         let mut traverse_ray = ray;
         let mut state = self.bvh.new_traversal(ray.direction);
         let mut node;
-        let mut best = f32::INFINITY;
         let wt = WatertightRay::new(origin, dir);
         traverse!(
             self.bvh,
@@ -151,11 +159,19 @@ impl SceneBvh {
             {
                 let t = wt.intersect(&self.triangles[state.primitive_id as usize]);
                 if t > tmin && t < traverse_ray.tmax {
-                    best = t;
-                    traverse_ray.tmax = t;
+                    traverse_ray.tmax = on_hit(t);
                 }
             }
         );
+    }
+
+    /// Closest hit parameter along `origin + t * dir` for `t` in `(tmin, tmax)`, if any.
+    pub fn closest(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
+        let mut best = f32::INFINITY;
+        self.for_each_hit(origin, dir, tmin, tmax, |t| {
+            best = t;
+            t
+        });
         best.is_finite().then_some(best)
     }
 
@@ -169,36 +185,22 @@ impl SceneBvh {
     /// first count as the first (a ray through a shared edge meets both triangles at one `t`).
     /// One traversal keeps the two nearest distinct hits and prunes beyond the second.
     pub fn dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> DualHit {
-        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, f32::INFINITY);
-        let mut traverse_ray = ray;
-        let mut state = self.bvh.new_traversal(ray.direction);
-        let mut node;
         let (mut first, mut second) = (f32::INFINITY, f32::INFINITY);
-        let wt = WatertightRay::new(origin, dir);
-        traverse!(
-            self.bvh,
-            node,
-            state,
-            node.intersect_ray(&traverse_ray, state.oct_inv4),
-            {
-                let t = wt.intersect(&self.triangles[state.primitive_id as usize]);
-                if t > 0.0 && t < traverse_ray.tmax {
-                    if t < first {
-                        if first - t > separation {
-                            second = first;
-                        }
-                        first = t;
-                        // Keep second clear of the new first.
-                        if second - first <= separation {
-                            second = f32::INFINITY;
-                        }
-                    } else if t - first > separation && t < second {
-                        second = t;
-                    }
-                    traverse_ray.tmax = second;
+        self.for_each_hit(origin, dir, 0.0, f32::INFINITY, |t| {
+            if t < first {
+                if first - t > separation {
+                    second = first;
                 }
+                first = t;
+                // Keep second clear of the new first.
+                if second - first <= separation {
+                    second = f32::INFINITY;
+                }
+            } else if t - first > separation && t < second {
+                second = t;
             }
-        );
+            second
+        });
         DualHit { first, second }
     }
 }
