@@ -180,41 +180,52 @@ pub fn measure(
 ) -> Agreement {
     let sampler = SurfaceSampler::new(scene);
     let mut rng = SplitMix64(seed);
-    let samples: Vec<(SurfacePoint, SurfacePoint)> = (0..pairs)
-        .map(|_| {
-            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-            let a = sampler.point(r());
-            let b = sampler.point(r());
-            (a, b)
-        })
-        .collect();
     let bvh = SceneBvh::new(scene);
     let query = VisibilityQuery::new(file, options);
     let eps = 1e-4 * scene.diameter();
-    samples
-        .par_chunks(1024)
-        .map(|chunk| {
-            let mut a = Agreement::default();
-            for (p_j, p_i) in chunk {
-                let Some(fraction) = query.visibility_from_surface(
-                    p_j.triangle,
-                    p_j.bary,
-                    p_i.position,
-                    Some(p_i.normal),
-                ) else {
-                    a.unmapped += 1;
-                    continue;
-                };
-                let truth = exact_visible(&bvh, p_j, p_i, eps);
-                let cssm = fraction >= 0.5;
-                match (truth, cssm) {
-                    (true, true) => a.visible_visible += 1,
-                    (true, false) => a.visible_occluded += 1,
-                    (false, true) => a.occluded_visible += 1,
-                    (false, false) => a.occluded_occluded += 1,
+    // Pairs are drawn in blocks from one sequential generator (the same pairs for a seed, however
+    // many threads), so memory stays bounded whatever `--pairs` asks for.
+    const BLOCK: u64 = 1 << 16;
+    let mut total = Agreement::default();
+    let mut drawn = 0;
+    while drawn < pairs {
+        let count = BLOCK.min(pairs - drawn);
+        drawn += count;
+        let samples: Vec<(SurfacePoint, SurfacePoint)> = (0..count)
+            .map(|_| {
+                let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+                let a = sampler.point(r());
+                let b = sampler.point(r());
+                (a, b)
+            })
+            .collect();
+        let block = samples
+            .par_chunks(1024)
+            .map(|chunk| {
+                let mut a = Agreement::default();
+                for (p_j, p_i) in chunk {
+                    let Some(fraction) = query.visibility_from_surface(
+                        p_j.triangle,
+                        p_j.bary,
+                        p_i.position,
+                        Some(p_i.normal),
+                    ) else {
+                        a.unmapped += 1;
+                        continue;
+                    };
+                    let truth = exact_visible(&bvh, p_j, p_i, eps);
+                    let cssm = fraction >= 0.5;
+                    match (truth, cssm) {
+                        (true, true) => a.visible_visible += 1,
+                        (true, false) => a.visible_occluded += 1,
+                        (false, true) => a.occluded_visible += 1,
+                        (false, false) => a.occluded_occluded += 1,
+                    }
                 }
-            }
-            a
-        })
-        .reduce(Agreement::default, Agreement::add)
+                a
+            })
+            .reduce(Agreement::default, Agreement::add);
+        total = total.add(block);
+    }
+    total
 }

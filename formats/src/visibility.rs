@@ -85,13 +85,20 @@ impl<'a> VisibilityQuery<'a> {
         self.file
     }
 
+    /// Atlas coordinates (texel units) of the point with barycentric coordinates `bary` on
+    /// scene triangle `triangle`; `None` for a triangle index the file does not have.
+    fn atlas_point(&self, triangle: usize, bary: [f32; 3]) -> Option<Vec2> {
+        let uv = self.file.triangle_uvs.get(triangle)?;
+        Some(
+            Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2],
+        )
+    }
+
     /// The texel standing for the point with barycentric coordinates `bary` on scene triangle
     /// `triangle`: the atlas cell under its atlas coordinates, or, where that cell is undefined
     /// (chart borders), the nearest defined cell of the same chart within two texels.
     pub fn texel_at(&self, triangle: usize, bary: [f32; 3]) -> Option<u32> {
-        let uv = self.file.triangle_uvs.get(triangle)?;
-        let p =
-            Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2];
+        let p = self.atlas_point(triangle, bary)?;
         let r = self.file.params.atlas_resolution as i64;
         let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
         let cell = |x: i64, y: i64| -> u32 {
@@ -228,9 +235,9 @@ impl<'a> VisibilityQuery<'a> {
         if !self.options.sender_filter {
             return vec![(centre, 1.0)];
         }
-        let uv = &self.file.triangle_uvs[triangle];
-        let p =
-            Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2];
+        let Some(p) = self.atlas_point(triangle, bary) else {
+            return Vec::new();
+        };
         let chart = self.file.texels[centre as usize].chart;
         let r = self.file.params.atlas_resolution as i64;
         let (fx, fy) = (p.x - 0.5, p.y - 0.5);
