@@ -135,16 +135,17 @@ impl SceneBvh {
         Self { bvh, triangles }
     }
 
-    /// Traverses the ray `origin + t * dir`, `t` in `(tmin, tmax)`, calling `on_hit(t)` for every
-    /// triangle hit (watertight test) inside the current range; `on_hit` returns the new upper
-    /// bound, which prunes the rest of the traversal.
+    /// Traverses the ray `origin + t * dir`, `t` in `(tmin, tmax)`, calling `on_hit(t, triangle)`
+    /// for every triangle hit (watertight test) inside the current range, with the scene's index
+    /// of the triangle; `on_hit` returns the new upper bound, which prunes the rest of the
+    /// traversal.
     fn for_each_hit(
         &self,
         origin: Vec3,
         dir: Vec3,
         tmin: f32,
         tmax: f32,
-        mut on_hit: impl FnMut(f32) -> f32,
+        mut on_hit: impl FnMut(f32, u32) -> f32,
     ) {
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
         let mut traverse_ray = ray;
@@ -159,7 +160,8 @@ impl SceneBvh {
             {
                 let t = wt.intersect(&self.triangles[state.primitive_id as usize]);
                 if t > tmin && t < traverse_ray.tmax {
-                    traverse_ray.tmax = on_hit(t);
+                    let triangle = self.bvh.primitive_indices[state.primitive_id as usize];
+                    traverse_ray.tmax = on_hit(t, triangle);
                 }
             }
         );
@@ -167,12 +169,18 @@ impl SceneBvh {
 
     /// Closest hit parameter along `origin + t * dir` for `t` in `(tmin, tmax)`, if any.
     pub fn closest(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
-        let mut best = f32::INFINITY;
-        self.for_each_hit(origin, dir, tmin, tmax, |t| {
-            best = t;
+        self.closest_hit(origin, dir, tmin, tmax).map(|(t, _)| t)
+    }
+
+    /// Closest hit along `origin + t * dir` for `t` in `(tmin, tmax)`: its parameter and the
+    /// scene's index of the triangle hit.
+    pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<(f32, u32)> {
+        let mut best = None;
+        self.for_each_hit(origin, dir, tmin, tmax, |t, triangle| {
+            best = Some((t, triangle));
             t
         });
-        best.is_finite().then_some(best)
+        best
     }
 
     /// True when the open segment from `a` to `b` hits nothing.
@@ -186,7 +194,7 @@ impl SceneBvh {
     /// One traversal keeps the two nearest distinct hits and prunes beyond the second.
     pub fn dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> DualHit {
         let (mut first, mut second) = (f32::INFINITY, f32::INFINITY);
-        self.for_each_hit(origin, dir, 0.0, f32::INFINITY, |t| {
+        self.for_each_hit(origin, dir, 0.0, f32::INFINITY, |t, _| {
             if t < first {
                 if first - t > separation {
                     second = first;

@@ -1,0 +1,95 @@
+//! A headless wgpu device: the GPU when there is one, Mesa's lavapipe (a Vulkan CPU
+//! implementation) where there is none.
+
+use std::sync::{Arc, Mutex};
+
+use crate::RuntimeError;
+
+/// A device and queue with what the runtime learned about them.
+pub struct Gpu {
+    /// The adapter the device was created on.
+    pub adapter: wgpu::Adapter,
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// The first GPU error wgpu reported outside an error scope since the last [`Gpu::wait`]
+    /// (wgpu would otherwise panic on it).
+    errors: Arc<Mutex<Option<String>>>,
+}
+
+impl Gpu {
+    /// Opens the first high-performance adapter (Vulkan, Metal or DX12; `WGPU_BACKEND` and
+    /// `WGPU_ADAPTER_NAME` override) with the adapter's own limits, so that large `.cssm` files
+    /// fit, and GPU timestamps where the adapter has them.
+    ///
+    /// # Errors
+    /// [`RuntimeError::NoAdapter`] when no adapter is found (the message says how to install
+    /// lavapipe), [`RuntimeError::NoDevice`] when the adapter refuses.
+    pub fn new_headless() -> Result<Self, RuntimeError> {
+        let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
+        descriptor.backends = wgpu::Backends::PRIMARY;
+        let instance = wgpu::Instance::new(descriptor.with_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        }))
+        .map_err(|e| RuntimeError::NoAdapter(e.to_string()))?;
+        let wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::FLOAT32_FILTERABLE;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("cssm"),
+            required_features: adapter.features() & wanted,
+            required_limits: adapter.limits(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| RuntimeError::NoDevice {
+            adapter: adapter.get_info().name,
+            reason: e.to_string(),
+        })?;
+        let errors = Arc::new(Mutex::new(None));
+        let sink = errors.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
+            slot.get_or_insert_with(|| e.to_string());
+        }));
+        Ok(Self {
+            adapter,
+            device,
+            queue,
+            errors,
+        })
+    }
+
+    /// "name (backend, driver)" of the adapter.
+    pub fn describe(&self) -> String {
+        let info = self.adapter.get_info();
+        format!(
+            "{} ({:?}, {} {})",
+            info.name, info.backend, info.driver, info.driver_info
+        )
+    }
+
+    /// Whether the device can time passes with timestamp queries.
+    pub fn has_timestamps(&self) -> bool {
+        self.device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    /// Waits for all submitted work and turns any GPU error captured since the last call into
+    /// an error.
+    pub fn wait(&self) -> Result<(), RuntimeError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RuntimeError::Gpu(e.to_string()))?;
+        let mut slot = self.errors.lock().unwrap_or_else(|p| p.into_inner());
+        match slot.take() {
+            Some(e) => Err(RuntimeError::Gpu(e)),
+            None => Ok(()),
+        }
+    }
+}

@@ -1,0 +1,239 @@
+//! Structs shared by Rust and WGSL, each defined once in Rust (`#[repr(C)]`) and once in
+//! `types.wgsl`; the test `wgsl_layouts_match_rust` holds the two together with naga.
+
+use bytemuck::{Pod, Zeroable};
+
+/// WGSL declarations of every struct below.
+pub const TYPES_WGSL: &str = include_str!("types.wgsl");
+
+/// One mesh vertex: triangles are unrolled (three vertices each) so that every vertex carries
+/// its triangle's geometric normal and material (flat shading, as the bake sees the surface).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuVertex {
+    /// World position.
+    pub position: [f32; 3],
+    /// Unit geometric normal of the triangle (its winding's side).
+    pub normal: [f32; 3],
+    /// Texture coordinates (zero when the mesh has none).
+    pub uv: [f32; 2],
+    /// Atlas coordinates in texels (zero when no `.cssm` is loaded).
+    pub atlas_uv: [f32; 2],
+    /// Material index.
+    pub material: u32,
+    /// Scene triangle index.
+    pub triangle: u32,
+}
+
+/// A material (conventions in `docs/architecture.md`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterial {
+    /// Lambertian albedo, linear RGB.
+    pub kd: [f32; 3],
+    /// Phong exponent.
+    pub ns: f32,
+    /// Specular albedo of the normalised Phong lobe.
+    pub ks: [f32; 3],
+    /// Layer of the albedo texture array, or -1 for none.
+    pub texture: i32,
+}
+
+/// A spot light with its shadow-map transform.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSpotLight {
+    /// Position.
+    pub position: [f32; 3],
+    /// Cosine of the cone half-angle.
+    pub cos_cutoff: f32,
+    /// Unit cone axis.
+    pub direction: [f32; 3],
+    /// World-space offset along the normal before the shadow-map lookup, per unit of distance
+    /// to the light (normal-offset bias, a multiple of the shadow-map texel footprint).
+    pub normal_offset: f32,
+    /// Radiant intensity, W/sr, linear RGB.
+    pub intensity: [f32; 3],
+    /// Shadow-map resolution in texels.
+    pub shadow_resolution: f32,
+    /// World to shadow-map clip space.
+    pub view_proj: [[f32; 4]; 4],
+}
+
+/// Per-frame view constants.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuView {
+    /// World to clip space.
+    pub view_proj: [[f32; 4]; 4],
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Number of lights.
+    pub light_count: u32,
+    /// Image width and height.
+    pub size: [u32; 2],
+    /// Exposure multiplier applied before tone mapping.
+    pub exposure: f32,
+    /// Unused.
+    pub _pad: u32,
+}
+
+/// One atlas texel as the GPU sees it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTexel {
+    /// World position of the texel centre.
+    pub position: [f32; 3],
+    /// Surface area it stands for.
+    pub area: f32,
+    /// Unit normal.
+    pub normal: [f32; 3],
+    /// Atlas chart.
+    pub chart: u32,
+    /// Index of its depth map in the sequence.
+    pub map: u32,
+    /// Material index.
+    pub material: u32,
+    /// Atlas column.
+    pub x: u32,
+    /// Atlas row.
+    pub y: u32,
+}
+
+/// Constants of a loaded CSSM and of its query.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuCssmParams {
+    /// Atlas width and height.
+    pub atlas_resolution: u32,
+    /// Cube-map face resolution N.
+    pub cube_resolution: u32,
+    /// Number of depth maps (= defined texels).
+    pub map_count: u32,
+    /// Pixels per cube map, 6 N².
+    pub pixel_count: u32,
+    /// Near distance of the bake.
+    pub near: f32,
+    /// Far plane of the bake.
+    pub far: f32,
+    /// Depth codes per scene unit (65535 / (far - near)).
+    pub depth_scale: f32,
+    /// Constant bias, in near distances.
+    pub bias_near: f32,
+    /// Bias proportional to the query depth.
+    pub bias_relative: f32,
+    /// Bit 0: PCF over 2x2 pixels; bit 1: filter over the 2x2 sender texels.
+    pub flags: u32,
+    /// Number of scene triangles with atlas coordinates.
+    pub triangle_count: u32,
+    /// Unused.
+    pub _pad: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every struct above has the size and member offsets naga computes for its WGSL twin.
+    #[test]
+    fn wgsl_layouts_match_rust() {
+        let module = naga::front::wgsl::parse_str(TYPES_WGSL).expect("types.wgsl parses");
+        let mut layouter = naga::proc::Layouter::default();
+        layouter
+            .update(module.to_ctx())
+            .expect("types.wgsl lays out");
+        let check = |name: &str, size: usize, offsets: &[(&str, usize)]| {
+            let (handle, ty) = module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("{name} missing from types.wgsl"));
+            assert_eq!(layouter[handle].size as usize, size, "size of {name}");
+            let naga::TypeInner::Struct { members, .. } = &ty.inner else {
+                panic!("{name} is not a struct")
+            };
+            for (member, offset) in offsets {
+                let m = members
+                    .iter()
+                    .find(|m| m.name.as_deref() == Some(*member))
+                    .unwrap_or_else(|| panic!("{name}.{member} missing"));
+                assert_eq!(m.offset as usize, *offset, "offset of {name}.{member}");
+            }
+        };
+        use std::mem::{offset_of, size_of};
+        check(
+            "Material",
+            size_of::<GpuMaterial>(),
+            &[
+                ("kd", offset_of!(GpuMaterial, kd)),
+                ("ns", offset_of!(GpuMaterial, ns)),
+                ("ks", offset_of!(GpuMaterial, ks)),
+                ("texture", offset_of!(GpuMaterial, texture)),
+            ],
+        );
+        check(
+            "SpotLight",
+            size_of::<GpuSpotLight>(),
+            &[
+                ("position", offset_of!(GpuSpotLight, position)),
+                ("cos_cutoff", offset_of!(GpuSpotLight, cos_cutoff)),
+                ("direction", offset_of!(GpuSpotLight, direction)),
+                ("normal_offset", offset_of!(GpuSpotLight, normal_offset)),
+                ("intensity", offset_of!(GpuSpotLight, intensity)),
+                (
+                    "shadow_resolution",
+                    offset_of!(GpuSpotLight, shadow_resolution),
+                ),
+                ("view_proj", offset_of!(GpuSpotLight, view_proj)),
+            ],
+        );
+        check(
+            "View",
+            size_of::<GpuView>(),
+            &[
+                ("view_proj", offset_of!(GpuView, view_proj)),
+                ("eye", offset_of!(GpuView, eye)),
+                ("light_count", offset_of!(GpuView, light_count)),
+                ("size", offset_of!(GpuView, size)),
+                ("exposure", offset_of!(GpuView, exposure)),
+            ],
+        );
+        check(
+            "Texel",
+            size_of::<GpuTexel>(),
+            &[
+                ("position", offset_of!(GpuTexel, position)),
+                ("area", offset_of!(GpuTexel, area)),
+                ("normal", offset_of!(GpuTexel, normal)),
+                ("chart", offset_of!(GpuTexel, chart)),
+                ("map", offset_of!(GpuTexel, map)),
+                ("material", offset_of!(GpuTexel, material)),
+                ("x", offset_of!(GpuTexel, x)),
+                ("y", offset_of!(GpuTexel, y)),
+            ],
+        );
+        check(
+            "CssmParams",
+            size_of::<GpuCssmParams>(),
+            &[
+                (
+                    "atlas_resolution",
+                    offset_of!(GpuCssmParams, atlas_resolution),
+                ),
+                (
+                    "cube_resolution",
+                    offset_of!(GpuCssmParams, cube_resolution),
+                ),
+                ("map_count", offset_of!(GpuCssmParams, map_count)),
+                ("pixel_count", offset_of!(GpuCssmParams, pixel_count)),
+                ("near", offset_of!(GpuCssmParams, near)),
+                ("far", offset_of!(GpuCssmParams, far)),
+                ("depth_scale", offset_of!(GpuCssmParams, depth_scale)),
+                ("bias_near", offset_of!(GpuCssmParams, bias_near)),
+                ("bias_relative", offset_of!(GpuCssmParams, bias_relative)),
+                ("flags", offset_of!(GpuCssmParams, flags)),
+                ("triangle_count", offset_of!(GpuCssmParams, triangle_count)),
+            ],
+        );
+    }
+}

@@ -1,0 +1,61 @@
+//! The GPU runtime of the CSSM toolchain, on wgpu: loads `.cssm` files and scenes into GPU
+//! memory, answers visibility queries between surface points in WGSL (Ritschel et al. 2008,
+//! §3.2.2), and renders direct light from spot lights with shadow maps (§4.7), the source of
+//! the indirect bounces.
+//!
+//! - [`Gpu`]: a headless device (a real GPU, or Mesa's lavapipe on a machine without one).
+//! - [`load`]: [`load::CssmGpu`] and [`load::SceneGpu`], usable with your own device and queue.
+//! - [`visibility`]: the WGSL library (`cssm_visible`) and a batch query kernel.
+//! - [`common`]: pieces every technique shares (camera, G-buffer, shadow map, tone mapping,
+//!   pass timing, read-back).
+//! - [`direct`]: the direct-light technique, on screen and into the atlas texels, with its CPU
+//!   reference.
+//! - [`frame`]: the passes of a frame in order, and [`frame::Method`], what `cssm render
+//!   --method` picks from.
+//!
+//! # Example: query visibility on your own device
+//! ```no_run
+//! # fn demo(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<(), Box<dyn std::error::Error>> {
+//! use cssm_runtime::{load::{read_cssm, CssmGpu}, visibility::library_wgsl};
+//! let scene = cssm_formats::Scene::load("scenes/cornell-box".as_ref())?;
+//! let file = read_cssm("cornell-box.cssm".as_ref(), &scene)?;
+//! let cssm = CssmGpu::new(device, queue, &file, Default::default())?;
+//! // Your compute or fragment shader: the library first, bound at group 1.
+//! let source = library_wgsl(1) + r#"
+//!     @compute @workgroup_size(64) fn main() {
+//!         let seen = cssm_visible(0u, vec3f(0.3, 0.3, 0.4), vec3f(100.0, 200.0, 300.0), vec3f(0.0));
+//!     }"#;
+//! let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+//!     label: None,
+//!     source: wgpu::ShaderSource::Wgsl(source.into()),
+//! });
+//! // ... pipeline layout with `cssm.bind_group_layout` at index 1, then
+//! // `pass.set_bind_group(1, &cssm.bind_group, &[])`.
+//! # let _ = module; Ok(()) }
+//! ```
+
+pub mod common;
+mod device;
+mod error;
+pub mod gpu_types;
+pub mod load;
+pub mod visibility;
+
+pub use device::Gpu;
+pub use error::RuntimeError;
+
+#[cfg(test)]
+pub(crate) mod tests {
+    /// Parses and validates a WGSL source with naga, so shader errors fail `cargo test` even
+    /// without a GPU.
+    pub fn validate_wgsl(name: &str, source: &str) {
+        let module = naga::front::wgsl::parse_str(source)
+            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+    }
+}

@@ -1,0 +1,495 @@
+//! Loaders: a `.cssm` file into GPU storage buffers ([`CssmGpu`], the run data kept in its
+//! random-access layout, never decompressed), and a scene into vertex buffers, materials and
+//! albedo textures ([`SceneGpu`]). Both take a plain `&wgpu::Device` and `&wgpu::Queue`, so they
+//! work inside a user's own renderer.
+
+use std::path::Path;
+
+use cssm_formats::{CssmFile, Scene, cssm, visibility::QueryOptions};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+use crate::{
+    RuntimeError,
+    gpu_types::{GpuCssmParams, GpuMaterial, GpuTexel, GpuVertex},
+};
+
+/// Reads a `.cssm` file and checks that it was baked from `scene` (same content hash and
+/// triangle count).
+///
+/// # Errors
+/// [`RuntimeError::Cssm`] for an unreadable, corrupt or invalid file (the error names it),
+/// [`RuntimeError::SceneMismatch`] when it belongs to another scene or another version of it.
+pub fn read_cssm(path: &Path, scene: &Scene) -> Result<CssmFile, RuntimeError> {
+    let file = cssm::read(path)?;
+    check_scene(path, &file, scene)?;
+    Ok(file)
+}
+
+/// Checks that `file` (read from `path`) was baked from `scene`.
+pub fn check_scene(path: &Path, file: &CssmFile, scene: &Scene) -> Result<(), RuntimeError> {
+    let mismatch = |reason: String| RuntimeError::SceneMismatch {
+        path: path.to_path_buf(),
+        reason,
+    };
+    if file.scene.triangle_count as usize != scene.triangles.len() {
+        return Err(mismatch(format!(
+            "it has {} triangles, the scene '{}' has {}",
+            file.scene.triangle_count,
+            scene.name,
+            scene.triangles.len()
+        )));
+    }
+    if file.scene.content_hash != scene.content_hash {
+        return Err(mismatch(format!(
+            "the files of scene '{}' changed since the bake",
+            scene.name
+        )));
+    }
+    Ok(())
+}
+
+fn limit_check(device: &wgpu::Device, what: &'static str, bytes: u64) -> Result<(), RuntimeError> {
+    let limit = device.limits().max_storage_buffer_binding_size;
+    if bytes > limit {
+        return Err(RuntimeError::TooLarge {
+            what,
+            needed: bytes,
+            limit,
+        });
+    }
+    Ok(())
+}
+
+/// A storage buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
+fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
+    let mut padded;
+    let contents = if data.len() < 16 {
+        padded = data.to_vec();
+        padded.resize(16, 0);
+        &padded[..]
+    } else {
+        data
+    };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    })
+}
+
+/// A `.cssm` file in GPU memory: the query constants, the texel table, the atlas grid, the
+/// triangles' atlas coordinates and the run data, bound as one bind group that the WGSL library
+/// ([`crate::visibility::library_wgsl`]) reads.
+pub struct CssmGpu {
+    /// Query constants (uniform, binding 0).
+    pub params_buffer: wgpu::Buffer,
+    /// [`GpuTexel`] per defined texel (binding 1).
+    pub texels: wgpu::Buffer,
+    /// Texel index of every atlas cell (binding 2).
+    pub grid: wgpu::Buffer,
+    /// Six floats per triangle (binding 3).
+    pub triangle_uvs: wgpu::Buffer,
+    /// Run offsets (binding 4).
+    pub offsets: wgpu::Buffer,
+    /// Runs (binding 5).
+    pub runs: wgpu::Buffer,
+    /// Layout of [`Self::bind_group`].
+    pub bind_group_layout: wgpu::BindGroupLayout,
+    /// The bind group.
+    pub bind_group: wgpu::BindGroup,
+    /// The constants as uploaded.
+    pub params: GpuCssmParams,
+    /// Bytes of the run data on the GPU (offsets + runs), the figure of the compression tables.
+    pub run_bytes: u64,
+}
+
+impl CssmGpu {
+    /// Bind group layout entries of the CSSM bind group, visible to `stages`.
+    pub fn layout_entries(stages: wgpu::ShaderStages) -> [wgpu::BindGroupLayoutEntry; 6] {
+        let storage = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: stages,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        [
+            wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: stages,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            },
+            storage(1),
+            storage(2),
+            storage(3),
+            storage(4),
+            storage(5),
+        ]
+    }
+
+    /// Uploads `file` (which `cssm::read` or `cssm::decode` validated) with query `options`.
+    ///
+    /// # Errors
+    /// [`RuntimeError::TooLarge`] when a buffer exceeds the device's storage binding limit.
+    ///
+    /// # Example
+    /// ```no_run
+    /// # fn demo(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<(), Box<dyn std::error::Error>> {
+    /// use cssm_runtime::{load::CssmGpu, visibility};
+    /// let scene = cssm_formats::Scene::load("scenes/cornell-box".as_ref())?;
+    /// let file = cssm_runtime::load::read_cssm("cornell-box.cssm".as_ref(), &scene)?;
+    /// let cssm = CssmGpu::new(device, queue, &file, Default::default())?;
+    /// // Bind `cssm.bind_group` at group 1 of your pipeline and prepend the library:
+    /// let source = visibility::library_wgsl(1) + "/* your shader calling cssm_visible(...) */";
+    /// # let _ = (cssm, source); Ok(()) }
+    /// ```
+    pub fn new(
+        device: &wgpu::Device,
+        _queue: &wgpu::Queue,
+        file: &CssmFile,
+        options: QueryOptions,
+    ) -> Result<Self, RuntimeError> {
+        let r = file.params.atlas_resolution;
+        let mut map_of_texel = vec![0u32; file.texels.len()];
+        for (k, &t) in file.sequence.iter().enumerate() {
+            map_of_texel[t as usize] = k as u32;
+        }
+        let mut grid = vec![u32::MAX; (r * r) as usize];
+        let texels: Vec<GpuTexel> = file
+            .texels
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                grid[t.y as usize * r as usize + t.x as usize] = i as u32;
+                GpuTexel {
+                    position: t.position,
+                    area: t.area,
+                    normal: t.normal,
+                    chart: t.chart,
+                    map: map_of_texel[i],
+                    material: t.material,
+                    x: t.x as u32,
+                    y: t.y as u32,
+                }
+            })
+            .collect();
+        let uvs: Vec<f32> = file
+            .triangle_uvs
+            .iter()
+            .flat_map(|c| [c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]])
+            .collect();
+        let p = &file.params;
+        let params = GpuCssmParams {
+            atlas_resolution: r,
+            cube_resolution: p.cube_resolution,
+            map_count: file.runs.map_count,
+            pixel_count: file.runs.pixel_count,
+            near: p.near,
+            far: p.far,
+            // The same f32 expression as `DepthQuantizer::new`, so depths decode identically.
+            depth_scale: cssm_formats::cube::DEPTH_MAX as f32 / (p.far - p.near),
+            bias_near: options.bias_near,
+            bias_relative: options.bias_relative,
+            flags: u32::from(options.pcf) | (u32::from(options.sender_filter) << 1),
+            triangle_count: file.triangle_uvs.len() as u32,
+            _pad: 0,
+        };
+        let texel_bytes: &[u8] = bytemuck::cast_slice(&texels);
+        limit_check(device, "the texel table", texel_bytes.len() as u64)?;
+        limit_check(
+            device,
+            "the run offsets",
+            4 * file.runs.offsets.len() as u64,
+        )?;
+        limit_check(device, "the runs", 4 * file.runs.runs.len() as u64)?;
+        limit_check(
+            device,
+            "the triangle atlas coordinates",
+            4 * uvs.len() as u64,
+        )?;
+        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("cssm params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let texels = storage_buffer(device, "cssm texels", texel_bytes);
+        let grid = storage_buffer(device, "cssm grid", bytemuck::cast_slice(&grid));
+        let triangle_uvs = storage_buffer(device, "cssm triangle uvs", bytemuck::cast_slice(&uvs));
+        let offsets = storage_buffer(
+            device,
+            "cssm offsets",
+            bytemuck::cast_slice(&file.runs.offsets),
+        );
+        let runs = storage_buffer(device, "cssm runs", bytemuck::cast_slice(&file.runs.runs));
+        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cssm"),
+            entries: &Self::layout_entries(
+                wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT,
+            ),
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("cssm"),
+            layout: &bind_group_layout,
+            entries: &[
+                params_buffer.as_entire_binding(),
+                texels.as_entire_binding(),
+                grid.as_entire_binding(),
+                triangle_uvs.as_entire_binding(),
+                offsets.as_entire_binding(),
+                runs.as_entire_binding(),
+            ]
+            .into_iter()
+            .enumerate()
+            .map(|(i, resource)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource,
+            })
+            .collect::<Vec<_>>(),
+        });
+        Ok(Self {
+            params_buffer,
+            texels,
+            grid,
+            triangle_uvs,
+            offsets,
+            runs,
+            bind_group_layout,
+            bind_group,
+            params,
+            run_bytes: file.runs.gpu_bytes(),
+        })
+    }
+}
+
+/// Side of the square albedo textures on the GPU: every `map_Kd` is resampled to it so that
+/// all fit one texture array.
+pub const TEXTURE_SIZE: u32 = 512;
+
+/// An albedo texture resampled to [`TEXTURE_SIZE`], linear RGB (the CPU reference samples it).
+#[derive(Clone, Debug)]
+pub struct AlbedoTexture {
+    /// Row-major texels, linear RGB.
+    pub texels: Vec<[f32; 3]>,
+}
+
+impl AlbedoTexture {
+    /// Bilinear sample with repeat wrapping at texture coordinates `uv` (v up, as in OBJ), the
+    /// same filter `albedo_sample` in `common/gbuffer.wgsl` applies.
+    pub fn sample(&self, uv: [f32; 2]) -> Vec3 {
+        let s = TEXTURE_SIZE as f32;
+        let x = uv[0] * s - 0.5;
+        let y = (1.0 - uv[1]) * s - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |xi: f32, yi: f32| {
+            let n = TEXTURE_SIZE as i64;
+            let (xi, yi) = ((xi as i64).rem_euclid(n), (yi as i64).rem_euclid(n));
+            Vec3::from(self.texels[(yi * n + xi) as usize])
+        };
+        at(x0, y0) * (1.0 - fx) * (1.0 - fy)
+            + at(x0 + 1.0, y0) * fx * (1.0 - fy)
+            + at(x0, y0 + 1.0) * (1.0 - fx) * fy
+            + at(x0 + 1.0, y0 + 1.0) * fx * fy
+    }
+}
+
+/// Reads every material's `map_Kd`, resampled to [`TEXTURE_SIZE`]; returns the textures and the
+/// texture index of each material (-1 for none).
+pub fn load_albedo_textures(scene: &Scene) -> Result<(Vec<AlbedoTexture>, Vec<i32>), RuntimeError> {
+    let mut textures = Vec::new();
+    let mut paths: Vec<&Path> = Vec::new();
+    let mut index = Vec::with_capacity(scene.materials.len());
+    for m in &scene.materials {
+        let Some(path) = &m.map_kd else {
+            index.push(-1);
+            continue;
+        };
+        if let Some(i) = paths.iter().position(|p| *p == path.as_path()) {
+            index.push(i as i32);
+            continue;
+        }
+        let img = image::open(path).map_err(|e| RuntimeError::Texture {
+            path: path.clone(),
+            reason: e.to_string(),
+        })?;
+        let rgb = image::imageops::resize(
+            &img.to_rgb8(),
+            TEXTURE_SIZE,
+            TEXTURE_SIZE,
+            image::imageops::FilterType::Triangle,
+        );
+        let texels = rgb
+            .pixels()
+            .map(|p| p.0.map(|c| srgb_to_linear(c as f32 / 255.0)))
+            .collect();
+        paths.push(path);
+        index.push(textures.len() as i32);
+        textures.push(AlbedoTexture { texels });
+    }
+    Ok((textures, index))
+}
+
+/// The sRGB transfer function, inverted.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A scene in GPU memory: one vertex per triangle corner, materials, albedo textures.
+pub struct SceneGpu {
+    /// [`GpuVertex`] buffer, three per triangle.
+    pub vertices: wgpu::Buffer,
+    /// Number of vertices.
+    pub vertex_count: u32,
+    /// [`GpuMaterial`] storage buffer.
+    pub materials: wgpu::Buffer,
+    /// Albedo textures, one layer each (a white 1-layer array when the scene has none).
+    pub albedo: wgpu::Texture,
+    /// View of [`Self::albedo`] as a 2D array.
+    pub albedo_view: wgpu::TextureView,
+    /// The textures as the CPU reference samples them.
+    pub cpu_textures: Vec<AlbedoTexture>,
+    /// Materials as uploaded.
+    pub cpu_materials: Vec<GpuMaterial>,
+}
+
+impl SceneGpu {
+    /// Vertex buffer layout of [`GpuVertex`] (locations 0 to 5).
+    pub const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<GpuVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Uint32, 5 => Uint32
+        ],
+    };
+
+    /// Uploads `scene`; `atlas` (a `.cssm` of the same scene) supplies atlas coordinates.
+    ///
+    /// # Errors
+    /// [`RuntimeError::Texture`] when a `map_Kd` cannot be read.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        scene: &Scene,
+        atlas: Option<&CssmFile>,
+    ) -> Result<Self, RuntimeError> {
+        let mut vertices = Vec::with_capacity(scene.triangles.len() * 3);
+        for (t, tri) in scene.triangles.iter().enumerate() {
+            let [a, b, c] = scene.triangle(t);
+            let normal = (b - a).cross(c - a).normalize_or_zero();
+            for (k, &v) in tri.iter().enumerate() {
+                vertices.push(GpuVertex {
+                    position: scene.positions[v as usize].to_array(),
+                    normal: normal.to_array(),
+                    uv: scene.texcoords.get(v as usize).copied().unwrap_or([0.0; 2]),
+                    atlas_uv: atlas
+                        .and_then(|f| f.triangle_uvs.get(t))
+                        .map_or([0.0; 2], |uv| uv[k]),
+                    material: scene.triangle_materials[t],
+                    triangle: t as u32,
+                });
+            }
+        }
+        let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("scene vertices"),
+            contents: bytemuck::cast_slice(&vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let (cpu_textures, texture_index) = load_albedo_textures(scene)?;
+        let cpu_materials: Vec<GpuMaterial> = scene
+            .materials
+            .iter()
+            .zip(&texture_index)
+            .map(|(m, &texture)| GpuMaterial {
+                kd: m.kd,
+                ns: m.ns,
+                ks: m.ks,
+                texture,
+            })
+            .collect();
+        let materials = storage_buffer(device, "materials", bytemuck::cast_slice(&cpu_materials));
+        let layers = cpu_textures.len().max(1) as u32;
+        let side = if cpu_textures.is_empty() {
+            1
+        } else {
+            TEXTURE_SIZE
+        };
+        let albedo = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("albedo textures"),
+            size: wgpu::Extent3d {
+                width: side,
+                height: side,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let white = [AlbedoTexture {
+            texels: vec![[1.0; 3]],
+        }];
+        let uploads = if cpu_textures.is_empty() {
+            &white[..]
+        } else {
+            &cpu_textures[..]
+        };
+        for (layer, tex) in uploads.iter().enumerate() {
+            let rgba: Vec<f32> = tex
+                .texels
+                .iter()
+                .flat_map(|c| [c[0], c[1], c[2], 1.0])
+                .collect();
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &albedo,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d {
+                        x: 0,
+                        y: 0,
+                        z: layer as u32,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&rgba),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(16 * side),
+                    rows_per_image: Some(side),
+                },
+                wgpu::Extent3d {
+                    width: side,
+                    height: side,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        let albedo_view = albedo.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        Ok(Self {
+            vertices: vertex_buffer,
+            vertex_count: vertices.len() as u32,
+            materials,
+            albedo,
+            albedo_view,
+            cpu_textures,
+            cpu_materials,
+        })
+    }
+}

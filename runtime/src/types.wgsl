@@ -1,0 +1,53 @@
+// Structs shared with Rust; their twins are in gpu_types.rs (a test holds the layouts together).
+
+struct Material {
+    kd: vec3f,
+    ns: f32,
+    ks: vec3f,
+    texture: i32,
+}
+
+struct SpotLight {
+    position: vec3f,
+    cos_cutoff: f32,
+    direction: vec3f,
+    normal_offset: f32,
+    intensity: vec3f,
+    shadow_resolution: f32,
+    view_proj: mat4x4f,
+}
+
+struct View {
+    view_proj: mat4x4f,
+    eye: vec3f,
+    light_count: u32,
+    size: vec2u,
+    exposure: f32,
+    _pad: u32,
+}
+
+struct Texel {
+    position: vec3f,
+    area: f32,
+    normal: vec3f,
+    chart: u32,
+    map: u32,
+    material: u32,
+    x: u32,
+    y: u32,
+}
+
+struct CssmParams {
+    atlas_resolution: u32,
+    cube_resolution: u32,
+    map_count: u32,
+    pixel_count: u32,
+    near: f32,
+    far: f32,
+    depth_scale: f32,
+    bias_near: f32,
+    bias_relative: f32,
+    flags: u32,
+    triangle_count: u32,
+    _pad: u32,
+}

@@ -1,0 +1,308 @@
+// The CSSM visibility query (Ritschel et al. 2008, §3.2.2) in WGSL: the same computation, step
+// for step, as the CPU reference `cssm_formats::visibility::VisibilityQuery`. Read that module's
+// docs for the why of every step; the comments here name the CPU function each part mirrors.
+//
+// Needs `types.wgsl` (CssmParams, Texel). The bind group index is substituted for CSSM_GROUP
+// when the library is assembled (`cssm_runtime::visibility::library_wgsl`).
+
+@group(CSSM_GROUP) @binding(0) var<uniform> cssm: CssmParams;
+@group(CSSM_GROUP) @binding(1) var<storage, read> cssm_texels: array<Texel>;
+// Texel index of every atlas cell, 0xffffffff where undefined.
+@group(CSSM_GROUP) @binding(2) var<storage, read> cssm_grid: array<u32>;
+// Atlas coordinates of the three corners of every scene triangle: 6 floats per triangle.
+@group(CSSM_GROUP) @binding(3) var<storage, read> cssm_triangle_uvs: array<f32>;
+// Random-access run data (formats::cssm::RunData): per (segment, pixel) offsets into `runs`,
+// runs packed as start_in_segment << 16 | depth16.
+@group(CSSM_GROUP) @binding(4) var<storage, read> cssm_offsets: array<u32>;
+@group(CSSM_GROUP) @binding(5) var<storage, read> cssm_runs: array<u32>;
+
+const CSSM_NONE: u32 = 0xffffffffu;
+const CSSM_DEPTH_MAX: u32 = 65535u;
+const CSSM_FLAG_PCF: u32 = 1u;
+const CSSM_FLAG_SENDER_FILTER: u32 = 2u;
+// Stands for "nothing within the far plane": larger than any receiver depth.
+const CSSM_FAR_AWAY: f32 = 3.0e38;
+
+// RunData::lookup: binary search for the last run starting at or before the map (§3.1).
+fn cssm_lookup(map: u32, pixel: u32) -> u32 {
+    let segment = map >> 16u;
+    let local = map & 0xffffu;
+    let slot = segment * cssm.pixel_count + pixel;
+    let lo = cssm_offsets[slot];
+    let hi = cssm_offsets[slot + 1u];
+    var first = lo;
+    var count = hi - lo;
+    while count > 0u {
+        let step = count / 2u;
+        let i = first + step;
+        if (cssm_runs[i] >> 16u) <= local {
+            first = i + 1u;
+            count -= step + 1u;
+        } else {
+            count = step;
+        }
+    }
+    return cssm_runs[max(first, lo + 1u) - 1u] & 0xffffu;
+}
+
+// DepthQuantizer::depth.
+fn cssm_depth(code: u32) -> f32 {
+    if code == CSSM_DEPTH_MAX {
+        return CSSM_FAR_AWAY;
+    }
+    return cssm.near + f32(code) / cssm.depth_scale;
+}
+
+fn cssm_axis(v: vec3f, axis: u32) -> f32 {
+    if axis == 0u {
+        return v.x;
+    } else if axis == 1u {
+        return v.y;
+    }
+    return v.z;
+}
+
+// cube::face_direction.
+fn cssm_face_direction(face: u32, u: f32, v: f32) -> vec3f {
+    let major = face / 2u;
+    let s = select(-1.0, 1.0, face % 2u == 0u);
+    if major == 0u {
+        return vec3f(s, u, v);
+    } else if major == 1u {
+        return vec3f(v, s, u);
+    }
+    return vec3f(u, v, s);
+}
+
+// cube::pixel_direction.
+fn cssm_pixel_direction(n: u32, pixel: u32) -> vec3f {
+    let face = pixel / (n * n);
+    let rest = pixel % (n * n);
+    let u = (f32(rest % n) + 0.5) / f32(n) * 2.0 - 1.0;
+    let v = (f32(rest / n) + 0.5) / f32(n) * 2.0 - 1.0;
+    return cssm_face_direction(face, u, v);
+}
+
+// cube::pixel_is_dont_care: the whole pixel lies behind the tangent plane.
+fn cssm_pixel_is_dont_care(n: u32, pixel: u32, normal: vec3f) -> bool {
+    let major = pixel / (n * n) / 2u;
+    let half_step = 1.0 / f32(n);
+    let nu = abs(cssm_axis(normal, (major + 1u) % 3u));
+    let nv = abs(cssm_axis(normal, (major + 2u) % 3u));
+    return dot(cssm_pixel_direction(n, pixel), normal) + half_step * (nu + nv) < 0.0;
+}
+
+// cube::cast_direction: the ray the bake cast for the pixel, and its depth factor.
+fn cssm_cast_direction(n: u32, pixel: u32, normal: vec3f) -> vec4f {
+    let dir = cssm_pixel_direction(n, pixel);
+    let below = dot(dir, normal);
+    if below >= 0.0 {
+        return vec4f(dir, 1.0);
+    }
+    let projected = dir - normal * below;
+    let major = pixel / (n * n) / 2u;
+    return vec4f(projected, abs(cssm_axis(projected, major)));
+}
+
+struct CssmProjection {
+    face: u32,
+    u: f32,
+    v: f32,
+    depth: f32,
+}
+
+// cube::project.
+fn cssm_project(d: vec3f) -> CssmProjection {
+    let a = abs(d);
+    var major = 2u;
+    if a.x >= a.y && a.x >= a.z {
+        major = 0u;
+    } else if a.y >= a.z {
+        major = 1u;
+    }
+    let m = cssm_axis(d, major);
+    let face = major * 2u + select(0u, 1u, m < 0.0);
+    let depth = abs(m);
+    return CssmProjection(
+        face,
+        cssm_axis(d, (major + 1u) % 3u) / depth,
+        cssm_axis(d, (major + 2u) % 3u) / depth,
+        depth,
+    );
+}
+
+// cube::pixel_index.
+fn cssm_pixel_index(n: u32, face: u32, u: f32, v: f32) -> u32 {
+    let col = u32(clamp(i32((u + 1.0) * 0.5 * f32(n)), 0, i32(n) - 1));
+    let row = u32(clamp(i32((v + 1.0) * 0.5 * f32(n)), 0, i32(n) - 1));
+    return face * n * n + row * n + col;
+}
+
+// Depth of the receiver along the ray the bake cast for `pixel` (receiver-plane depth);
+// `n_i` = vec3f(0) when the receiver's normal is unknown.
+fn cssm_receiver_depth(
+    n: u32, pixel: u32, normal: vec3f, centre: vec3f, p_i: vec3f, n_i: vec3f, depth: f32,
+) -> f32 {
+    if all(n_i == vec3f(0.0)) {
+        return depth;
+    }
+    let ray = cssm_cast_direction(n, pixel, normal);
+    let denom = dot(ray.xyz, n_i);
+    if abs(denom) < 1e-4 {
+        return depth;
+    }
+    let along = dot(p_i - centre, n_i) / denom * ray.w;
+    // `along` is finite here unless the inputs were not (the CPU tests is_finite).
+    if along > 0.0 && along < CSSM_FAR_AWAY {
+        return clamp(along, 0.5 * depth, 1.5 * depth);
+    }
+    return depth;
+}
+
+fn cssm_pixel_test(
+    texel: Texel, pixel: u32, centre: vec3f, p_i: vec3f, n_i: vec3f, depth: f32, bias: f32,
+) -> f32 {
+    let n = cssm.cube_resolution;
+    if cssm_pixel_is_dont_care(n, pixel, texel.normal) {
+        return 0.0;
+    }
+    let stored = cssm_depth(cssm_lookup(texel.map, pixel));
+    let receiver = cssm_receiver_depth(n, pixel, texel.normal, centre, p_i, n_i, depth);
+    return select(0.0, 1.0, stored >= receiver - bias);
+}
+
+// VisibilityQuery::visibility_oriented: fraction of `p_i` (normal `n_i`, or vec3f(0)) visible
+// from the cube map of `texel_index`.
+fn cssm_visibility_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> f32 {
+    let n = cssm.cube_resolution;
+    let t = cssm_texels[texel_index];
+    let near = cssm.near;
+    // Behind the sender's tangent plane: light leaves a surface on its front side.
+    if dot(p_i - t.position, t.normal) < -near {
+        return 0.0;
+    }
+    let centre = t.position + t.normal * near;
+    var d = p_i - centre;
+    let below = dot(d, t.normal);
+    if below < 0.0 {
+        d -= t.normal * below;
+    }
+    if dot(d, d) < near * near * 1e-6 {
+        return 1.0;
+    }
+    let q = cssm_project(d);
+    let bias = cssm.bias_near * near + cssm.bias_relative * q.depth;
+    if (cssm.flags & CSSM_FLAG_PCF) == 0u {
+        return cssm_pixel_test(t, cssm_pixel_index(n, q.face, q.u, q.v), centre, p_i, n_i, q.depth, bias);
+    }
+    // §3.2.2 PCF: bilinear weights over the 2x2 pixel centres around the projection.
+    let nf = f32(n);
+    let fx = clamp((q.u + 1.0) * 0.5 * nf - 0.5, 0.0, nf - 1.0);
+    let fy = clamp((q.v + 1.0) * 0.5 * nf - 0.5, 0.0, nf - 1.0);
+    let x0 = u32(floor(fx));
+    let y0 = u32(floor(fy));
+    let x1 = min(x0 + 1u, n - 1u);
+    let y1 = min(y0 + 1u, n - 1u);
+    let wx = fx - f32(x0);
+    let wy = fy - f32(y0);
+    let base = q.face * n * n;
+    let t00 = cssm_pixel_test(t, base + y0 * n + x0, centre, p_i, n_i, q.depth, bias);
+    let t10 = cssm_pixel_test(t, base + y0 * n + x1, centre, p_i, n_i, q.depth, bias);
+    let t01 = cssm_pixel_test(t, base + y1 * n + x0, centre, p_i, n_i, q.depth, bias);
+    let t11 = cssm_pixel_test(t, base + y1 * n + x1, centre, p_i, n_i, q.depth, bias);
+    return (1.0 - wy) * ((1.0 - wx) * t00 + wx * t10) + wy * ((1.0 - wx) * t01 + wx * t11);
+}
+
+fn cssm_cell(x: i32, y: i32) -> u32 {
+    let r = i32(cssm.atlas_resolution);
+    if x < 0 || y < 0 || x >= r || y >= r {
+        return CSSM_NONE;
+    }
+    return cssm_grid[u32(y * r + x)];
+}
+
+// VisibilityQuery::atlas_point.
+fn cssm_atlas_point(triangle: u32, bary: vec3f) -> vec2f {
+    let b = triangle * 6u;
+    let a0 = vec2f(cssm_triangle_uvs[b], cssm_triangle_uvs[b + 1u]);
+    let a1 = vec2f(cssm_triangle_uvs[b + 2u], cssm_triangle_uvs[b + 3u]);
+    let a2 = vec2f(cssm_triangle_uvs[b + 4u], cssm_triangle_uvs[b + 5u]);
+    return a0 * bary.x + a1 * bary.y + a2 * bary.z;
+}
+
+// VisibilityQuery::texel_at: the cell under the point, else the nearest defined cell within two.
+fn cssm_texel_at(p: vec2f) -> u32 {
+    let cx = i32(floor(p.x));
+    let cy = i32(floor(p.y));
+    let direct = cssm_cell(cx, cy);
+    if direct != CSSM_NONE {
+        return direct;
+    }
+    var best = CSSM_NONE;
+    var best_d = 0.0;
+    for (var dy = -2; dy <= 2; dy++) {
+        for (var dx = -2; dx <= 2; dx++) {
+            let t = cssm_cell(cx + dx, cy + dy);
+            if t == CSSM_NONE {
+                continue;
+            }
+            let c = vec2f(f32(cx + dx) + 0.5, f32(cy + dy) + 0.5) - p;
+            let d = dot(c, c);
+            if best == CSSM_NONE || d < best_d {
+                best = t;
+                best_d = d;
+            }
+        }
+    }
+    return best;
+}
+
+// VisibilityQuery::visibility_from_surface: fraction of `p_i` (normal `n_i`, or vec3f(0))
+// visible from the surface point (`triangle`, `bary`), blending the cube maps of the 2x2 atlas
+// texels around it (sender filtering); -1 when no texel stands for that point.
+fn cssm_visibility(triangle: u32, bary: vec3f, p_i: vec3f, n_i: vec3f) -> f32 {
+    if triangle >= cssm.triangle_count {
+        return -1.0;
+    }
+    let p = cssm_atlas_point(triangle, bary);
+    let centre = cssm_texel_at(p);
+    if centre == CSSM_NONE {
+        return -1.0;
+    }
+    if (cssm.flags & CSSM_FLAG_SENDER_FILTER) == 0u {
+        return cssm_visibility_texel(centre, p_i, n_i);
+    }
+    let chart = cssm_texels[centre].chart;
+    let fx = p.x - 0.5;
+    let fy = p.y - 0.5;
+    let x0 = i32(floor(fx));
+    let y0 = i32(floor(fy));
+    let wx = fx - floor(fx);
+    let wy = fy - floor(fy);
+    let weights = array<f32, 4>((1.0 - wx) * (1.0 - wy), wx * (1.0 - wy), (1.0 - wx) * wy, wx * wy);
+    var texels = array<u32, 4>(CSSM_NONE, CSSM_NONE, CSSM_NONE, CSSM_NONE);
+    var total = 0.0;
+    for (var k = 0; k < 4; k++) {
+        let t = cssm_cell(x0 + (k & 1), y0 + (k >> 1u));
+        if weights[k] > 0.0 && t != CSSM_NONE && cssm_texels[t].chart == chart {
+            texels[k] = t;
+            total += weights[k];
+        }
+    }
+    if total <= 0.0 {
+        return cssm_visibility_texel(centre, p_i, n_i);
+    }
+    var sum = 0.0;
+    for (var k = 0; k < 4; k++) {
+        if texels[k] != CSSM_NONE {
+            sum += weights[k] / total * cssm_visibility_texel(texels[k], p_i, n_i);
+        }
+    }
+    return sum;
+}
+
+// The paper's binary query: is `p_i` visible from the surface point (`triangle`, `bary`)?
+// (PCF: at least half visible.)
+fn cssm_visible(triangle: u32, bary: vec3f, p_i: vec3f, n_i: vec3f) -> bool {
+    return cssm_visibility(triangle, bary, p_i, n_i) >= 0.5;
+}

@@ -1,0 +1,185 @@
+//! Visibility queries on the GPU (§3.2.2): the WGSL library `cssm.wgsl`, which any shader can
+//! include to call `cssm_visible` / `cssm_visibility` / `cssm_visibility_texel` against a
+//! [`CssmGpu`](crate::load::CssmGpu) bind group, and [`QueryKernel`], a compute pass that answers
+//! a batch of queries (for tests against the CPU reference and for benchmarks).
+//!
+//! The library computes exactly what `cssm_formats::visibility::VisibilityQuery` computes; the
+//! test `gpu_matches_cpu_reference` holds the two together on 100,000 random pairs. They can
+//! differ only where floating-point rounding of the GPU (fused multiply-adds, its division)
+//! moves a depth comparison across its threshold.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+use crate::{Gpu, RuntimeError, common::readback, gpu_types::TYPES_WGSL, load::CssmGpu};
+
+/// The WGSL visibility library with its bindings at `@group(group)`, preceded by the shared
+/// struct declarations (`types.wgsl`). Append your own shader code to it.
+pub fn library_wgsl(group: u32) -> String {
+    format!(
+        "{TYPES_WGSL}\n{}",
+        include_str!("cssm.wgsl").replace("CSSM_GROUP", &group.to_string())
+    )
+}
+
+/// One query: is `receiver` (with normal `receiver_normal`, or zero when unknown) visible from
+/// the surface point with barycentric coordinates `sender_bary` on triangle `sender_triangle`?
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct QueryPair {
+    /// Barycentric coordinates of the sender on its triangle.
+    pub sender_bary: [f32; 3],
+    /// Scene triangle of the sender.
+    pub sender_triangle: u32,
+    /// Receiver position.
+    pub receiver: [f32; 3],
+    /// Unused.
+    pub _pad0: u32,
+    /// Receiver normal (zero: unknown).
+    pub receiver_normal: [f32; 3],
+    /// Unused.
+    pub _pad1: u32,
+}
+
+impl QueryPair {
+    /// A query from (`triangle`, `bary`) to `receiver` with normal `normal`.
+    pub fn new(triangle: u32, bary: [f32; 3], receiver: Vec3, normal: Option<Vec3>) -> Self {
+        Self {
+            sender_bary: bary,
+            sender_triangle: triangle,
+            receiver: receiver.to_array(),
+            receiver_normal: normal.unwrap_or(Vec3::ZERO).to_array(),
+            ..Default::default()
+        }
+    }
+}
+
+/// Threads per workgroup of the query kernel.
+const WORKGROUP: u32 = 64;
+
+/// A compute pass that answers a batch of [`QueryPair`]s: the visible fraction of each (PCF),
+/// or -1 where no texel stands for the sender.
+pub struct QueryKernel {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl QueryKernel {
+    /// Builds the kernel for CSSMs bound with `cssm`'s layout.
+    pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
+        let device = &gpu.device;
+        let source = library_wgsl(1) + include_str!("query.wgsl");
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("cssm query"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cssm query io"),
+            entries: &[storage_entry(0, true), storage_entry(1, false)],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("cssm query"),
+            bind_group_layouts: &[Some(&layout), Some(&cssm.bind_group_layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("cssm query"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { pipeline, layout }
+    }
+
+    /// Answers `pairs` on the GPU, `repeat` times in one pass (for timing; the answers are the
+    /// same each time), and reads the answers back.
+    pub fn run(
+        &self,
+        gpu: &Gpu,
+        cssm: &CssmGpu,
+        pairs: &[QueryPair],
+        timer: Option<&mut crate::common::timestamps::PassTimer>,
+    ) -> Result<Vec<f32>, RuntimeError> {
+        if pairs.is_empty() {
+            return Ok(Vec::new());
+        }
+        let device = &gpu.device;
+        let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("query pairs"),
+            contents: bytemuck::cast_slice(pairs),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let output = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("query answers"),
+            size: 4 * pairs.len() as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let io = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("query io"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: input.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: output.as_entire_binding(),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let groups = (pairs.len() as u32).div_ceil(WORKGROUP);
+        // Large batches need a 2D dispatch (at most 65,535 groups per dimension).
+        let (gx, gy) = if groups <= 65_535 {
+            (groups, 1)
+        } else {
+            (65_535, groups.div_ceil(65_535))
+        };
+        let mut timer = timer;
+        {
+            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute("cssm query"));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("cssm query"),
+                timestamp_writes,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &io, &[]);
+            pass.set_bind_group(1, &cssm.bind_group, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        if let Some(t) = timer.as_deref() {
+            t.resolve(&mut encoder);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = readback::read_buffer(gpu, &output, 0, 4 * pairs.len() as u64)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+}
+
+/// A compute-visible storage buffer entry.
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn library_validates_with_naga() {
+        let source = super::library_wgsl(1) + include_str!("query.wgsl");
+        crate::tests::validate_wgsl("visibility/query", &source);
+    }
+}

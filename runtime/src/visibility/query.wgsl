@@ -1,0 +1,23 @@
+// Answers a batch of visibility queries (tests and benchmarks): one thread per pair.
+
+struct QueryPair {
+    sender_bary: vec3f,
+    sender_triangle: u32,
+    receiver: vec3f,
+    _pad0: u32,
+    receiver_normal: vec3f,
+    _pad1: u32,
+}
+
+@group(0) @binding(0) var<storage, read> pairs: array<QueryPair>;
+@group(0) @binding(1) var<storage, read_write> answers: array<f32>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3u, @builtin(num_workgroups) groups: vec3u) {
+    let i = id.x + id.y * groups.x * 64u;
+    if i >= arrayLength(&pairs) {
+        return;
+    }
+    let q = pairs[i];
+    answers[i] = cssm_visibility(q.sender_triangle, q.sender_bary, q.receiver, q.receiver_normal);
+}
