@@ -3,7 +3,8 @@
 //!
 //! This facade re-exports the libraries that do the work:
 //! - [`formats`]: scenes, the `.cssm` container, the CPU reference visibility query;
-//! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check.
+//! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check;
+//! - [`runtime`]: the GPU runtime on wgpu (loaders, visibility queries in WGSL, rendering).
 //!
 //! ```no_run
 //! use cssm::{bake, formats};
@@ -18,3 +19,4 @@ pub mod builtin;
 
 pub use cssm_bake as bake;
 pub use cssm_formats as formats;
+pub use cssm_runtime as runtime;

@@ -36,7 +36,9 @@
 
 pub mod common;
 mod device;
+pub mod direct;
 mod error;
+pub mod frame;
 pub mod gpu_types;
 pub mod load;
 pub mod visibility;

@@ -1,5 +1,10 @@
-//! GPU pieces every technique shares, each defined once: read-back, pass timing, the camera,
-//! the G-buffer, the spot-light shadow map and tone mapping.
+//! GPU pieces every technique shares, each defined once: the camera, the G-buffer, the
+//! spot-light shadow map, tone mapping, pass timing, read-back, and bind-group shorthands.
 
+pub mod camera;
+pub mod gbuffer;
+pub mod layout;
 pub mod readback;
+pub mod shadow_map;
 pub mod timestamps;
+pub mod tonemap;

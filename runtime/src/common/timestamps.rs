@@ -86,8 +86,8 @@ impl PassTimer {
         }
     }
 
-    /// Milliseconds of every timed pass, in the order they were recorded; empty when timestamps
-    /// are not supported. Call after the work was submitted.
+    /// Milliseconds of every timed pass, in the order they were recorded, passes of the same
+    /// name summed; empty when timestamps are not supported. Call after the work was submitted.
     pub fn read(&mut self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, RuntimeError> {
         let Some(resolve) = &self.resolve else {
             return Ok(Vec::new());
@@ -97,15 +97,15 @@ impl PassTimer {
         }
         let bytes = readback::read_buffer(gpu, resolve, 0, 16 * self.names.len() as u64)?;
         let ticks: &[u64] = bytemuck::cast_slice(&bytes);
-        let out = self
-            .names
-            .iter()
-            .enumerate()
-            .map(|(i, &name)| {
-                let dt = ticks[2 * i + 1].wrapping_sub(ticks[2 * i]);
-                (name, dt as f64 * self.period_ns as f64 * 1e-6)
-            })
-            .collect();
+        let mut out: Vec<(&'static str, f64)> = Vec::new();
+        for (i, &name) in self.names.iter().enumerate() {
+            let ms =
+                ticks[2 * i + 1].wrapping_sub(ticks[2 * i]) as f64 * self.period_ns as f64 * 1e-6;
+            match out.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, total)) => *total += ms,
+                None => out.push((name, ms)),
+            }
+        }
         self.names.clear();
         Ok(out)
     }

@@ -1,0 +1,189 @@
+//! The G-buffer raster pass (`gbuffer.wgsl`): per pixel the world position, the normal turned
+//! towards the eye, the material, the albedo, the triangle and the atlas coordinates. Every
+//! screen-space pass of every technique reads these.
+
+use crate::{common::layout, gpu_types::TYPES_WGSL, load::SceneGpu};
+
+/// Format of the colour targets (exact positions and normals for the queries that follow).
+pub const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+/// The G-buffer targets and the pass that fills them.
+pub struct GBuffer {
+    /// xyz world position, w 1 where covered.
+    pub position: wgpu::Texture,
+    /// xyz normal towards the eye, w material index.
+    pub normal: wgpu::Texture,
+    /// rgb albedo, w triangle index.
+    pub albedo: wgpu::Texture,
+    /// xy atlas coordinates (texels).
+    pub atlas: wgpu::Texture,
+    depth: wgpu::Texture,
+    pipeline: wgpu::RenderPipeline,
+    bind_group: wgpu::BindGroup,
+}
+
+fn target(
+    device: &wgpu::Device,
+    label: &str,
+    w: u32,
+    h: u32,
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
+impl GBuffer {
+    /// Targets of `width` x `height` for `scene`, reading the view constants from `view`.
+    pub fn new(
+        device: &wgpu::Device,
+        scene: &SceneGpu,
+        view: &wgpu::Buffer,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let source = format!(
+            "{TYPES_WGSL}\n{}\n{}",
+            include_str!("albedo.wgsl"),
+            include_str!("gbuffer.wgsl")
+        );
+        let module = layout::shader(device, "gbuffer", source);
+        let fragment = wgpu::ShaderStages::FRAGMENT;
+        let bind_layout = layout::bind_group_layout(
+            device,
+            "gbuffer",
+            &[
+                layout::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
+                layout::storage(1, true, fragment),
+                layout::texture(2, wgpu::TextureViewDimension::D2Array, fragment),
+            ],
+        );
+        let bind_group = layout::bind_group(
+            device,
+            "gbuffer",
+            &bind_layout,
+            &[
+                view.as_entire_binding(),
+                scene.materials.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&scene.albedo_view),
+            ],
+        );
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("gbuffer"),
+            bind_group_layouts: &[Some(&bind_layout)],
+            immediate_size: 0,
+        });
+        let color = Some(wgpu::ColorTargetState {
+            format: TARGET_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("gbuffer"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(SceneGpu::VERTEX_LAYOUT)],
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[color.clone(), color.clone(), color.clone(), color],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Self {
+            position: target(device, "gbuffer position", width, height, TARGET_FORMAT),
+            normal: target(device, "gbuffer normal", width, height, TARGET_FORMAT),
+            albedo: target(device, "gbuffer albedo", width, height, TARGET_FORMAT),
+            atlas: target(device, "gbuffer atlas", width, height, TARGET_FORMAT),
+            depth: target(
+                device,
+                "gbuffer depth",
+                width,
+                height,
+                wgpu::TextureFormat::Depth32Float,
+            ),
+            pipeline,
+            bind_group,
+        }
+    }
+
+    /// Records the raster pass.
+    pub fn render(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneGpu,
+        timer: &mut crate::common::timestamps::PassTimer,
+    ) {
+        let views: Vec<wgpu::TextureView> =
+            [&self.position, &self.normal, &self.albedo, &self.atlas]
+                .iter()
+                .map(|t| t.create_view(&Default::default()))
+                .collect();
+        let depth = self.depth.create_view(&Default::default());
+        let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
+            .iter()
+            .map(|view| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            })
+            .collect();
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("gbuffer"),
+            color_attachments: &attachments,
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: timer.render("gbuffer"),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        pass.draw(0..scene.vertex_count, 0..1);
+    }
+}

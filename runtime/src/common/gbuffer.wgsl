@@ -1,0 +1,69 @@
+// G-buffer raster pass: world position, camera-facing normal, material, albedo and atlas
+// coordinates per pixel, sampled at pixel centres (the rays of the CPU references).
+// Needs types.wgsl (View, Material) and albedo.wgsl.
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> materials: array<Material>;
+@group(0) @binding(2) var albedo_textures: texture_2d_array<f32>;
+
+struct VertexIn {
+    @location(0) position: vec3f,
+    @location(1) normal: vec3f,
+    @location(2) uv: vec2f,
+    @location(3) atlas_uv: vec2f,
+    @location(4) material: u32,
+    @location(5) triangle: u32,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4f,
+    @location(0) position: vec3f,
+    @location(1) @interpolate(flat) normal: vec3f,
+    @location(2) uv: vec2f,
+    @location(3) atlas_uv: vec2f,
+    @location(4) @interpolate(flat) material: u32,
+    @location(5) @interpolate(flat) triangle: u32,
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = view.view_proj * vec4f(v.position, 1.0);
+    out.position = v.position;
+    out.normal = v.normal;
+    out.uv = v.uv;
+    out.atlas_uv = v.atlas_uv;
+    out.material = v.material;
+    out.triangle = v.triangle;
+    return out;
+}
+
+struct GBufferOut {
+    // xyz: world position; w: 1 where a surface covers the pixel.
+    @location(0) position: vec4f,
+    // xyz: unit normal turned towards the eye; w: material index.
+    @location(1) normal: vec4f,
+    // rgb: Lambertian albedo (Kd times the texture); w: triangle index.
+    @location(2) albedo: vec4f,
+    // xy: atlas coordinates in texels.
+    @location(3) atlas: vec4f,
+}
+
+@fragment
+fn fs_main(f: VertexOut) -> GBufferOut {
+    var n = f.normal;
+    if dot(n, view.eye - f.position) < 0.0 {
+        n = -n;
+    }
+    let m = materials[f.material];
+    var albedo = m.kd;
+    if m.texture >= 0 {
+        albedo *= albedo_sample(albedo_textures, u32(m.texture), f.uv);
+    }
+    var out: GBufferOut;
+    out.position = vec4f(f.position, 1.0);
+    out.normal = vec4f(n, f32(f.material));
+    out.albedo = vec4f(albedo, f32(f.triangle));
+    out.atlas = vec4f(f.atlas_uv, 0.0, 0.0);
+    return out;
+}

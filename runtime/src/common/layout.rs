@@ -1,0 +1,160 @@
+//! Short constructors for bind group layouts and bind groups, so passes declare what they read
+//! and write in one line per binding.
+
+use wgpu::{BindGroupLayoutEntry, BindingType, ShaderStages};
+
+fn entry(binding: u32, visibility: ShaderStages, ty: BindingType) -> BindGroupLayoutEntry {
+    BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty,
+        count: None,
+    }
+}
+
+/// A uniform buffer.
+pub fn uniform(binding: u32, visibility: ShaderStages) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+    )
+}
+
+/// A storage buffer.
+pub fn storage(binding: u32, read_only: bool, visibility: ShaderStages) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+    )
+}
+
+/// An unfilterable float texture (read with `textureLoad`).
+pub fn texture(
+    binding: u32,
+    dimension: wgpu::TextureViewDimension,
+    visibility: ShaderStages,
+) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: dimension,
+            multisampled: false,
+        },
+    )
+}
+
+/// A depth texture array (shadow maps).
+pub fn depth_array(binding: u32, visibility: ShaderStages) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2Array,
+            multisampled: false,
+        },
+    )
+}
+
+/// A comparison sampler.
+pub fn comparison_sampler(binding: u32, visibility: ShaderStages) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+    )
+}
+
+/// A write-only 2D storage texture of `format`.
+pub fn storage_texture(
+    binding: u32,
+    format: wgpu::TextureFormat,
+    visibility: ShaderStages,
+) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::StorageTexture {
+            access: wgpu::StorageTextureAccess::WriteOnly,
+            format,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+    )
+}
+
+/// A bind group layout of `entries`.
+pub fn bind_group_layout(
+    device: &wgpu::Device,
+    label: &str,
+    entries: &[BindGroupLayoutEntry],
+) -> wgpu::BindGroupLayout {
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries,
+    })
+}
+
+/// A bind group with `resources` at bindings 0, 1, 2, ...
+pub fn bind_group(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: &[wgpu::BindingResource],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = resources
+        .iter()
+        .enumerate()
+        .map(|(i, resource)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: resource.clone(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// A compute pipeline running `entry` of `module` with `layouts` at groups 0, 1, ...
+pub fn compute_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> wgpu::ComputePipeline {
+    let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &layouts,
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// A shader module from WGSL source.
+pub fn shader(device: &wgpu::Device, label: &str, source: String) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    })
+}

@@ -1,0 +1,28 @@
+// Direct light per pixel from the G-buffer into linear radiance.
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> materials: array<Material>;
+@group(0) @binding(2) var<storage, read> lights: array<SpotLight>;
+@group(0) @binding(3) var shadow_maps: texture_depth_2d_array;
+@group(0) @binding(4) var shadow_sampler: sampler_comparison;
+@group(0) @binding(5) var gb_position: texture_2d<f32>;
+@group(0) @binding(6) var gb_normal: texture_2d<f32>;
+@group(0) @binding(7) var gb_albedo: texture_2d<f32>;
+@group(0) @binding(8) var radiance_out: texture_storage_2d<rgba32float, write>;
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) id: vec3u) {
+    if id.x >= view.size.x || id.y >= view.size.y {
+        return;
+    }
+    let at = vec2i(id.xy);
+    let position = textureLoad(gb_position, at, 0);
+    var radiance = vec3f(0.0);
+    if position.w > 0.0 {
+        let normal = textureLoad(gb_normal, at, 0);
+        let albedo = textureLoad(gb_albedo, at, 0).rgb;
+        let m = materials[u32(normal.w)];
+        let v = normalize(view.eye - position.xyz);
+        radiance = direct_radiance(view.light_count, position.xyz, normal.xyz, v, albedo, m);
+    }
+    textureStore(radiance_out, at, vec4f(radiance, 1.0));
+}
