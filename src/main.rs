@@ -186,6 +186,25 @@ fn load_scene(dir: &Path) -> Result<Scene, String> {
     Ok(scene)
 }
 
+/// Mesa's Vulkan drivers print "error: XDG_RUNTIME_DIR is invalid or not set" on machines
+/// without a desktop session although a headless render never needs it; point it at a private
+/// directory of ours so users are not alarmed by an error that is not one.
+fn quiet_mesa_wsi() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("cssm-runtime-{}", std::process::id()));
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::DirBuilderExt;
+        if std::fs::DirBuilder::new().mode(0o700).create(&dir).is_err() {
+            return;
+        }
+    }
+    // SAFETY: called from the main thread before the GPU instance or any worker thread exists.
+    unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+}
+
 fn run_render(args: RenderArgs) -> CliResult {
     let dir = match &args.scene {
         Some(dir) => dir.clone(),
@@ -199,6 +218,7 @@ fn run_render(args: RenderArgs) -> CliResult {
         ));
     }
     let scene = load_scene(&dir)?;
+    quiet_mesa_wsi();
     let (width, height) = args
         .size
         .unwrap_or((scene.camera.resolution[0], scene.camera.resolution[1]));

@@ -290,6 +290,7 @@ fn help_explains_every_command() {
         vec!["bake", "--help"],
         vec!["inspect", "--help"],
         vec!["check", "--help"],
+        vec!["render", "--help"],
     ] {
         let o = cssm(&cmd);
         assert!(o.status.success());
@@ -298,4 +299,65 @@ fn help_explains_every_command() {
     }
     let o = cssm(&["bake", "--help"]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("Examples"));
+}
+
+#[test]
+fn render_writes_png_and_exr_of_the_requested_size() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("direct.png");
+    let exr = tmp.path().join("direct.exr");
+    let o = cssm(&[
+        "render",
+        cornell().to_str().unwrap(),
+        "--size",
+        "96x64",
+        "--out",
+        png.to_str().unwrap(),
+        "--exr",
+        exr.to_str().unwrap(),
+        "--timings",
+        "--shadow-resolution",
+        "512",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("GPU time per pass") || stdout.contains("not supported"),
+        "{stdout}"
+    );
+    let image = image::open(&png).expect("PNG readable").to_rgba8();
+    assert_eq!(image.dimensions(), (96, 64));
+    // Lit surfaces and unlit background: not a blank image.
+    let max = image.pixels().map(|p| p.0[0].max(p.0[1]).max(p.0[2])).max();
+    let min = image.pixels().map(|p| p.0[0].max(p.0[1]).max(p.0[2])).min();
+    assert!(max > Some(100) && min < Some(10), "{max:?} {min:?}");
+    let radiance = image::open(&exr).expect("EXR readable").to_rgba32f();
+    assert_eq!(radiance.dimensions(), (96, 64));
+}
+
+#[test]
+fn render_rejects_bad_arguments() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("x.png");
+    for (args, needle) in [
+        (vec!["--size", "0x10"], "each side"),
+        (vec!["--size", "640"], "WIDTHxHEIGHT"),
+        (vec!["--method", "radiosity"], "unknown method"),
+        (vec!["--shadow-resolution", "3"], "out of range"),
+    ] {
+        let mut all = vec!["render", "--out", png.to_str().unwrap()];
+        all.extend(args);
+        let o = cssm(&all);
+        assert_eq!(o.status.code(), Some(2), "{all:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{all:?}: {}", stderr(&o));
+        assert!(!png.exists());
+    }
+    let o = cssm(&[
+        "render",
+        "/nonexistent/scene",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("/nonexistent/scene"), "{}", stderr(&o));
 }

@@ -295,3 +295,56 @@ fn atlas_direct_light_matches_cpu_reference() {
     assert!(kept > keep.len() / 2, "too few texels compared");
     assert!(rmse < 0.05, "relative RMSE {rmse}");
 }
+
+#[test]
+fn corrupt_or_mismatched_files_give_errors() {
+    use cssm_runtime::{RuntimeError, load::read_cssm};
+    let (scene, file) = cornell();
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("cornell.cssm");
+    cssm_formats::cssm::write_atomic(&path, file).unwrap();
+    assert!(read_cssm(&path, scene).is_ok());
+    // A flipped byte in the payload: the checksum catches it.
+    let mut bytes = std::fs::read(&path).unwrap();
+    let last = bytes.len() - 10;
+    bytes[last] ^= 0x5a;
+    let corrupt = tmp.path().join("corrupt.cssm");
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let err = read_cssm(&corrupt, scene).unwrap_err();
+    assert!(matches!(err, RuntimeError::Cssm(_)), "{err}");
+    assert!(err.to_string().contains("corrupt.cssm"), "{err}");
+    // Truncated.
+    std::fs::write(&corrupt, &bytes[..bytes.len() / 2]).unwrap();
+    assert!(matches!(
+        read_cssm(&corrupt, scene),
+        Err(RuntimeError::Cssm(_))
+    ));
+    // Another scene: the glossy Cornell box has the same triangles but other files.
+    let glossy_dir =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-glossy");
+    let glossy = Scene::load(&glossy_dir).unwrap();
+    let err = read_cssm(&path, &glossy).unwrap_err();
+    assert!(matches!(err, RuntimeError::SceneMismatch { .. }), "{err}");
+    assert!(err.to_string().contains("re-bake"), "{err}");
+    // The device is still usable after all that: a query still runs.
+    let gpu = gpu();
+    let cssm = CssmGpu::new(&gpu.device, &gpu.queue, file, QueryOptions::default()).unwrap();
+    let kernel = QueryKernel::new(gpu, &cssm);
+    let pairs = random_pairs(scene, 100, 3);
+    assert_eq!(kernel.run(gpu, &cssm, &pairs, None).unwrap().len(), 100);
+}
+
+#[test]
+fn a_shader_error_is_an_error_not_a_panic() {
+    // A device of its own: the error must not reach the tests sharing the common one.
+    let gpu = &Gpu::new_headless().expect("a Vulkan device");
+    let _module = gpu
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("broken"),
+            source: wgpu::ShaderSource::Wgsl("fn main( {".into()),
+        });
+    let err = gpu.wait().unwrap_err();
+    assert!(err.to_string().contains("broken"), "{err}");
+    assert!(gpu.wait().is_ok(), "the error is reported once");
+}

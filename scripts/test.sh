@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# The project's test command (README): every test of the workspace, release build.
+# GPU tests need a Vulkan device; where none is installed this installs Mesa's lavapipe (a
+# Vulkan implementation on the CPU), so the GPU tests run instead of failing.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+has_vulkan_icd() {
+    compgen -G "/usr/share/vulkan/icd.d/*.json" >/dev/null ||
+        compgen -G "/etc/vulkan/icd.d/*.json" >/dev/null ||
+        [[ -n "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ]]
+}
+if ! has_vulkan_icd; then
+    echo "no Vulkan driver found: installing Mesa's lavapipe (mesa-vulkan-drivers)" >&2
+    SUDO=""
+    [[ $(id -u) -ne 0 ]] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1
+fi
+
+cargo test --workspace --release "$@"
