@@ -348,3 +348,51 @@ fn a_shader_error_is_an_error_not_a_panic() {
     assert!(err.to_string().contains("broken"), "{err}");
     assert!(gpu.wait().is_ok(), "the error is reported once");
 }
+
+#[test]
+fn bvh_kernel_matches_cpu_ray_casts() {
+    use cssm_runtime::visibility::bvh::{BvhKernel, Segment};
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let sampler = SurfaceSampler::new(scene);
+    let mut rng = SplitMix64(5);
+    let eps = 1e-4 * scene.diameter();
+    // The segments of the accuracy check's ground truth (`cssm_bake::check::exact_visible`).
+    let segments: Vec<Segment> = (0..50_000)
+        .map(|_| {
+            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+            let (p_j, p_i) = (sampler.point(r()), sampler.point(r()));
+            let side = if (p_j.position - p_i.position).dot(p_i.normal) >= -eps {
+                1.0
+            } else {
+                -1.0
+            };
+            Segment {
+                a: (p_j.position + p_j.normal * eps).to_array(),
+                b: (p_i.position + p_i.normal * (side * eps)).to_array(),
+                ..Default::default()
+            }
+        })
+        .collect();
+    let kernel = BvhKernel::new(gpu, scene).expect("bvh");
+    let gpu_clear = kernel.run(gpu, &segments, None).expect("GPU traversal");
+    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+    let differ = segments
+        .iter()
+        .zip(&gpu_clear)
+        .filter(|(s, g)| bvh.segment_clear(s.a.into(), s.b.into()) != **g)
+        .count();
+    let clear = gpu_clear.iter().filter(|&&c| c).count();
+    eprintln!(
+        "BVH kernel vs CPU ray casts: {differ} of {} differ ({clear} clear)",
+        segments.len()
+    );
+    assert!(
+        clear > 1000 && clear < segments.len() - 1000,
+        "{clear} clear"
+    );
+    assert!(
+        differ as f64 <= 1e-4 * segments.len() as f64,
+        "{differ} differ"
+    );
+}

@@ -8,11 +8,18 @@
 //! differ only where floating-point rounding of the GPU (fused multiply-adds, its division)
 //! moves a depth comparison across its threshold.
 
+pub mod bvh;
+
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
-use crate::{Gpu, RuntimeError, common::readback, gpu_types::TYPES_WGSL, load::CssmGpu};
+use crate::{
+    Gpu, RuntimeError,
+    common::{layout, readback},
+    gpu_types::TYPES_WGSL,
+    load::CssmGpu,
+};
 
 /// The WGSL visibility library with its bindings at `@group(group)`, preceded by the shared
 /// struct declarations (`types.wgsl`). Append your own shader code to it.
@@ -70,28 +77,23 @@ impl QueryKernel {
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
         let device = &gpu.device;
         let source = library_wgsl(1) + include_str!("query.wgsl");
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("cssm query"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("cssm query io"),
-            entries: &[storage_entry(0, true), storage_entry(1, false)],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("cssm query"),
-            bind_group_layouts: &[Some(&layout), Some(&cssm.bind_group_layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("cssm query"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        Self { pipeline, layout }
+        let module = layout::shader(device, "cssm query", source);
+        let c = wgpu::ShaderStages::COMPUTE;
+        let io_layout = layout::bind_group_layout(
+            device,
+            "cssm query io",
+            &[layout::storage(0, true, c), layout::storage(1, false, c)],
+        );
+        let pipeline = layout::compute_pipeline(
+            device,
+            "cssm query",
+            &module,
+            &[&io_layout, &cssm.bind_group_layout],
+        );
+        Self {
+            pipeline,
+            layout: io_layout,
+        }
     }
 
     /// Answers `pairs` on the GPU, `repeat` times in one pass (for timing; the answers are the
@@ -118,28 +120,14 @@ impl QueryKernel {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let io = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("query io"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: input.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: output.as_entire_binding(),
-                },
-            ],
-        });
+        let io = layout::bind_group(
+            device,
+            "query io",
+            &self.layout,
+            &[input.as_entire_binding(), output.as_entire_binding()],
+        );
         let mut encoder = device.create_command_encoder(&Default::default());
-        let groups = (pairs.len() as u32).div_ceil(WORKGROUP);
-        // Large batches need a 2D dispatch (at most 65,535 groups per dimension).
-        let (gx, gy) = if groups <= 65_535 {
-            (groups, 1)
-        } else {
-            (65_535, groups.div_ceil(65_535))
-        };
+        let (gx, gy) = dispatch_size(pairs.len() as u32);
         let mut timer = timer;
         {
             let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute("cssm query"));
@@ -161,17 +149,14 @@ impl QueryKernel {
     }
 }
 
-/// A compute-visible storage buffer entry.
-pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
+/// Workgroups (x, y) covering `items` threads of 64: a 2D dispatch for large batches (at most
+/// 65,535 groups per dimension); kernels index `id.x + id.y * groups.x * 64`.
+pub(crate) fn dispatch_size(items: u32) -> (u32, u32) {
+    let groups = items.div_ceil(WORKGROUP);
+    if groups <= 65_535 {
+        (groups, 1)
+    } else {
+        (65_535, groups.div_ceil(65_535))
     }
 }
 
