@@ -41,23 +41,8 @@ fn cornell() -> &'static (Scene, CssmFile) {
     })
 }
 
-/// `count` random sender/receiver pairs on the surface, area-uniform (seeded).
 fn random_pairs(scene: &Scene, count: usize, seed: u64) -> Vec<QueryPair> {
-    let sampler = SurfaceSampler::new(scene);
-    let mut rng = SplitMix64(seed);
-    (0..count)
-        .map(|_| {
-            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-            let sender = sampler.point(r());
-            let receiver = sampler.point(r());
-            QueryPair::new(
-                sender.triangle as u32,
-                sender.bary,
-                receiver.position,
-                Some(receiver.normal),
-            )
-        })
-        .collect()
+    cssm_runtime::visibility::random_pairs(scene, count, seed).0
 }
 
 /// GPU and CPU answers to the same pairs: (pairs compared, decisions that differ, largest
@@ -351,29 +336,11 @@ fn a_shader_error_is_an_error_not_a_panic() {
 
 #[test]
 fn bvh_kernel_matches_cpu_ray_casts() {
-    use cssm_runtime::visibility::bvh::{BvhKernel, Segment};
+    use cssm_runtime::visibility::bvh::BvhKernel;
     let gpu = gpu();
     let (scene, _) = cornell();
-    let sampler = SurfaceSampler::new(scene);
-    let mut rng = SplitMix64(5);
-    let eps = 1e-4 * scene.diameter();
     // The segments of the accuracy check's ground truth (`cssm_bake::check::exact_visible`).
-    let segments: Vec<Segment> = (0..50_000)
-        .map(|_| {
-            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-            let (p_j, p_i) = (sampler.point(r()), sampler.point(r()));
-            let side = if (p_j.position - p_i.position).dot(p_i.normal) >= -eps {
-                1.0
-            } else {
-                -1.0
-            };
-            Segment {
-                a: (p_j.position + p_j.normal * eps).to_array(),
-                b: (p_i.position + p_i.normal * (side * eps)).to_array(),
-                ..Default::default()
-            }
-        })
-        .collect();
+    let (_, segments) = cssm_runtime::visibility::random_pairs(scene, 50_000, 5);
     let kernel = BvhKernel::new(gpu, scene).expect("bvh");
     let gpu_clear = kernel.run(gpu, &segments, None).expect("GPU traversal");
     let bvh = cssm_bake::raycast::SceneBvh::new(scene);
@@ -395,4 +362,43 @@ fn bvh_kernel_matches_cpu_ray_casts() {
         differ as f64 <= 1e-4 * segments.len() as f64,
         "{differ} differ"
     );
+}
+
+#[test]
+fn gather_kernel_matches_cpu() {
+    use cssm_runtime::visibility::gather::{GatherKernel, Receiver, gather_cpu};
+    let gpu = gpu();
+    let (scene, file) = cornell();
+    let sampler = SurfaceSampler::new(scene);
+    let mut rng = SplitMix64(9);
+    let receivers: Vec<Receiver> = (0..2_000)
+        .map(|i| {
+            let p = sampler.point([rng.next_f64(), rng.next_f64(), rng.next_f64()]);
+            Receiver {
+                position: p.position.to_array(),
+                first_sender: (i / 64) * 37,
+                normal: p.normal.to_array(),
+                _pad: 0,
+            }
+        })
+        .collect();
+    let cssm = CssmGpu::new(&gpu.device, &gpu.queue, file, QueryOptions::default()).unwrap();
+    let gpu_sums = GatherKernel::new(gpu, &cssm)
+        .run(gpu, &cssm, &receivers, 64, None)
+        .unwrap();
+    let cpu_sums = gather_cpu(
+        &VisibilityQuery::new(file, QueryOptions::default()),
+        &receivers,
+        64,
+    );
+    let worst = gpu_sums
+        .iter()
+        .zip(&cpu_sums)
+        .map(|(g, c)| (g - c).abs())
+        .fold(0.0f32, f32::max);
+    let total: f32 = cpu_sums.iter().sum();
+    eprintln!("gather: largest difference {worst} (sums total {total})");
+    assert!(total > 1000.0, "the gather sees something");
+    // Each sum has 64 terms of at most 1; allow one flipped PCF tap and float order.
+    assert!(worst <= 1.0, "largest difference {worst}");
 }

@@ -9,6 +9,7 @@
 //! moves a depth comparison across its threshold.
 
 pub mod bvh;
+pub mod gather;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -60,6 +61,43 @@ impl QueryPair {
             ..Default::default()
         }
     }
+}
+
+/// `count` random sender/receiver pairs on the surface of `scene`, area-uniform, seeded (the
+/// sampler and generator of `cssm check`): the CSSM queries, and the segments an exact ray cast
+/// of the same pairs tests (those of `cssm_bake::check::exact_visible`).
+pub fn random_pairs(
+    scene: &cssm_formats::Scene,
+    count: usize,
+    seed: u64,
+) -> (Vec<QueryPair>, Vec<bvh::Segment>) {
+    let sampler = cssm_bake::check::SurfaceSampler::new(scene);
+    let mut rng = cssm_bake::check::SplitMix64(seed);
+    let eps = 1e-4 * scene.diameter();
+    (0..count)
+        .map(|_| {
+            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+            let (p_j, p_i) = (sampler.point(r()), sampler.point(r()));
+            let side = if (p_j.position - p_i.position).dot(p_i.normal) >= -eps {
+                1.0
+            } else {
+                -1.0
+            };
+            (
+                QueryPair::new(
+                    p_j.triangle as u32,
+                    p_j.bary,
+                    p_i.position,
+                    Some(p_i.normal),
+                ),
+                bvh::Segment {
+                    a: (p_j.position + p_j.normal * eps).to_array(),
+                    b: (p_i.position + p_i.normal * (side * eps)).to_array(),
+                    ..Default::default()
+                },
+            )
+        })
+        .unzip()
 }
 
 /// Threads per workgroup of the query kernel.
@@ -166,5 +204,7 @@ mod tests {
     fn library_validates_with_naga() {
         let source = super::library_wgsl(1) + include_str!("query.wgsl");
         crate::tests::validate_wgsl("visibility/query", &source);
+        let source = super::library_wgsl(1) + include_str!("gather.wgsl");
+        crate::tests::validate_wgsl("visibility/gather", &source);
     }
 }
