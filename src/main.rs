@@ -63,9 +63,18 @@ struct BakeArgs {
     /// Cube-map face resolution N; each map has 6 x N x N pixels (8 to 128).
     #[arg(long, default_value_t = 32)]
     cube: u32,
-    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3).
+    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3), or hilbert (chart by
+    /// chart, a Hilbert curve inside each chart; beyond the paper).
     #[arg(long, default_value = "spiral")]
     traversal: Traversal,
+    /// Which depth a run stores inside the codes all its maps accept: middle (the middle code)
+    /// or balanced (equal relative margins to the near and the far layer). Beyond the paper.
+    #[arg(long, default_value = "middle")]
+    run_value: bake::compress::RunValue,
+    /// Lossy: merge runs of at most this many depth maps into their neighbours when those agree
+    /// (0: lossless, as in the paper). Fewer runs, a few wrong depths; measure with `cssm check`.
+    #[arg(long, default_value_t = 0)]
+    merge_short_runs: u32,
     /// Distance the cube maps sit off the surface, in scene units. Default: 0.2% of the scene
     /// diameter.
     #[arg(long)]
@@ -159,6 +168,8 @@ fn run_bake(args: BakeArgs) -> CliResult {
         cube_resolution: args.cube,
         traversal: args.traversal,
         near: args.near,
+        run_value: args.run_value,
+        merge_short_runs: args.merge_short_runs,
     };
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
@@ -186,6 +197,8 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "atlas_resolution": args.atlas,
         "cube_resolution": args.cube,
         "traversal": args.traversal.name(),
+        "run_value": args.run_value.name(),
+        "merge_short_runs": args.merge_short_runs,
         "charts": s.charts,
         "defined_texels": s.defined_texels,
         "rays": s.rays,
@@ -200,6 +213,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "total_seconds": seconds,
         "rays_per_second": s.rays as f64 / s.maps_time.as_secs_f64().max(1e-9),
         "threads": rayon_threads(),
+        "peak_rss_bytes": peak_rss_bytes(),
     });
     if args.json {
         println!("{summary}");
@@ -239,6 +253,15 @@ fn run_bake(args: BakeArgs) -> CliResult {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// This process's peak resident set size so far (`VmHWM` of `/proc/self/status`), where the
+/// system reports one (Linux); the compression report reads it from every bake it runs.
+fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 fn rayon_threads() -> usize {
