@@ -3,7 +3,8 @@
 //!
 //! This facade re-exports the libraries that do the work:
 //! - [`formats`]: scenes, the `.cssm` container, the CPU reference visibility query;
-//! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check.
+//! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check;
+//! - [`report`]: the compression report (`cssm report compression`), measured against the paper.
 //!
 //! ```no_run
 //! use cssm::{bake, formats};
@@ -15,6 +16,7 @@
 //! ```
 
 pub mod builtin;
+pub mod report;
 
 pub use cssm_bake as bake;
 pub use cssm_formats as formats;

@@ -432,11 +432,18 @@ pub fn read(path: &Path) -> Result<CssmFile, CssmError> {
     })
 }
 
-/// Writes `file` to `path` atomically: encodes, writes a temporary file `.NAME.tmp-PID` in the
-/// same directory, fsyncs it, and renames it over `path`. On any error the temporary file is
-/// removed and `path` is left untouched. Returns the number of bytes written.
+/// Writes `file` to `path` atomically (see [`write_bytes_atomic`]). Returns the number of bytes
+/// written.
 pub fn write_atomic(path: &Path, file: &CssmFile) -> Result<u64, CssmError> {
     let bytes = encode(file)?;
+    write_bytes_atomic(path, &bytes)?;
+    Ok(bytes.len() as u64)
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file `.NAME.tmp-PID` in the same directory,
+/// fsynced, then renamed over `path`. On any error the temporary file is removed and `path` is
+/// left untouched. Used for `.cssm` files and for the reports.
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), CssmError> {
     let name = path.file_name().ok_or_else(|| CssmError::Io {
         path: path.to_path_buf(),
         error: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
@@ -456,7 +463,7 @@ pub fn write_atomic(path: &Path, file: &CssmFile) -> Result<u64, CssmError> {
             error,
         };
         let mut f = std::fs::File::create(&tmp).map_err(io)?;
-        f.write_all(&bytes).map_err(io)?;
+        f.write_all(bytes).map_err(io)?;
         f.sync_all().map_err(io)?;
         drop(f);
         std::fs::rename(&tmp, path).map_err(|error| CssmError::Io {
@@ -484,7 +491,7 @@ pub fn write_atomic(path: &Path, file: &CssmFile) -> Result<u64, CssmError> {
     if let Ok(d) = std::fs::File::open(&dir) {
         let _ = d.sync_all();
     }
-    Ok(bytes.len() as u64)
+    Ok(())
 }
 
 macro_rules! invalid {
