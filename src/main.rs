@@ -97,6 +97,10 @@ struct BakeArgs {
     /// (0: lossless, as in the paper). Fewer runs, a few wrong depths; measure with `cssm check`.
     #[arg(long, default_value_t = 0)]
     merge_short_runs: u32,
+    /// How the file stores the runs: packed (run lengths and depth differences as varints before
+    /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).
+    #[arg(long, default_value = "packed")]
+    file_coding: formats::cssm::FileCoding,
     /// Distance the cube maps sit off the surface, in scene units. Default: 0.2% of the scene
     /// diameter.
     #[arg(long)]
@@ -209,8 +213,8 @@ fn run_bake(args: BakeArgs) -> CliResult {
     })
     .map_err(|e| format!("{}: {e}", dir.display()))?;
     bar.finish_and_clear();
-    let file_bytes =
-        formats::cssm::write_atomic(&output, &baked.file).map_err(|e| e.to_string())?;
+    let file_bytes = formats::cssm::write_atomic_with(&output, &baked.file, args.file_coding)
+        .map_err(|e| e.to_string())?;
     let seconds = start.elapsed().as_secs_f64();
     let s = &baked.stats;
     let summary = serde_json::json!({
@@ -222,6 +226,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "traversal": args.traversal.name(),
         "run_value": args.run_value.name(),
         "merge_short_runs": args.merge_short_runs,
+        "file_coding": args.file_coding.name(),
         "charts": s.charts,
         "defined_texels": s.defined_texels,
         "rays": s.rays,

@@ -38,6 +38,8 @@ fn bake_small(scene: &Path, out: &Path) -> Output {
 #[test]
 fn bake_inspect_and_determinism() {
     let dir = tempfile::tempdir().unwrap();
+    let cornell_path = cornell();
+    let cornell_str = cornell_path.to_str().unwrap();
     let a = dir.path().join("a.cssm");
     let b = dir.path().join("b.cssm");
     let o = bake_small(&cornell(), &a);
@@ -81,6 +83,25 @@ fn bake_inspect_and_determinism() {
     assert_eq!(
         j["file_bytes"].as_u64().unwrap(),
         std::fs::metadata(&a).unwrap().len()
+    );
+
+    // The entropy stage changes the file, never the data: a plain file reads back the same.
+    let plain = dir.path().join("plain.cssm");
+    let mut args = vec!["bake", cornell_str, "-o", plain.to_str().unwrap()];
+    args.extend_from_slice(&["--atlas", "32", "--cube", "8", "--file-coding", "plain"]);
+    assert!(cssm(&args).status.success());
+    let mut jp: serde_json::Value =
+        serde_json::from_slice(&cssm(&["inspect", plain.to_str().unwrap(), "--json"]).stdout)
+            .unwrap();
+    let mut ja = j.clone();
+    for k in ["file_bytes", "ratio_file"] {
+        jp.as_object_mut().unwrap().remove(k);
+        ja.as_object_mut().unwrap().remove(k);
+    }
+    assert_eq!(jp, ja);
+    assert!(
+        std::fs::metadata(&plain).unwrap().len() > std::fs::metadata(&a).unwrap().len(),
+        "the entropy stage makes the file smaller"
     );
 
     let o = cssm(&["inspect", a.to_str().unwrap()]);
@@ -349,7 +370,8 @@ fn compression_report_small() {
             "compression.md lacks {needle:?}:\n{md}"
         );
     }
-    // Markdown table rows: 2 atlases x 4 traversals, 2 atlases x 2 variants, 8 options.
+    // Markdown table rows: 2 atlases x 4 traversals, 2 atlases x 2 variants, every option.
+    let options = cssm::report::OPTIONS.len();
     let table_rows = |header: &str| {
         let start = md.find(header).unwrap();
         md[start..]
@@ -360,13 +382,13 @@ fn compression_report_small() {
     };
     assert_eq!(table_rows("| atlas | cube | traversal"), 8, "{md}");
     assert_eq!(table_rows("| scene | faces"), 4, "{md}");
-    assert_eq!(table_rows("| option |"), 8, "{md}");
+    assert_eq!(table_rows("| option |"), options, "{md}");
 
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 8 + 4 + 8);
+    assert_eq!(rows.len(), 8 + 4 + options);
     for r in &rows {
         assert_eq!(r.len(), header.len(), "{r:?}");
         assert_eq!(r[col("status")], "ok", "{r:?}");

@@ -73,6 +73,9 @@ fn unwrap(
 ) -> Result<(Vec<TriangleUv>, Vec<u32>), BakeError> {
     let positions: Vec<f32> = scene.positions.iter().flat_map(|p| p.to_array()).collect();
     let indices: Vec<u32> = scene.triangles.iter().flatten().copied().collect();
+    // xatlas prints warnings (charts it could not parameterise well) on standard output, where
+    // they would break `cssm bake --json`; the atlas is checked here instead.
+    xatlas_rs::silence_messages();
     let mut atlas = xatlas_rs::Xatlas::new();
     atlas.add_mesh(&xatlas_rs::MeshDecl {
         vertex_count: scene.positions.len() as u32,
