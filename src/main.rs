@@ -89,6 +89,11 @@ struct BakeArgs {
     /// gave the best ratio at the same accuracy in reports/compression.md).
     #[arg(long, default_value = "hilbert")]
     traversal: Traversal,
+    /// How the chart-by-chart traversals choose the next chart: nearest (§3.2.3: the chart whose
+    /// first texel is nearest) or ends (the chart with an end, first or last texel, nearest;
+    /// walked backwards from its last one; beyond the paper).
+    #[arg(long, default_value = "nearest")]
+    chart_order: bake::traverse::ChartOrder,
     /// Which depth a run stores inside the codes all its maps accept: middle (the middle code)
     /// or balanced (equal relative margins to the near and the far layer). Beyond the paper.
     #[arg(long, default_value = "middle")]
@@ -194,6 +199,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         atlas_resolution: args.atlas,
         cube_resolution: args.cube,
         traversal: args.traversal,
+        chart_order: args.chart_order,
         near: args.near,
         run_value: args.run_value,
         merge_short_runs: args.merge_short_runs,
@@ -224,6 +230,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "atlas_resolution": args.atlas,
         "cube_resolution": args.cube,
         "traversal": args.traversal.name(),
+        "chart_order": args.chart_order.name(),
         "run_value": args.run_value.name(),
         "merge_short_runs": args.merge_short_runs,
         "file_coding": args.file_coding.name(),

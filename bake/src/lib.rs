@@ -57,6 +57,9 @@ pub struct BakeOptions {
     pub cube_resolution: u32,
     /// Texel traversal order (default: Hilbert).
     pub traversal: Traversal,
+    /// How chart-by-chart traversals pick the next chart (beyond the paper; see
+    /// [`traverse::ChartOrder`]).
+    pub chart_order: traverse::ChartOrder,
     /// Near distance in scene units; `None`: [`DEFAULT_NEAR_FRACTION`] of the scene diameter.
     pub near: Option<f32>,
     /// Which code of its interval a run stores (beyond the paper; see [`compress::RunValue`]).
@@ -74,6 +77,7 @@ impl Default for BakeOptions {
             // Beyond the paper's Spiral: the best ratio at the same accuracy on the Cornell box
             // (reports/compression.md, Options table).
             traversal: Traversal::Hilbert,
+            chart_order: traverse::ChartOrder::Nearest,
             near: None,
             run_value: compress::RunValue::Middle,
             merge_short_runs: 0,
@@ -159,7 +163,12 @@ pub fn bake(
 
     // 2. Coherent order of the texels (§3.2.3).
     let t0 = Instant::now();
-    let sequence = traverse::traverse(&atlas.texels, atlas.resolution, options.traversal);
+    let sequence = traverse::traverse_with(
+        &atlas.texels,
+        atlas.resolution,
+        options.traversal,
+        options.chart_order,
+    );
     stats.traversal_time = t0.elapsed();
 
     // 3. + 4. Depth cube maps, streamed in batches into the compressor (§3.2.1, §3.1).

@@ -40,19 +40,81 @@ use cssm_formats::{Texel, Traversal};
 /// `atlas_resolution` is the side of the square atlas; it sizes the cell lookup used by the
 /// Spiral walk (coordinates beyond it are still handled). Runs in `O(n log n)` for `n` texels.
 pub fn traverse(texels: &[Texel], atlas_resolution: u32, traversal: Traversal) -> Vec<u32> {
+    traverse_with(texels, atlas_resolution, traversal, ChartOrder::Nearest)
+}
+
+/// A chart visit: `(chart id, the chart's texels in row-major order, output)`; must append
+/// exactly those texels, in any order.
+type VisitChart<'a> = dyn FnMut(u32, &[u32], &mut Vec<u32>) + 'a;
+
+/// How the chart-by-chart traversals pick the next chart.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ChartOrder {
+    /// §3.2.3: the unvisited chart whose first texel is closest in 3D to the last texel visited;
+    /// every chart is walked from its first texel.
+    #[default]
+    Nearest,
+    /// Beyond the paper: the unvisited chart with an *end* (the first or the last texel of its
+    /// own walk) closest to the last texel visited, walked backwards when that end is its last.
+    /// The walk then crosses into the chart across the border where the previous one ended,
+    /// instead of jumping to wherever the next chart's walk happens to start.
+    Ends,
+}
+
+impl ChartOrder {
+    /// Every choice, default first.
+    pub const ALL: [ChartOrder; 2] = [ChartOrder::Nearest, ChartOrder::Ends];
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ChartOrder::Nearest => "nearest",
+            ChartOrder::Ends => "ends",
+        }
+    }
+}
+
+impl std::fmt::Display for ChartOrder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for ChartOrder {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "nearest" => Ok(ChartOrder::Nearest),
+            "ends" => Ok(ChartOrder::Ends),
+            other => Err(format!(
+                "unknown chart order '{other}': expected nearest or ends"
+            )),
+        }
+    }
+}
+
+/// [`traverse`] with the next chart chosen as `chart_order` says (no effect on Greedy).
+pub fn traverse_with(
+    texels: &[Texel],
+    atlas_resolution: u32,
+    traversal: Traversal,
+    chart_order: ChartOrder,
+) -> Vec<u32> {
     if texels.is_empty() {
         return Vec::new();
     }
+    let by_chart = |visit: &mut VisitChart| match chart_order {
+        ChartOrder::Nearest => chart_by_chart(texels, visit),
+        ChartOrder::Ends => chart_by_chart_ends(texels, visit),
+    };
     match traversal {
         Traversal::Greedy => greedy_order(texels),
-        Traversal::Zigzag => chart_by_chart(texels, |_, rows, out| zigzag_chart(texels, rows, out)),
-        Traversal::Hilbert => {
-            chart_by_chart(texels, |_, rows, out| hilbert_chart(texels, rows, out))
-        }
+        Traversal::Zigzag => by_chart(&mut |_, rows, out| zigzag_chart(texels, rows, out)),
+        Traversal::Hilbert => by_chart(&mut |_, rows, out| hilbert_chart(texels, rows, out)),
         Traversal::Spiral => {
             let cells = CellIndex::new(texels, atlas_resolution, DENSE_CELL_LIMIT);
             let mut walker = SpiralWalker::new(texels, &cells);
-            chart_by_chart(texels, |_, rows, out| walker.spiral_chart(rows, out))
+            by_chart(&mut |_, rows, out| walker.spiral_chart(rows, out))
         }
     }
 }
@@ -101,29 +163,9 @@ fn dist2(a: [f32; 3], b: [f32; 3]) -> f32 {
 /// charts' first texels, so this costs `O(n log n + c log c)` for `n` texels and `c` charts.
 ///
 /// `visit_chart` must append exactly the texels of `rows` (in any order).
-fn chart_by_chart(
-    texels: &[Texel],
-    mut visit_chart: impl FnMut(u32, &[u32], &mut Vec<u32>),
-) -> Vec<u32> {
+fn chart_by_chart(texels: &[Texel], visit_chart: &mut VisitChart) -> Vec<u32> {
     let n = texels.len();
-    // All texels sorted by (chart, y, x, index): charts become contiguous runs, each row-major.
-    let mut sorted: Vec<u32> = (0..n as u32).collect();
-    sorted.sort_unstable_by_key(|&i| {
-        let t = &texels[i as usize];
-        (t.chart, t.y, t.x, i)
-    });
-    // Runs of equal chart id: (chart id, start, end) in increasing chart id.
-    let mut runs: Vec<(u32, usize, usize)> = Vec::new();
-    let mut start = 0;
-    while start < n {
-        let chart = texels[sorted[start] as usize].chart;
-        let mut end = start + 1;
-        while end < n && texels[sorted[end] as usize].chart == chart {
-            end += 1;
-        }
-        runs.push((chart, start, end));
-        start = end;
-    }
+    let (sorted, runs) = chart_runs(texels);
     let entries: Vec<[f32; 3]> = runs
         .iter()
         .map(|&(_, s, _)| sanitized_position(&texels[sorted[s] as usize]))
@@ -152,6 +194,85 @@ fn chart_by_chart(
         }
     }
     out
+}
+
+/// The chart order of [`ChartOrder::Ends`]: every chart's own walk is computed first (in chart
+/// id order), then charts are strung together starting with the chart of the row-major first
+/// texel (walked forwards), always moving to the unvisited chart with an end nearest to the last
+/// texel emitted (ties: smaller chart id, then its first end), walked backwards when that end is
+/// its last texel. `O(n log n + c log c)`.
+fn chart_by_chart_ends(texels: &[Texel], visit_chart: &mut VisitChart) -> Vec<u32> {
+    let n = texels.len();
+    let (sorted, runs) = chart_runs(texels);
+    let mut walks = Vec::with_capacity(n);
+    let mut ranges = Vec::with_capacity(runs.len());
+    for &(chart, s, e) in &runs {
+        let before = walks.len();
+        visit_chart(chart, &sorted[s..e], &mut walks);
+        debug_assert_eq!(
+            walks.len() - before,
+            e - s,
+            "a chart visit must emit its texels"
+        );
+        ranges.push(before..walks.len());
+    }
+    // Point 2k is chart run k's first texel, point 2k + 1 its last.
+    let pos = |i: u32| sanitized_position(&texels[i as usize]);
+    let ends: Vec<[f32; 3]> = ranges
+        .iter()
+        .flat_map(|r| [pos(walks[r.start]), pos(walks[r.end - 1])])
+        .collect();
+    let mut remaining = NearestSet::new(&ends);
+    let first_chart = texels[first_texel(texels) as usize].chart;
+    let mut current = runs
+        .binary_search_by_key(&first_chart, |r| r.0)
+        .expect("the first texel's chart has a run");
+    let mut backwards = false;
+    let mut out = Vec::with_capacity(n);
+    loop {
+        let walk = &walks[ranges[current].clone()];
+        if backwards {
+            out.extend(walk.iter().rev());
+        } else {
+            out.extend_from_slice(walk);
+        }
+        remaining.remove(2 * current as u32);
+        remaining.remove(2 * current as u32 + 1);
+        let last = pos(*out.last().expect("charts are non-empty"));
+        match remaining.nearest(last) {
+            Some(end) => {
+                current = (end / 2) as usize;
+                backwards = end % 2 == 1;
+            }
+            None => break,
+        }
+    }
+    out
+}
+
+/// All texels sorted by `(chart, y, x, index)` (charts become contiguous, each row-major), and
+/// the runs of equal chart `(chart id, start, end)` in increasing chart id.
+fn chart_runs(texels: &[Texel]) -> (Vec<u32>, Vec<(u32, usize, usize)>) {
+    let n = texels.len();
+    // All texels sorted by (chart, y, x, index): charts become contiguous runs, each row-major.
+    let mut sorted: Vec<u32> = (0..n as u32).collect();
+    sorted.sort_unstable_by_key(|&i| {
+        let t = &texels[i as usize];
+        (t.chart, t.y, t.x, i)
+    });
+    // Runs of equal chart id: (chart id, start, end) in increasing chart id.
+    let mut runs: Vec<(u32, usize, usize)> = Vec::new();
+    let mut start = 0;
+    while start < n {
+        let chart = texels[sorted[start] as usize].chart;
+        let mut end = start + 1;
+        while end < n && texels[sorted[end] as usize].chart == chart {
+            end += 1;
+        }
+        runs.push((chart, start, end));
+        start = end;
+    }
+    (sorted, runs)
 }
 
 /// Zig-Zag inside one chart (§3.2.3): "visit all texels inside the box in a zig-zag pattern from

@@ -2,7 +2,7 @@
 //! random blob charts grown by flood fill, isolated cells (so some charts are split in the atlas
 //! grid), noisy 3D positions, and texel slices in row-major or shuffled order.
 
-use cssm_bake::traverse::traverse;
+use cssm_bake::traverse::{ChartOrder, traverse, traverse_with};
 use cssm_formats::{Texel, Traversal};
 use proptest::prelude::*;
 use std::time::Instant;
@@ -446,6 +446,63 @@ proptest! {
                             "spiral: {adjacent}/{steps} in-chart steps are 4-neighbour steps ({:.1}%)",
                             100.0 * adjacent as f64 / steps as f64
                         );
+                    }
+                }
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// `ChartOrder::Ends`: still a permutation with every chart one block; each block is the
+    /// chart's own walk (as the paper's chart order emits it) or that walk backwards; the first
+    /// block is the row-major first texel's chart, forwards; and each next block starts at the
+    /// unvisited chart end nearest to where the previous block ended.
+    #[test]
+    fn chart_order_ends_strings_whole_walks_together(
+        seed in any::<u64>(),
+        w in 1usize..30,
+        h in 1usize..30,
+        blobs in 0usize..12,
+        isolated in 0usize..20,
+        noise in prop_oneof![Just(0.0f32), 0.0f32..0.9],
+        shuffle in any::<bool>(),
+    ) {
+        let texels = random_atlas(seed, w, h, blobs, isolated, noise, shuffle);
+        let res = w.max(h) as u32;
+        for traversal in [Traversal::Zigzag, Traversal::Spiral, Traversal::Hilbert] {
+            let order = traverse_with(&texels, res, traversal, ChartOrder::Ends);
+            assert_permutation(&texels, &order)?;
+            prop_assert_eq!(&order, &traverse_with(&texels, res, traversal, ChartOrder::Ends));
+            if texels.is_empty() {
+                continue;
+            }
+            let paper = traverse(&texels, res, traversal);
+            let walks: std::collections::HashMap<u32, Vec<u32>> = chart_blocks(&texels, &paper)?
+                .into_iter()
+                .map(|(c, s, e)| (c, paper[s..e].to_vec()))
+                .collect();
+            let blocks = chart_blocks(&texels, &order)?;
+            prop_assert_eq!(blocks[0].0, texels[first_texel(&texels) as usize].chart);
+            prop_assert_eq!(&order[blocks[0].1..blocks[0].2], &walks[&blocks[0].0][..]);
+            let mut done = std::collections::HashSet::new();
+            for pair in blocks.windows(2) {
+                done.insert(pair[0].0);
+                let block = &order[pair[1].1..pair[1].2];
+                let walk = &walks[&pair[1].0];
+                let reversed: Vec<u32> = walk.iter().rev().copied().collect();
+                prop_assert!(block == &walk[..] || block == &reversed[..]);
+                // The chosen end is the nearest of all unvisited ends.
+                let last = texels[order[pair[0].2 - 1] as usize].position;
+                let chosen = dist2(texels[block[0] as usize].position, last);
+                for (c, wk) in &walks {
+                    if done.contains(c) {
+                        continue;
+                    }
+                    for end in [wk[0], wk[wk.len() - 1]] {
+                        prop_assert!(chosen <= dist2(texels[end as usize].position, last));
                     }
                 }
             }

@@ -300,8 +300,13 @@ fn winners(options: &[&Row]) -> String {
         }
         let gain = 100.0 * (m.ratio() / base.ratio() - 1.0);
         let dacc = 100.0 * (m.agreement - base.agreement);
-        if (v.traversal, v.run_value, v.merge_short_runs)
-            == (PAPER.traversal, PAPER.run_value, PAPER.merge_short_runs)
+        if (v.traversal, v.chart_order, v.run_value, v.merge_short_runs)
+            == (
+                PAPER.traversal,
+                PAPER.chart_order,
+                PAPER.run_value,
+                PAPER.merge_short_runs,
+            )
         {
             // A file-only option: the GPU data must be the same; judge the file.
             let fgain = 100.0 * (m.file_ratio() / base.file_ratio() - 1.0);
@@ -471,20 +476,21 @@ fn times(r: &Report) -> String {
 /// Every row as CSV (one header line).
 pub fn csv(r: &Report) -> String {
     let mut s = String::from(
-        "table,scene,atlas,cube,variant,traversal,run_value,merge_short_runs,file_coding,status,faces,charts,maps,runs,uncompressed_bytes,gpu_bytes,file_bytes,ratio,file_ratio,bake_seconds,wall_seconds,peak_rss_bytes,agreement,false_visible_rate,false_occluded_rate,paper_ratio\n",
+        "table,scene,atlas,cube,variant,traversal,chart_order,run_value,merge_short_runs,file_coding,status,faces,charts,maps,runs,uncompressed_bytes,gpu_bytes,file_bytes,ratio,file_ratio,bake_seconds,wall_seconds,peak_rss_bytes,agreement,false_visible_rate,false_occluded_rate,paper_ratio\n",
     );
     for row in &r.rows {
         let p = &row.plan;
         let v = &p.variant;
         let _ = write!(
             s,
-            "{},{},{},{},{},{},{},{},{},",
+            "{},{},{},{},{},{},{},{},{},{},",
             p.table_name(),
             p.scene.name(),
             p.atlas,
             p.cube,
             v.name,
             v.traversal,
+            v.chart_order,
             v.run_value,
             v.merge_short_runs,
             v.file_coding
