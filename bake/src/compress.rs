@@ -102,8 +102,11 @@ pub struct Compressor {
     map_count: u32,
     maps_seen: u32,
     open: Vec<Open>,
-    /// Closed runs of the current segment, one list per pixel.
-    segment_runs: Vec<Vec<Open>>,
+    /// Closed runs of the current segment, one list per pixel, packed as in [`RunData`].
+    segment_runs: Vec<Vec<u32>>,
+    /// Their intervals `lo << 16 | hi`, kept only when short runs are merged (which needs them),
+    /// so the lossless compressor holds 4 bytes per closed run, as before.
+    segment_intervals: Vec<Vec<u32>>,
     options: CompressOptions,
     offsets: Vec<u32>,
     runs: Vec<u32>,
@@ -130,6 +133,7 @@ impl Compressor {
                 pixel_count as usize
             ],
             segment_runs: vec![Vec::new(); pixel_count as usize],
+            segment_intervals: vec![Vec::new(); pixel_count as usize],
             offsets: vec![0],
             runs: Vec::new(),
             options,
@@ -148,12 +152,15 @@ impl Compressor {
             let take = in_segment.min(batch - done);
             let first_map = self.maps_seen;
             let chunk = &maps[done * pc..(done + take) * pc];
+            let options = self.options;
+            let keep_intervals = options.merge_short_runs > 0;
             self.open
                 .par_iter_mut()
                 .zip(self.segment_runs.par_iter_mut())
+                .zip(self.segment_intervals.par_iter_mut())
                 .enumerate()
                 .with_min_len(256)
-                .for_each(|(pixel, (open, closed))| {
+                .for_each(|(pixel, ((open, closed), intervals))| {
                     for k in 0..take {
                         let (a, b) = chunk[k * pc + pixel];
                         let lo = open.lo.max(a);
@@ -162,7 +169,10 @@ impl Compressor {
                             open.lo = lo;
                             open.hi = hi;
                         } else {
-                            closed.push(*open);
+                            closed.push(pack(open, &options));
+                            if keep_intervals {
+                                intervals.push((u32::from(open.lo) << 16) | u32::from(open.hi));
+                            }
                             *open = Open {
                                 start: first_map + k as u32,
                                 lo: a,
@@ -184,15 +194,33 @@ impl Compressor {
         let closing: usize = self.segment_runs.iter().map(|c| c.len() + 1).sum();
         self.runs.reserve_exact(closing);
         let options = self.options;
-        for (open, closed) in self.open.iter_mut().zip(self.segment_runs.iter_mut()) {
-            closed.push(*open);
+        for ((open, closed), intervals) in self
+            .open
+            .iter_mut()
+            .zip(self.segment_runs.iter_mut())
+            .zip(self.segment_intervals.iter_mut())
+        {
+            closed.push(pack(open, &options));
             if options.merge_short_runs > 0 {
-                merge_short_runs(closed, options.merge_short_runs);
+                intervals.push((u32::from(open.lo) << 16) | u32::from(open.hi));
+                let mut runs: Vec<Open> = closed
+                    .iter()
+                    .zip(intervals.iter())
+                    .map(|(&r, &i)| Open {
+                        start: r >> 16,
+                        lo: (i >> 16) as u16,
+                        hi: i as u16,
+                    })
+                    .collect();
+                merge_short_runs(&mut runs, options.merge_short_runs);
+                self.runs.extend(runs.iter().map(|r| pack(r, &options)));
+            } else {
+                self.runs.extend_from_slice(closed);
             }
-            self.runs.extend(closed.iter().map(|r| pack(r, &options)));
             self.offsets.push(self.runs.len() as u32);
             // Give the memory back: the next segment starts from nothing.
             *closed = Vec::new();
+            *intervals = Vec::new();
             *open = Open {
                 start: next_start,
                 lo: 0,
