@@ -122,7 +122,7 @@ pub const OPTIONS: [Variant; 10] = [
     PAPER,
     Variant {
         name: "entropy",
-        about: "file only: entropy stage (run lengths and depth differences as varints) before zstd",
+        about: "file only: entropy stage before zstd (run counts and lengths as varints, depths as differences to the neighbouring pixel)",
         file_coding: FileCoding::Packed,
         ..PAPER
     },
@@ -508,7 +508,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
             )
         });
         let wall_seconds = start.elapsed().as_secs_f64();
-        bar.println(match &outcome {
+        let line = match &outcome {
             Ok(m) => format!(
                 "{label}: {} maps, ratio {:.1} (file {:.1}), agreement {:.2}%, {:.1} s",
                 m.maps,
@@ -518,7 +518,13 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
                 m.seconds
             ),
             Err(e) => format!("{label}: {e}"),
-        });
+        };
+        // One line per row on stderr, also when it is a log file (the bar is hidden then).
+        if bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            bar.println(line);
+        }
         bar.inc(1);
         rows.push(Row {
             plan,
