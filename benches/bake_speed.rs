@@ -66,7 +66,7 @@ fn main() {
             atlas_resolution: atlas,
             cube_resolution: cube,
             traversal: formats::Traversal::Spiral,
-            near: None,
+            ..Default::default()
         };
         let baked = bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
         let out = std::env::temp_dir().join(format!("cssm-bench-{}.cssm", std::process::id()));

@@ -5,6 +5,7 @@
 //! - [`formats`]: scenes, the `.cssm` container, the CPU reference visibility query;
 //! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check;
 //! - [`runtime`]: the GPU runtime on wgpu (loaders, visibility queries in WGSL, rendering).
+//! - [`report`]: the compression report (`cssm report compression`), measured against the paper.
 //!
 //! ```no_run
 //! use cssm::{bake, formats};
@@ -16,6 +17,7 @@
 //! ```
 
 pub mod builtin;
+pub mod report;
 
 pub use cssm_bake as bake;
 pub use cssm_formats as formats;

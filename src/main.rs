@@ -56,6 +56,9 @@ enum Command {
         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings"
     )]
     Render(RenderArgs),
+    /// Measure the toolchain against the paper and write a report.
+    #[command(subcommand)]
+    Report(ReportCommand),
 }
 
 #[derive(clap::Args)]
@@ -100,6 +103,24 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((parse(w)?, parse(h)?))
 }
 
+#[derive(Subcommand)]
+enum ReportCommand {
+    /// Bake a grid of settings and write reports/compression.md, .csv and .svg: the paper's
+    /// Tables 2 and 3 (compression ratio, sizes, bake time, peak memory, accuracy against ray
+    /// casts) next to the paper's figures, and every option beyond the paper.
+    ///
+    /// Every row runs `cssm bake --json` and `cssm check --json` as child processes, so each
+    /// row's peak memory is its own. The full grid (atlas up to 512, three scenes) takes hours
+    /// on a small machine; `reports/compression.sh` runs it. Rows whose scene is missing from
+    /// --scenes are listed as not run.
+    #[command(after_help = "Examples:\n  \
+        cssm report compression --quick --out /tmp            # smoke test: atlas 32 and 64, cube 8, Cornell box\n  \
+        cssm report compression --scene cornell               # Tables 2 and 3 and the options for the Cornell box\n  \
+        cssm report compression --tables table3 --scene church --atlas 256\n  \
+        cssm report compression                               # everything (reports/compression.sh)")]
+    Compression(cssm::report::CompressionArgs),
+}
+
 #[derive(clap::Args)]
 struct BakeArgs {
     /// Scene directory (scene.toml + OBJ/MTL, or a directory of OBJ files). Default: the
@@ -114,9 +135,28 @@ struct BakeArgs {
     /// Cube-map face resolution N; each map has 6 x N x N pixels (8 to 128).
     #[arg(long, default_value_t = 32)]
     cube: u32,
-    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3).
-    #[arg(long, default_value = "spiral")]
+    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3), or hilbert (chart by
+    /// chart, a Hilbert curve inside each chart; beyond the paper, and the default because it
+    /// gave the best ratio at the same accuracy in reports/compression.md).
+    #[arg(long, default_value = "hilbert")]
     traversal: Traversal,
+    /// How the chart-by-chart traversals choose the next chart: nearest (§3.2.3: the chart whose
+    /// first texel is nearest) or ends (the chart with an end, first or last texel, nearest;
+    /// walked backwards from its last one; beyond the paper).
+    #[arg(long, default_value = "nearest")]
+    chart_order: bake::traverse::ChartOrder,
+    /// Which depth a run stores inside the codes all its maps accept: middle (the middle code)
+    /// or balanced (equal relative margins to the near and the far layer). Beyond the paper.
+    #[arg(long, default_value = "middle")]
+    run_value: bake::compress::RunValue,
+    /// Lossy: merge runs of at most this many depth maps into their neighbours when those agree
+    /// (0: lossless, as in the paper). Fewer runs, a few wrong depths; measure with `cssm check`.
+    #[arg(long, default_value_t = 0)]
+    merge_short_runs: u32,
+    /// How the file stores the runs: packed (run lengths and depth differences as varints before
+    /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).
+    #[arg(long, default_value = "packed")]
+    file_coding: formats::cssm::FileCoding,
     /// Distance the cube maps sit off the surface, in scene units. Default: 0.2% of the scene
     /// diameter.
     #[arg(long)]
@@ -166,6 +206,7 @@ fn main() -> ExitCode {
         Command::Inspect { file, json } => run_inspect(&file, json),
         Command::Check(args) => run_check(args),
         Command::Render(args) => run_render(args),
+        Command::Report(ReportCommand::Compression(args)) => run_report(args),
     };
     match result {
         Ok(code) => code,
@@ -287,7 +328,10 @@ fn run_bake(args: BakeArgs) -> CliResult {
         atlas_resolution: args.atlas,
         cube_resolution: args.cube,
         traversal: args.traversal,
+        chart_order: args.chart_order,
         near: args.near,
+        run_value: args.run_value,
+        merge_short_runs: args.merge_short_runs,
     };
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
@@ -304,8 +348,8 @@ fn run_bake(args: BakeArgs) -> CliResult {
     })
     .map_err(|e| format!("{}: {e}", dir.display()))?;
     bar.finish_and_clear();
-    let file_bytes =
-        formats::cssm::write_atomic(&output, &baked.file).map_err(|e| e.to_string())?;
+    let file_bytes = formats::cssm::write_atomic_with(&output, &baked.file, args.file_coding)
+        .map_err(|e| e.to_string())?;
     let seconds = start.elapsed().as_secs_f64();
     let s = &baked.stats;
     let summary = serde_json::json!({
@@ -315,6 +359,10 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "atlas_resolution": args.atlas,
         "cube_resolution": args.cube,
         "traversal": args.traversal.name(),
+        "chart_order": args.chart_order.name(),
+        "run_value": args.run_value.name(),
+        "merge_short_runs": args.merge_short_runs,
+        "file_coding": args.file_coding.name(),
         "charts": s.charts,
         "defined_texels": s.defined_texels,
         "rays": s.rays,
@@ -329,6 +377,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "total_seconds": seconds,
         "rays_per_second": s.rays as f64 / s.maps_time.as_secs_f64().max(1e-9),
         "threads": rayon_threads(),
+        "peak_rss_bytes": peak_rss_bytes(),
     });
     if args.json {
         println!("{summary}");
@@ -368,6 +417,15 @@ fn run_bake(args: BakeArgs) -> CliResult {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// This process's peak resident set size so far (`VmHWM` of `/proc/self/status`), where the
+/// system reports one (Linux); the compression report reads it from every bake it runs.
+fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 fn rayon_threads() -> usize {
@@ -493,6 +551,22 @@ fn run_inspect(path: &Path, json: bool) -> CliResult {
         "  file           {:>12}  ratio {:.1} : 1",
         human_bytes(file_bytes),
         j["ratio_file"].as_f64().unwrap_or(0.0)
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_report(args: cssm::report::CompressionArgs) -> CliResult {
+    let exe = std::env::current_exe().map_err(|e| format!("cannot find the cssm binary: {e}"))?;
+    let command = std::iter::once("cssm".to_string())
+        .chain(std::env::args().skip(1))
+        .collect::<Vec<_>>()
+        .join(" ");
+    let report = cssm::report::run(&args, &exe, &command)?;
+    let done = report.rows.iter().filter(|r| r.outcome.is_ok()).count();
+    println!(
+        "wrote {} ({done} of {} rows ran)",
+        args.out.join("compression.md").display(),
+        report.rows.len()
     );
     Ok(ExitCode::SUCCESS)
 }

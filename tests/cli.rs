@@ -38,6 +38,8 @@ fn bake_small(scene: &Path, out: &Path) -> Output {
 #[test]
 fn bake_inspect_and_determinism() {
     let dir = tempfile::tempdir().unwrap();
+    let cornell_path = cornell();
+    let cornell_str = cornell_path.to_str().unwrap();
     let a = dir.path().join("a.cssm");
     let b = dir.path().join("b.cssm");
     let o = bake_small(&cornell(), &a);
@@ -70,7 +72,7 @@ fn bake_inspect_and_determinism() {
     }
     assert_eq!(j["atlas_resolution"], 32);
     assert_eq!(j["cube_resolution"], 8);
-    assert_eq!(j["traversal"], "spiral");
+    assert_eq!(j["traversal"], "hilbert");
     assert_eq!(j["defined_texels"], summary["defined_texels"]);
     let uncompressed = j["uncompressed_bytes"].as_u64().unwrap();
     assert_eq!(
@@ -81,6 +83,25 @@ fn bake_inspect_and_determinism() {
     assert_eq!(
         j["file_bytes"].as_u64().unwrap(),
         std::fs::metadata(&a).unwrap().len()
+    );
+
+    // The entropy stage changes the file, never the data: a plain file reads back the same.
+    let plain = dir.path().join("plain.cssm");
+    let mut args = vec!["bake", cornell_str, "-o", plain.to_str().unwrap()];
+    args.extend_from_slice(&["--atlas", "32", "--cube", "8", "--file-coding", "plain"]);
+    assert!(cssm(&args).status.success());
+    let mut jp: serde_json::Value =
+        serde_json::from_slice(&cssm(&["inspect", plain.to_str().unwrap(), "--json"]).stdout)
+            .unwrap();
+    let mut ja = j.clone();
+    for k in ["file_bytes", "ratio_file"] {
+        jp.as_object_mut().unwrap().remove(k);
+        ja.as_object_mut().unwrap().remove(k);
+    }
+    assert_eq!(jp, ja);
+    assert!(
+        std::fs::metadata(&plain).unwrap().len() > std::fs::metadata(&a).unwrap().len(),
+        "the entropy stage makes the file smaller"
     );
 
     let o = cssm(&["inspect", a.to_str().unwrap()]);
@@ -291,14 +312,159 @@ fn help_explains_every_command() {
         vec!["inspect", "--help"],
         vec!["check", "--help"],
         vec!["render", "--help"],
+        vec!["report", "compression", "--help"],
     ] {
         let o = cssm(&cmd);
         assert!(o.status.success());
         let text = String::from_utf8_lossy(&o.stdout);
         assert!(text.contains("Usage"), "{text}");
     }
-    let o = cssm(&["bake", "--help"]);
-    assert!(String::from_utf8_lossy(&o.stdout).contains("Examples"));
+    for cmd in [
+        vec!["bake", "--help"],
+        vec!["report", "compression", "--help"],
+    ] {
+        let o = cssm(&cmd);
+        assert!(String::from_utf8_lossy(&o.stdout).contains("Examples"));
+    }
+}
+
+/// The compression report, small (Cornell box, atlas 32 and 64, cube 8): the files are written,
+/// the Markdown tables have their headers and one line per planned row, the CSV has every column
+/// on every row, and the ratio grows with the atlas resolution for every traversal (Table 2) and
+/// variant (Table 3).
+#[test]
+fn compression_report_small() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = cssm(&[
+        "report",
+        "compression",
+        "--out",
+        out,
+        "--atlas",
+        "32,64",
+        "--cube",
+        "8",
+        "--scene",
+        "cornell",
+        "--pairs",
+        "20000",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(dir.path().join("compression.md")).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("compression.csv")).unwrap();
+    let svg = std::fs::read_to_string(dir.path().join("compression.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("polyline"), "{svg}");
+    for needle in [
+        "## Table 2",
+        "## Table 3",
+        "## Beyond the paper",
+        "## Targets",
+        "| atlas | cube | traversal | depth maps | runs | ratio | paper |",
+        "| scene | faces (paper) | atlas | cube | variant |",
+        "Which wins",
+        "commit `",
+        "cores",
+    ] {
+        assert!(
+            md.contains(needle),
+            "compression.md lacks {needle:?}:\n{md}"
+        );
+    }
+    // Markdown table rows: 2 atlases x 4 traversals, 2 atlases x 2 variants, every option.
+    let options = cssm::report::OPTIONS.len();
+    let table_rows = |header: &str| {
+        let start = md.find(header).unwrap();
+        md[start..]
+            .lines()
+            .skip(2)
+            .take_while(|l| l.starts_with('|'))
+            .count()
+    };
+    assert_eq!(table_rows("| atlas | cube | traversal"), 8, "{md}");
+    assert_eq!(table_rows("| scene | faces"), 4, "{md}");
+    assert_eq!(table_rows("| option |"), options, "{md}");
+
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 8 + 4 + options);
+    for r in &rows {
+        assert_eq!(r.len(), header.len(), "{r:?}");
+        assert_eq!(r[col("status")], "ok", "{r:?}");
+        assert!(r[col("agreement")].parse::<f64>().unwrap() > 0.9, "{r:?}");
+    }
+    let ratio = |table: &str, variant: &str, atlas: &str| -> f64 {
+        rows.iter()
+            .find(|r| {
+                r[col("table")] == table && r[col("variant")] == variant && r[col("atlas")] == atlas
+            })
+            .unwrap_or_else(|| panic!("no row {table} {variant} {atlas}"))[col("ratio")]
+        .parse()
+        .unwrap()
+    };
+    for t in ["greedy", "zigzag", "spiral", "hilbert"] {
+        assert!(
+            ratio("table2", t, "64") > ratio("table2", t, "32"),
+            "{t}: {csv}"
+        );
+    }
+    for v in ["paper", "best"] {
+        assert!(
+            ratio("table3", v, "64") > ratio("table3", v, "32"),
+            "{v}: {csv}"
+        );
+    }
+}
+
+#[test]
+fn compression_report_refuses_bad_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nope");
+    let o = cssm(&[
+        "report",
+        "compression",
+        "--quick",
+        "--out",
+        missing.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("nope"), "{}", stderr(&o));
+    let o = cssm(&[
+        "report",
+        "compression",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--atlas",
+        "16",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--atlas 16"), "{}", stderr(&o));
+    // A scenes directory without the third-party scenes: their rows are listed as not run.
+    let o = cssm(&[
+        "report",
+        "compression",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--tables",
+        "table3",
+        "--scene",
+        "heads,church",
+        "--atlas",
+        "32",
+        "--cube",
+        "8",
+        "--scenes",
+        missing.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(dir.path().join("compression.md")).unwrap();
+    assert!(md.contains("## Rows that did not run"), "{md}");
+    assert!(
+        md.contains("nope/teapot") && md.contains("sibenik not found"),
+        "{md}"
+    );
 }
 
 #[test]

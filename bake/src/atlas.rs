@@ -71,11 +71,24 @@ fn unwrap(
     resolution: u32,
     mut texels_per_unit: f32,
 ) -> Result<(Vec<TriangleUv>, Vec<u32>), BakeError> {
-    let positions: Vec<f32> = scene.positions.iter().flat_map(|p| p.to_array()).collect();
-    let indices: Vec<u32> = scene.triangles.iter().flatten().copied().collect();
+    // xatlas charts connected triangles; vertices split in the OBJ (UV seams, smoothing groups,
+    // separate objects) would cut the surface into many more, smaller charts, so vertices at
+    // the same position are merged first. Triangles keep their order, so the per-triangle output
+    // is unchanged in meaning.
+    let (welded, remap) = weld(&scene.positions);
+    let positions: Vec<f32> = welded.iter().flat_map(|p| p.to_array()).collect();
+    let indices: Vec<u32> = scene
+        .triangles
+        .iter()
+        .flatten()
+        .map(|&i| remap[i as usize])
+        .collect();
+    // xatlas prints warnings (charts it could not parameterise well) on standard output, where
+    // they would break `cssm bake --json`; the atlas is checked here instead.
+    xatlas_rs::silence_messages();
     let mut atlas = xatlas_rs::Xatlas::new();
     atlas.add_mesh(&xatlas_rs::MeshDecl {
-        vertex_count: scene.positions.len() as u32,
+        vertex_count: welded.len() as u32,
         vertex_position_data: bytemuck::cast_slice(&positions),
         vertex_position_stride: 12,
         index_count: indices.len() as u32,
@@ -115,7 +128,9 @@ fn unwrap(
     }
     if !fits {
         return Err(BakeError::Atlas(format!(
-            "xatlas could not fit the scene's charts on one {resolution}x{resolution} page"
+            "xatlas could not fit the scene's {} charts on one {resolution}x{resolution} page \
+             (every chart needs texels of its own); try a larger --atlas",
+            atlas.meshes().first().map_or(0, |m| m.charts.len())
         )));
     }
     let meshes = atlas.meshes();
@@ -151,6 +166,24 @@ fn unwrap(
         charts.push(chart);
     }
     Ok((uvs, charts))
+}
+
+/// Merges vertices with bit-identical positions (`-0.0` and `0.0` alike); returns the distinct
+/// positions in order of first use and the index of each input vertex among them.
+fn weld(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
+    let mut first: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let mut out = Vec::new();
+    let remap = positions
+        .iter()
+        .map(|p| {
+            let key = p.to_array().map(|c| if c == 0.0 { 0 } else { c.to_bits() });
+            *first.entry(key).or_insert_with(|| {
+                out.push(*p);
+                out.len() as u32 - 1
+            })
+        })
+        .collect();
+    (out, remap)
 }
 
 /// World-space area of a triangle.

@@ -6,12 +6,88 @@
 //! misses the intersection.
 //!
 //! The compressor is fed maps in sequence order in batches and never holds more than the current
-//! batch plus one open run per pixel.
+//! batch, one open run per pixel and the closed runs of the current segment.
+//!
+//! Two options go beyond the paper ([`CompressOptions`]):
+//! - [`RunValue`]: which code of the intersection a run stores. The paper stores "an arbitrary
+//!   depth value between the first and second intersection"; the middle is the default.
+//! - `merge_short_runs` (lossy, off by default): a run of at most that many maps that sits between
+//!   two runs whose intervals still intersect is dropped and the two neighbours become one run.
+//!   Those few maps then hold a wrong depth in that pixel; the accuracy check says what it costs.
 
 use cssm_formats::cssm::{RunData, SEGMENT_MAPS};
 use rayon::prelude::*;
 
 use crate::cubemap::Interval;
+
+/// Which code of its intersection interval `[lo, hi]` a run stores.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RunValue {
+    /// The middle code, `(lo + hi) / 2`: the largest margin on both sides in code units.
+    #[default]
+    Middle,
+    /// The harmonic mean of the two depths: equal *relative* margins above the near layer and
+    /// below the far one, since the depth error of a moved sender grows with depth.
+    Balanced,
+}
+
+impl RunValue {
+    /// Every choice, default first.
+    pub const ALL: [RunValue; 2] = [RunValue::Middle, RunValue::Balanced];
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            RunValue::Middle => "middle",
+            RunValue::Balanced => "balanced",
+        }
+    }
+
+    /// The stored code for the interval `[lo, hi]` (always inside it). `near_codes` is the near
+    /// distance in code units (depth `d` has code `(d - near) * scale`, so depth is proportional
+    /// to `code + near_codes`).
+    pub fn pick(self, lo: u16, hi: u16, near_codes: f64) -> u16 {
+        match self {
+            RunValue::Middle => ((u32::from(lo) + u32::from(hi)) / 2) as u16,
+            RunValue::Balanced => {
+                let (l, h) = (f64::from(lo) + near_codes, f64::from(hi) + near_codes);
+                let v = 2.0 * l * h / (l + h) - near_codes;
+                (v.round() as u32).clamp(u32::from(lo), u32::from(hi)) as u16
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for RunValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for RunValue {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "middle" => Ok(RunValue::Middle),
+            "balanced" => Ok(RunValue::Balanced),
+            other => Err(format!(
+                "unknown run value '{other}': expected middle or balanced"
+            )),
+        }
+    }
+}
+
+/// Options of the compressor.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CompressOptions {
+    /// Which code a run stores.
+    pub run_value: RunValue,
+    /// Lossy: drop runs of at most this many maps between two runs whose intervals intersect
+    /// (0: lossless, the paper's compression).
+    pub merge_short_runs: u32,
+    /// Near distance in code units, for [`RunValue::Balanced`].
+    pub near_codes: f64,
+}
 
 #[derive(Clone, Copy)]
 struct Open {
@@ -26,15 +102,24 @@ pub struct Compressor {
     map_count: u32,
     maps_seen: u32,
     open: Vec<Open>,
-    /// Closed runs of the current segment, one list per pixel.
+    /// Closed runs of the current segment, one list per pixel, packed as in [`RunData`].
     segment_runs: Vec<Vec<u32>>,
+    /// Their intervals `lo << 16 | hi`, kept only when short runs are merged (which needs them),
+    /// so the lossless compressor holds 4 bytes per closed run, as before.
+    segment_intervals: Vec<Vec<u32>>,
+    options: CompressOptions,
     offsets: Vec<u32>,
     runs: Vec<u32>,
 }
 
 impl Compressor {
-    /// A compressor for `map_count` maps of `pixel_count` pixels.
+    /// A lossless compressor for `map_count` maps of `pixel_count` pixels storing middle codes.
     pub fn new(pixel_count: u32, map_count: u32) -> Self {
+        Self::with_options(pixel_count, map_count, CompressOptions::default())
+    }
+
+    /// A compressor with `options`.
+    pub fn with_options(pixel_count: u32, map_count: u32, options: CompressOptions) -> Self {
         Self {
             pixel_count,
             map_count,
@@ -48,8 +133,10 @@ impl Compressor {
                 pixel_count as usize
             ],
             segment_runs: vec![Vec::new(); pixel_count as usize],
+            segment_intervals: vec![Vec::new(); pixel_count as usize],
             offsets: vec![0],
             runs: Vec::new(),
+            options,
         }
     }
 
@@ -65,12 +152,15 @@ impl Compressor {
             let take = in_segment.min(batch - done);
             let first_map = self.maps_seen;
             let chunk = &maps[done * pc..(done + take) * pc];
+            let options = self.options;
+            let keep_intervals = options.merge_short_runs > 0;
             self.open
                 .par_iter_mut()
                 .zip(self.segment_runs.par_iter_mut())
+                .zip(self.segment_intervals.par_iter_mut())
                 .enumerate()
                 .with_min_len(256)
-                .for_each(|(pixel, (open, closed))| {
+                .for_each(|(pixel, ((open, closed), intervals))| {
                     for k in 0..take {
                         let (a, b) = chunk[k * pc + pixel];
                         let lo = open.lo.max(a);
@@ -79,7 +169,10 @@ impl Compressor {
                             open.lo = lo;
                             open.hi = hi;
                         } else {
-                            closed.push(pack(open));
+                            closed.push(pack(open, &options));
+                            if keep_intervals {
+                                intervals.push((u32::from(open.lo) << 16) | u32::from(open.hi));
+                            }
                             *open = Open {
                                 start: first_map + k as u32,
                                 lo: a,
@@ -100,12 +193,34 @@ impl Compressor {
         let next_start = self.maps_seen;
         let closing: usize = self.segment_runs.iter().map(|c| c.len() + 1).sum();
         self.runs.reserve_exact(closing);
-        for (open, closed) in self.open.iter_mut().zip(self.segment_runs.iter_mut()) {
-            closed.push(pack(open));
-            self.runs.extend_from_slice(closed);
+        let options = self.options;
+        for ((open, closed), intervals) in self
+            .open
+            .iter_mut()
+            .zip(self.segment_runs.iter_mut())
+            .zip(self.segment_intervals.iter_mut())
+        {
+            closed.push(pack(open, &options));
+            if options.merge_short_runs > 0 {
+                intervals.push((u32::from(open.lo) << 16) | u32::from(open.hi));
+                let mut runs: Vec<Open> = closed
+                    .iter()
+                    .zip(intervals.iter())
+                    .map(|(&r, &i)| Open {
+                        start: r >> 16,
+                        lo: (i >> 16) as u16,
+                        hi: i as u16,
+                    })
+                    .collect();
+                merge_short_runs(&mut runs, options.merge_short_runs);
+                self.runs.extend(runs.iter().map(|r| pack(r, &options)));
+            } else {
+                self.runs.extend_from_slice(closed);
+            }
             self.offsets.push(self.runs.len() as u32);
             // Give the memory back: the next segment starts from nothing.
             *closed = Vec::new();
+            *intervals = Vec::new();
             *open = Open {
                 start: next_start,
                 lo: 0,
@@ -126,17 +241,34 @@ impl Compressor {
     }
 }
 
-/// Packs a closed run: start within its segment, and the middle code of its interval.
+/// Packs a closed run: start within its segment, and the code [`RunValue`] picks inside its
+/// interval.
 #[inline]
-fn pack(open: &Open) -> u32 {
-    let value = match std::env::var("CSSM_FRONT_MARGIN")
-        .ok()
-        .and_then(|v| v.parse::<f32>().ok())
-    {
-        Some(f) => (open.lo as u32 + 1 + (open.lo as f32 * f) as u32).min(open.hi as u32) as u16,
-        None => ((open.lo as u32 + open.hi as u32) / 2) as u16,
-    };
-    ((open.start % SEGMENT_MAPS) << 16) | value as u32
+fn pack(run: &Open, options: &CompressOptions) -> u32 {
+    let value = options.run_value.pick(run.lo, run.hi, options.near_codes);
+    ((run.start % SEGMENT_MAPS) << 16) | u32::from(value)
+}
+
+/// Lossy merge, in place: while a run of at most `max_len` maps lies between two runs whose
+/// intervals intersect, drop it and join its neighbours (their intersection). `runs` are one
+/// pixel's runs of one segment in order; the last one's length is taken as unbounded.
+fn merge_short_runs(runs: &mut Vec<Open>, max_len: u32) {
+    let mut kept: Vec<Open> = Vec::with_capacity(runs.len());
+    let mut i = 0;
+    while i < runs.len() {
+        if let (Some(prev), Some(next)) = (kept.last_mut(), runs.get(i + 1)) {
+            let (lo, hi) = (prev.lo.max(next.lo), prev.hi.min(next.hi));
+            if next.start - runs[i].start <= max_len && lo <= hi {
+                prev.lo = lo;
+                prev.hi = hi;
+                i += 2;
+                continue;
+            }
+        }
+        kept.push(runs[i]);
+        i += 1;
+    }
+    *runs = kept;
 }
 
 #[cfg(test)]
@@ -145,7 +277,11 @@ mod tests {
     use proptest::prelude::*;
 
     fn compress(maps: &[Vec<Interval>], pixel_count: u32) -> RunData {
-        let mut c = Compressor::new(pixel_count, maps.len() as u32);
+        compress_with(maps, pixel_count, CompressOptions::default())
+    }
+
+    fn compress_with(maps: &[Vec<Interval>], pixel_count: u32, o: CompressOptions) -> RunData {
+        let mut c = Compressor::with_options(pixel_count, maps.len() as u32, o);
         for m in maps {
             c.push(m);
         }
@@ -176,6 +312,56 @@ mod tests {
         assert_eq!(rd.lookup(3, 0), 32);
     }
 
+    #[test]
+    fn a_short_excursion_is_merged_only_when_asked() {
+        // Pixel 0: wall, one map of block, wall again.
+        let maps = vec![
+            vec![(100u16, u16::MAX)],
+            vec![(110, u16::MAX)],
+            vec![(20, 40)],
+            vec![(105, u16::MAX)],
+        ];
+        assert_eq!(compress(&maps, 1).runs.len(), 3);
+        let merged = compress_with(
+            &maps,
+            1,
+            CompressOptions {
+                merge_short_runs: 1,
+                ..Default::default()
+            },
+        );
+        assert_eq!(merged.runs.len(), 1);
+        // The merged run holds the intersection of its neighbours: [110, MAX].
+        assert!(merged.lookup(0, 0) >= 110 && merged.lookup(3, 0) >= 110);
+        // An excursion longer than the limit stays.
+        let mut longer = maps.clone();
+        longer.insert(2, vec![(25, 45)]);
+        let kept = compress_with(
+            &longer,
+            1,
+            CompressOptions {
+                merge_short_runs: 1,
+                ..Default::default()
+            },
+        );
+        assert_eq!(kept.runs.len(), 3);
+    }
+
+    #[test]
+    fn balanced_value_is_inside_and_below_the_middle() {
+        for (lo, hi) in [
+            (0u16, 0u16),
+            (10, 20),
+            (100, 60000),
+            (5, u16::MAX),
+            (65535, 65535),
+        ] {
+            let m = RunValue::Middle.pick(lo, hi, 131.0);
+            let b = RunValue::Balanced.pick(lo, hi, 131.0);
+            assert!(lo <= b && b <= hi && b <= m, "{lo} {hi}: {b} {m}");
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// Every decoded value lies inside its map's interval, and the run count is minimal
@@ -185,13 +371,22 @@ mod tests {
             raw in proptest::collection::vec(proptest::collection::vec((0u16..1000, 0u16..300, any::<bool>()), 3), 1..200)
         ) {
             let maps: Vec<Vec<Interval>> = raw.iter().map(|m| m.iter().map(|&(a, w, dc)| if dc && w % 7 == 0 { (0, u16::MAX) } else { (a, a + w) }).collect()).collect();
-            let rd = compress(&maps, 3);
-            for (k, m) in maps.iter().enumerate() {
-                for (p, &(a, b)) in m.iter().enumerate() {
-                    let v = rd.lookup(k as u32, p as u32);
-                    prop_assert!(a <= v && v <= b, "map {} pixel {} value {} not in [{}, {}]", k, p, v, a, b);
+            let count = compress(&maps, 3).runs.len();
+            for run_value in RunValue::ALL {
+                let o = CompressOptions { run_value, near_codes: 131.0, ..Default::default() };
+                let rd = compress_with(&maps, 3, o);
+                // The run value never changes the (minimal) cut.
+                prop_assert_eq!(rd.runs.len(), count);
+                for (k, m) in maps.iter().enumerate() {
+                    for (p, &(a, b)) in m.iter().enumerate() {
+                        let v = rd.lookup(k as u32, p as u32);
+                        prop_assert!(a <= v && v <= b, "map {} pixel {} value {} not in [{}, {}]", k, p, v, a, b);
+                    }
                 }
             }
+            // Merging never adds runs and keeps the layout valid.
+            let merged = compress_with(&maps, 3, CompressOptions { merge_short_runs: 2, ..Default::default() });
+            prop_assert!(merged.runs.len() <= count);
         }
     }
 }

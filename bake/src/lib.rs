@@ -7,7 +7,7 @@
 //! use cssm_formats::{Scene, Traversal};
 //!
 //! let scene = Scene::load(std::path::Path::new("scenes/cornell-box"))?;
-//! let options = BakeOptions { atlas_resolution: 64, cube_resolution: 32, traversal: Traversal::Spiral, near: None };
+//! let options = BakeOptions { atlas_resolution: 64, cube_resolution: 32, traversal: Traversal::Spiral, ..Default::default() };
 //! let baked = bake(&scene, &options, &mut |_done, _total| {})?;
 //! println!("{} depth maps, ratio {:.1}", baked.file.texels.len(), baked.stats.ratio_gpu());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -55,10 +55,18 @@ pub struct BakeOptions {
     pub atlas_resolution: u32,
     /// Cube-map face resolution N (8..=128).
     pub cube_resolution: u32,
-    /// Texel traversal order.
+    /// Texel traversal order (default: Hilbert).
     pub traversal: Traversal,
+    /// How chart-by-chart traversals pick the next chart (beyond the paper; see
+    /// [`traverse::ChartOrder`]).
+    pub chart_order: traverse::ChartOrder,
     /// Near distance in scene units; `None`: [`DEFAULT_NEAR_FRACTION`] of the scene diameter.
     pub near: Option<f32>,
+    /// Which code of its interval a run stores (beyond the paper; see [`compress::RunValue`]).
+    pub run_value: compress::RunValue,
+    /// Lossy: merge runs of at most this many maps into their neighbours (0: lossless, the
+    /// paper's compression; see [`compress::CompressOptions`]).
+    pub merge_short_runs: u32,
 }
 
 impl Default for BakeOptions {
@@ -66,8 +74,13 @@ impl Default for BakeOptions {
         Self {
             atlas_resolution: 64,
             cube_resolution: 32,
-            traversal: Traversal::Spiral,
+            // Beyond the paper's Spiral: the best ratio at the same accuracy on the Cornell box
+            // (reports/compression.md, Options table).
+            traversal: Traversal::Hilbert,
+            chart_order: traverse::ChartOrder::Nearest,
             near: None,
+            run_value: compress::RunValue::Middle,
+            merge_short_runs: 0,
         }
     }
 }
@@ -150,7 +163,12 @@ pub fn bake(
 
     // 2. Coherent order of the texels (§3.2.3).
     let t0 = Instant::now();
-    let sequence = traverse::traverse(&atlas.texels, atlas.resolution, options.traversal);
+    let sequence = traverse::traverse_with(
+        &atlas.texels,
+        atlas.resolution,
+        options.traversal,
+        options.chart_order,
+    );
     stats.traversal_time = t0.elapsed();
 
     // 3. + 4. Depth cube maps, streamed in batches into the compressor (§3.2.1, §3.1).
@@ -159,7 +177,17 @@ pub fn bake(
     let quantizer = DepthQuantizer::new(near, far);
     let pixel_count = 6 * n * n;
     let map_count = sequence.len() as u32;
-    let mut compressor = compress::Compressor::new(pixel_count, map_count);
+    let mut compressor = compress::Compressor::with_options(
+        pixel_count,
+        map_count,
+        compress::CompressOptions {
+            run_value: options.run_value,
+            merge_short_runs: options.merge_short_runs,
+            // Depth is `near + code / scale`, so the near distance is `near * scale` codes.
+            near_codes: f64::from(near) * f64::from(cssm_formats::cube::DEPTH_MAX)
+                / f64::from(far - near),
+        },
+    );
     // Enough maps per batch to keep every core busy, small enough to stay in cache-sized memory.
     let batch_maps = (4 * rayon::current_num_threads())
         .max(8)

@@ -26,6 +26,9 @@ use cssm_formats::{Texel, Traversal};
 /// - [`Traversal::Spiral`]: chart by chart; inside a chart, a walk along the border of the
 ///   unvisited region keeping it on the left hand, stepping back recursively when stuck
 ///   (see `SpiralWalker::spiral_chart`), which typically visits the chart from the outside in.
+/// - [`Traversal::Hilbert`] (beyond the paper): chart by chart; inside a chart, the order in which
+///   a Hilbert curve over the chart's bounding box (side rounded up to a power of two, starting
+///   at its top-left corner) meets the chart's texels.
 /// - [`Traversal::Greedy`]: ignores the atlas; from the row-major first texel, always on to the
 ///   nearest not-yet-visited texel in 3D (ties: smaller texel index).
 ///
@@ -37,16 +40,81 @@ use cssm_formats::{Texel, Traversal};
 /// `atlas_resolution` is the side of the square atlas; it sizes the cell lookup used by the
 /// Spiral walk (coordinates beyond it are still handled). Runs in `O(n log n)` for `n` texels.
 pub fn traverse(texels: &[Texel], atlas_resolution: u32, traversal: Traversal) -> Vec<u32> {
+    traverse_with(texels, atlas_resolution, traversal, ChartOrder::Nearest)
+}
+
+/// A chart visit: `(chart id, the chart's texels in row-major order, output)`; must append
+/// exactly those texels, in any order.
+type VisitChart<'a> = dyn FnMut(u32, &[u32], &mut Vec<u32>) + 'a;
+
+/// How the chart-by-chart traversals pick the next chart.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ChartOrder {
+    /// §3.2.3: the unvisited chart whose first texel is closest in 3D to the last texel visited;
+    /// every chart is walked from its first texel.
+    #[default]
+    Nearest,
+    /// Beyond the paper: the unvisited chart with an *end* (the first or the last texel of its
+    /// own walk) closest to the last texel visited, walked backwards when that end is its last.
+    /// The walk then crosses into the chart across the border where the previous one ended,
+    /// instead of jumping to wherever the next chart's walk happens to start.
+    Ends,
+}
+
+impl ChartOrder {
+    /// Every choice, default first.
+    pub const ALL: [ChartOrder; 2] = [ChartOrder::Nearest, ChartOrder::Ends];
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ChartOrder::Nearest => "nearest",
+            ChartOrder::Ends => "ends",
+        }
+    }
+}
+
+impl std::fmt::Display for ChartOrder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for ChartOrder {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "nearest" => Ok(ChartOrder::Nearest),
+            "ends" => Ok(ChartOrder::Ends),
+            other => Err(format!(
+                "unknown chart order '{other}': expected nearest or ends"
+            )),
+        }
+    }
+}
+
+/// [`traverse`] with the next chart chosen as `chart_order` says (no effect on Greedy).
+pub fn traverse_with(
+    texels: &[Texel],
+    atlas_resolution: u32,
+    traversal: Traversal,
+    chart_order: ChartOrder,
+) -> Vec<u32> {
     if texels.is_empty() {
         return Vec::new();
     }
+    let by_chart = |visit: &mut VisitChart| match chart_order {
+        ChartOrder::Nearest => chart_by_chart(texels, visit),
+        ChartOrder::Ends => chart_by_chart_ends(texels, visit),
+    };
     match traversal {
         Traversal::Greedy => greedy_order(texels),
-        Traversal::Zigzag => chart_by_chart(texels, |_, rows, out| zigzag_chart(texels, rows, out)),
+        Traversal::Zigzag => by_chart(&mut |_, rows, out| zigzag_chart(texels, rows, out)),
+        Traversal::Hilbert => by_chart(&mut |_, rows, out| hilbert_chart(texels, rows, out)),
         Traversal::Spiral => {
             let cells = CellIndex::new(texels, atlas_resolution, DENSE_CELL_LIMIT);
             let mut walker = SpiralWalker::new(texels, &cells);
-            chart_by_chart(texels, |_, rows, out| walker.spiral_chart(rows, out))
+            by_chart(&mut |_, rows, out| walker.spiral_chart(rows, out))
         }
     }
 }
@@ -95,29 +163,9 @@ fn dist2(a: [f32; 3], b: [f32; 3]) -> f32 {
 /// charts' first texels, so this costs `O(n log n + c log c)` for `n` texels and `c` charts.
 ///
 /// `visit_chart` must append exactly the texels of `rows` (in any order).
-fn chart_by_chart(
-    texels: &[Texel],
-    mut visit_chart: impl FnMut(u32, &[u32], &mut Vec<u32>),
-) -> Vec<u32> {
+fn chart_by_chart(texels: &[Texel], visit_chart: &mut VisitChart) -> Vec<u32> {
     let n = texels.len();
-    // All texels sorted by (chart, y, x, index): charts become contiguous runs, each row-major.
-    let mut sorted: Vec<u32> = (0..n as u32).collect();
-    sorted.sort_unstable_by_key(|&i| {
-        let t = &texels[i as usize];
-        (t.chart, t.y, t.x, i)
-    });
-    // Runs of equal chart id: (chart id, start, end) in increasing chart id.
-    let mut runs: Vec<(u32, usize, usize)> = Vec::new();
-    let mut start = 0;
-    while start < n {
-        let chart = texels[sorted[start] as usize].chart;
-        let mut end = start + 1;
-        while end < n && texels[sorted[end] as usize].chart == chart {
-            end += 1;
-        }
-        runs.push((chart, start, end));
-        start = end;
-    }
+    let (sorted, runs) = chart_runs(texels);
     let entries: Vec<[f32; 3]> = runs
         .iter()
         .map(|&(_, s, _)| sanitized_position(&texels[sorted[s] as usize]))
@@ -148,6 +196,85 @@ fn chart_by_chart(
     out
 }
 
+/// The chart order of [`ChartOrder::Ends`]: every chart's own walk is computed first (in chart
+/// id order), then charts are strung together starting with the chart of the row-major first
+/// texel (walked forwards), always moving to the unvisited chart with an end nearest to the last
+/// texel emitted (ties: smaller chart id, then its first end), walked backwards when that end is
+/// its last texel. `O(n log n + c log c)`.
+fn chart_by_chart_ends(texels: &[Texel], visit_chart: &mut VisitChart) -> Vec<u32> {
+    let n = texels.len();
+    let (sorted, runs) = chart_runs(texels);
+    let mut walks = Vec::with_capacity(n);
+    let mut ranges = Vec::with_capacity(runs.len());
+    for &(chart, s, e) in &runs {
+        let before = walks.len();
+        visit_chart(chart, &sorted[s..e], &mut walks);
+        debug_assert_eq!(
+            walks.len() - before,
+            e - s,
+            "a chart visit must emit its texels"
+        );
+        ranges.push(before..walks.len());
+    }
+    // Point 2k is chart run k's first texel, point 2k + 1 its last.
+    let pos = |i: u32| sanitized_position(&texels[i as usize]);
+    let ends: Vec<[f32; 3]> = ranges
+        .iter()
+        .flat_map(|r| [pos(walks[r.start]), pos(walks[r.end - 1])])
+        .collect();
+    let mut remaining = NearestSet::new(&ends);
+    let first_chart = texels[first_texel(texels) as usize].chart;
+    let mut current = runs
+        .binary_search_by_key(&first_chart, |r| r.0)
+        .expect("the first texel's chart has a run");
+    let mut backwards = false;
+    let mut out = Vec::with_capacity(n);
+    loop {
+        let walk = &walks[ranges[current].clone()];
+        if backwards {
+            out.extend(walk.iter().rev());
+        } else {
+            out.extend_from_slice(walk);
+        }
+        remaining.remove(2 * current as u32);
+        remaining.remove(2 * current as u32 + 1);
+        let last = pos(*out.last().expect("charts are non-empty"));
+        match remaining.nearest(last) {
+            Some(end) => {
+                current = (end / 2) as usize;
+                backwards = end % 2 == 1;
+            }
+            None => break,
+        }
+    }
+    out
+}
+
+/// All texels sorted by `(chart, y, x, index)` (charts become contiguous, each row-major), and
+/// the runs of equal chart `(chart id, start, end)` in increasing chart id.
+fn chart_runs(texels: &[Texel]) -> (Vec<u32>, Vec<(u32, usize, usize)>) {
+    let n = texels.len();
+    // All texels sorted by (chart, y, x, index): charts become contiguous runs, each row-major.
+    let mut sorted: Vec<u32> = (0..n as u32).collect();
+    sorted.sort_unstable_by_key(|&i| {
+        let t = &texels[i as usize];
+        (t.chart, t.y, t.x, i)
+    });
+    // Runs of equal chart id: (chart id, start, end) in increasing chart id.
+    let mut runs: Vec<(u32, usize, usize)> = Vec::new();
+    let mut start = 0;
+    while start < n {
+        let chart = texels[sorted[start] as usize].chart;
+        let mut end = start + 1;
+        while end < n && texels[sorted[end] as usize].chart == chart {
+            end += 1;
+        }
+        runs.push((chart, start, end));
+        start = end;
+    }
+    (sorted, runs)
+}
+
 /// Zig-Zag inside one chart (§3.2.3): "visit all texels inside the box in a zig-zag pattern from
 /// top to bottom", skipping cells that are undefined or belong to another chart.
 ///
@@ -173,6 +300,60 @@ fn zigzag_chart(texels: &[Texel], rows: &[u32], out: &mut Vec<u32>) {
         }
         start = end;
     }
+}
+
+/// Hilbert order inside one chart (beyond §3.2.3, which keeps the CSM's Hilbert pattern for
+/// square depth-map grids only): the chart's texels sorted by their index along a Hilbert curve
+/// over the chart's bounding box (ties: texel index). The curve visits every quadrant of the box
+/// before the next, so consecutive texels stay close in both atlas directions, which shortens
+/// the depth drift inside a run compared with long Zig-Zag rows.
+fn hilbert_chart(texels: &[Texel], rows: &[u32], out: &mut Vec<u32>) {
+    let Some(&first) = rows.first() else {
+        return;
+    };
+    let t0 = &texels[first as usize];
+    let (mut x0, mut y0, mut x1, mut y1) = (t0.x, t0.y, t0.x, t0.y);
+    for &i in rows {
+        let t = &texels[i as usize];
+        (x0, y0, x1, y1) = (x0.min(t.x), y0.min(t.y), x1.max(t.x), y1.max(t.y));
+    }
+    let side = (u32::from(x1 - x0).max(u32::from(y1 - y0)) + 1).next_power_of_two();
+    let mut keyed: Vec<(u64, u32)> = rows
+        .iter()
+        .map(|&i| {
+            let t = &texels[i as usize];
+            (
+                hilbert_index(side, u32::from(t.x - x0), u32::from(t.y - y0)),
+                i,
+            )
+        })
+        .collect();
+    keyed.sort_unstable();
+    out.extend(keyed.iter().map(|&(_, i)| i));
+}
+
+/// Position of cell `(x, y)` along the Hilbert curve over a `side x side` grid (`side` a power of
+/// two, `x, y < side`), the curve starting at `(0, 0)` and ending at `(side - 1, 0)`.
+pub fn hilbert_index(side: u32, x: u32, y: u32) -> u64 {
+    debug_assert!(side.is_power_of_two() && x < side && y < side);
+    let (mut x, mut y) = (x, y);
+    let mut d = 0u64;
+    let mut s = side / 2;
+    while s > 0 {
+        let rx = u32::from(x & s != 0);
+        let ry = u32::from(y & s != 0);
+        d += u64::from(s) * u64::from(s) * u64::from((3 * rx) ^ ry);
+        // Rotate the quadrant so that the sub-curve has the standard orientation.
+        if ry == 0 {
+            if rx == 1 {
+                x = side - 1 - x;
+                y = side - 1 - y;
+            }
+            std::mem::swap(&mut x, &mut y);
+        }
+        s /= 2;
+    }
+    d
 }
 
 /// Cell → texel lookup over the atlas grid for the Spiral walk (§3.2.3), which needs the

@@ -1,8 +1,8 @@
-//! Property tests of the atlas traversals of §3.2.3 (`cssm_bake::traverse`) on random atlases:
+//! Property tests of the atlas traversals of §3.2.3 (and the Hilbert order beyond it) (`cssm_bake::traverse`) on random atlases:
 //! random blob charts grown by flood fill, isolated cells (so some charts are split in the atlas
 //! grid), noisy 3D positions, and texel slices in row-major or shuffled order.
 
-use cssm_bake::traverse::traverse;
+use cssm_bake::traverse::{ChartOrder, traverse, traverse_with};
 use cssm_formats::{Texel, Traversal};
 use proptest::prelude::*;
 use std::time::Instant;
@@ -166,10 +166,13 @@ fn chart_blocks(
 
 /// The chart order rule: first the row-major first texel's chart, then always the unvisited chart
 /// whose row-major first texel is closest to the last texel of the previous block (ties: chart id).
+/// With `enters_at_first`, every block also starts at that texel (Zig-Zag, Spiral; a Hilbert
+/// block starts where its curve meets the chart first).
 fn assert_chart_order(
     texels: &[Texel],
     order: &[u32],
     blocks: &[(u32, usize, usize)],
+    enters_at_first: bool,
 ) -> Result<(), TestCaseError> {
     let charts = blocks.len();
     let mut entry = vec![u32::MAX; charts];
@@ -186,7 +189,9 @@ fn assert_chart_order(
     for w in blocks.windows(2) {
         done[w[0].0 as usize] = true;
         // Every block starts at its chart's row-major first texel.
-        prop_assert_eq!(order[w[1].1], entry[w[1].0 as usize]);
+        if enters_at_first {
+            prop_assert_eq!(order[w[1].1], entry[w[1].0 as usize]);
+        }
         let last = texels[order[w[0].2 - 1] as usize].position;
         let expected = (0..charts as u32)
             .filter(|&c| !done[c as usize])
@@ -313,6 +318,90 @@ fn assert_greedy(texels: &[Texel], order: &[u32]) -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// Cell of position `d` along the Hilbert curve over a `side x side` grid: the inverse mapping
+/// (Wikipedia's `d2xy`), written independently of the traversal's `xy2d`.
+fn hilbert_cell(side: u32, d: u64) -> (u32, u32) {
+    let (mut x, mut y) = (0u32, 0u32);
+    let mut t = d;
+    let mut s = 1u32;
+    while s < side {
+        let rx = (1 & (t / 2)) as u32;
+        let ry = (1 & (t ^ u64::from(rx))) as u32;
+        if ry == 0 {
+            if rx == 1 {
+                x = s - 1 - x;
+                y = s - 1 - y;
+            }
+            std::mem::swap(&mut x, &mut y);
+        }
+        x += s * rx;
+        y += s * ry;
+        t /= 4;
+        s *= 2;
+    }
+    (x, y)
+}
+
+/// Hilbert inside each block: the block's texels in the order a Hilbert curve over the chart's
+/// bounding box (side rounded up to a power of two) meets them; on a full square chart every step
+/// is a 4-neighbour step.
+fn assert_hilbert_blocks(
+    texels: &[Texel],
+    order: &[u32],
+    blocks: &[(u32, usize, usize)],
+) -> Result<(), TestCaseError> {
+    for &(_, s, e) in blocks {
+        let block = &order[s..e];
+        let x0 = block.iter().map(|&i| texels[i as usize].x).min().unwrap();
+        let y0 = block.iter().map(|&i| texels[i as usize].y).min().unwrap();
+        let x1 = block.iter().map(|&i| texels[i as usize].x).max().unwrap();
+        let y1 = block.iter().map(|&i| texels[i as usize].y).max().unwrap();
+        let side = (u32::from((x1 - x0).max(y1 - y0)) + 1).next_power_of_two();
+        let mut rank = std::collections::HashMap::new();
+        for d in 0..u64::from(side) * u64::from(side) {
+            rank.insert(hilbert_cell(side, d), d);
+        }
+        let key = |i: u32| {
+            let t = &texels[i as usize];
+            (rank[&(u32::from(t.x - x0), u32::from(t.y - y0))], i)
+        };
+        for w in block.windows(2) {
+            prop_assert!(key(w[0]) < key(w[1]), "block not in Hilbert order");
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn hilbert_on_a_full_square_steps_to_neighbours() {
+    // One 16x16 chart: every step of the curve is a 4-neighbour step, from (0, 0) to (15, 0).
+    let texels: Vec<Texel> = (0..16u16)
+        .flat_map(|y| (0..16u16).map(move |x| (x, y)))
+        .map(|(x, y)| Texel {
+            position: [f32::from(x), f32::from(y), 0.0],
+            normal: [0.0, 0.0, 1.0],
+            area: 1.0,
+            material: 0,
+            chart: 0,
+            x,
+            y,
+        })
+        .collect();
+    let order = traverse(&texels, 16, Traversal::Hilbert);
+    let cell = |i: u32| {
+        (
+            i32::from(texels[i as usize].x),
+            i32::from(texels[i as usize].y),
+        )
+    };
+    assert_eq!(cell(order[0]), (0, 0));
+    assert_eq!(cell(*order.last().unwrap()), (15, 0));
+    for w in order.windows(2) {
+        let (a, b) = (cell(w[0]), cell(w[1]));
+        assert_eq!((a.0 - b.0).abs() + (a.1 - b.1).abs(), 1, "{a:?} -> {b:?}");
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
@@ -340,18 +429,80 @@ proptest! {
                 Traversal::Greedy => assert_greedy(&texels, &order)?,
                 Traversal::Zigzag => {
                     let blocks = chart_blocks(&texels, &order)?;
-                    assert_chart_order(&texels, &order, &blocks)?;
+                    assert_chart_order(&texels, &order, &blocks, true)?;
                     assert_zigzag_rows(&texels, &order, &blocks)?;
+                }
+                Traversal::Hilbert => {
+                    let blocks = chart_blocks(&texels, &order)?;
+                    assert_chart_order(&texels, &order, &blocks, false)?;
+                    assert_hilbert_blocks(&texels, &order, &blocks)?;
                 }
                 Traversal::Spiral => {
                     let blocks = chart_blocks(&texels, &order)?;
-                    assert_chart_order(&texels, &order, &blocks)?;
+                    assert_chart_order(&texels, &order, &blocks, true)?;
                     let (adjacent, steps) = assert_spiral_walk(&texels, &order, &blocks)?;
                     if steps > 0 {
                         println!(
                             "spiral: {adjacent}/{steps} in-chart steps are 4-neighbour steps ({:.1}%)",
                             100.0 * adjacent as f64 / steps as f64
                         );
+                    }
+                }
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// `ChartOrder::Ends`: still a permutation with every chart one block; each block is the
+    /// chart's own walk (as the paper's chart order emits it) or that walk backwards; the first
+    /// block is the row-major first texel's chart, forwards; and each next block starts at the
+    /// unvisited chart end nearest to where the previous block ended.
+    #[test]
+    fn chart_order_ends_strings_whole_walks_together(
+        seed in any::<u64>(),
+        w in 1usize..30,
+        h in 1usize..30,
+        blobs in 0usize..12,
+        isolated in 0usize..20,
+        noise in prop_oneof![Just(0.0f32), 0.0f32..0.9],
+        shuffle in any::<bool>(),
+    ) {
+        let texels = random_atlas(seed, w, h, blobs, isolated, noise, shuffle);
+        let res = w.max(h) as u32;
+        for traversal in [Traversal::Zigzag, Traversal::Spiral, Traversal::Hilbert] {
+            let order = traverse_with(&texels, res, traversal, ChartOrder::Ends);
+            assert_permutation(&texels, &order)?;
+            prop_assert_eq!(&order, &traverse_with(&texels, res, traversal, ChartOrder::Ends));
+            if texels.is_empty() {
+                continue;
+            }
+            let paper = traverse(&texels, res, traversal);
+            let walks: std::collections::HashMap<u32, Vec<u32>> = chart_blocks(&texels, &paper)?
+                .into_iter()
+                .map(|(c, s, e)| (c, paper[s..e].to_vec()))
+                .collect();
+            let blocks = chart_blocks(&texels, &order)?;
+            prop_assert_eq!(blocks[0].0, texels[first_texel(&texels) as usize].chart);
+            prop_assert_eq!(&order[blocks[0].1..blocks[0].2], &walks[&blocks[0].0][..]);
+            let mut done = std::collections::HashSet::new();
+            for pair in blocks.windows(2) {
+                done.insert(pair[0].0);
+                let block = &order[pair[1].1..pair[1].2];
+                let walk = &walks[&pair[1].0];
+                let reversed: Vec<u32> = walk.iter().rev().copied().collect();
+                prop_assert!(block == &walk[..] || block == &reversed[..]);
+                // The chosen end is the nearest of all unvisited ends.
+                let last = texels[order[pair[0].2 - 1] as usize].position;
+                let chosen = dist2(texels[block[0] as usize].position, last);
+                for (c, wk) in &walks {
+                    if done.contains(c) {
+                        continue;
+                    }
+                    for end in [wk[0], wk[wk.len() - 1]] {
+                        prop_assert!(chosen <= dist2(texels[end as usize].position, last));
                     }
                 }
             }

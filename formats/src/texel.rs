@@ -45,11 +45,23 @@ pub enum Traversal {
     Spiral,
     /// Nearest-first walk over texel positions, no use of the atlas layout.
     Greedy,
+    /// Chart by chart like Zig-Zag and Spiral; inside a chart, the order of a Hilbert curve over
+    /// the chart's bounding box (beyond the paper: §3.2.3 rules the Hilbert pattern of CSMs out
+    /// for arbitrary chart shapes; restricted to a chart's texels it still stays local).
+    Hilbert,
 }
 
 impl Traversal {
-    /// All traversals, in the order the paper's Table 2 lists them.
-    pub const ALL: [Traversal; 3] = [Traversal::Greedy, Traversal::Zigzag, Traversal::Spiral];
+    /// The paper's traversals, in the order its Table 2 lists them (§3.2.3).
+    pub const PAPER: [Traversal; 3] = [Traversal::Greedy, Traversal::Zigzag, Traversal::Spiral];
+
+    /// Every traversal: the paper's, then the ones beyond it.
+    pub const ALL: [Traversal; 4] = [
+        Traversal::Greedy,
+        Traversal::Zigzag,
+        Traversal::Spiral,
+        Traversal::Hilbert,
+    ];
 
     /// Lower-case name as used on the command line.
     pub fn name(self) -> &'static str {
@@ -57,6 +69,7 @@ impl Traversal {
             Traversal::Zigzag => "zigzag",
             Traversal::Spiral => "spiral",
             Traversal::Greedy => "greedy",
+            Traversal::Hilbert => "hilbert",
         }
     }
 }
@@ -74,8 +87,9 @@ impl std::str::FromStr for Traversal {
             "zigzag" | "zig-zag" => Ok(Traversal::Zigzag),
             "spiral" => Ok(Traversal::Spiral),
             "greedy" => Ok(Traversal::Greedy),
+            "hilbert" => Ok(Traversal::Hilbert),
             other => Err(format!(
-                "unknown traversal '{other}': expected zigzag, spiral or greedy"
+                "unknown traversal '{other}': expected zigzag, spiral, greedy or hilbert"
             )),
         }
     }

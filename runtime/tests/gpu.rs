@@ -34,7 +34,7 @@ fn cornell() -> &'static (Scene, CssmFile) {
             atlas_resolution: 64,
             cube_resolution: 32,
             traversal: Traversal::Spiral,
-            near: None,
+            ..Default::default()
         };
         let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
         (scene, baked.file)

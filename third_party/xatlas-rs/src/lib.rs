@@ -11,6 +11,11 @@ use crate::bindings::*;
 
 // jb-todo: find a way to call ParameterizeFunc wrapped in a closure
 
+/// Stops xatlas from printing its warnings to standard output (patched in, see PATCHED.md).
+pub fn silence_messages() {
+    unsafe { xatlas::SetPrint(None, false) }
+}
+
 #[derive(Debug)]
 pub enum IndexFormat {
     Uint16,

@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Regenerates reports/compression.md, compression.csv and compression.svg: the paper's Tables 2
+# and 3 (Cornell box, Cornell Heads, Sibenik as the church) and one row per option beyond the
+# paper, every figure measured by `cssm report compression` (release build).
+#
+# Usage: reports/compression.sh [SHARED_SCENES_DIR] [more flags for `cssm report compression`]
+#   SHARED_SCENES_DIR defaults to ../shared/scenes (teapot/, bunny/, sibenik/).
+#   e.g. reports/compression.sh ../shared/scenes --scene cornell   # the Cornell box's rows only
+#
+# Run it on a quiet machine: rows are timed. On a 2-core CPU the Cornell box's rows take about
+# 10 to 15 minutes, the heads and the church several hours together (see the report's
+# "Time per table").
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scenes=${1:-../shared/scenes}
+shift || true
+cargo build --release -q
+bin=${CARGO_TARGET_DIR:-$PWD/target}/release/cssm
+if ! git diff --quiet HEAD -- . ':(exclude)reports'; then
+    echo "warning: uncommitted changes; the report will name the commit as -dirty" >&2
+fi
+"$bin" report compression --scenes "$scenes" --out reports "$@"
