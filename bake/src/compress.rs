@@ -111,7 +111,7 @@ struct Tail {
 #[inline]
 fn close_run(closed: &mut Vec<u32>, tail: &mut Tail, x: Open, options: &CompressOptions) {
     if options.merge_short_runs == 0 {
-        closed.push(pack(&x, options));
+        push_run(closed, pack(&x, options));
         return;
     }
     if tail.len == 2 {
@@ -121,7 +121,7 @@ fn close_run(closed: &mut Vec<u32>, tail: &mut Tail, x: Open, options: &Compress
             tail.runs[0] = Open { lo, hi, ..z };
             tail.len = 1;
         } else {
-            closed.push(pack(&z, options));
+            push_run(closed, pack(&z, options));
             tail.runs = [y, x];
         }
         return;
@@ -130,10 +130,21 @@ fn close_run(closed: &mut Vec<u32>, tail: &mut Tail, x: Open, options: &Compress
     tail.len += 1;
 }
 
+/// Appends a packed run to a pixel's list, growing it by a quarter at a time instead of
+/// doubling: the lists of a segment hold all its runs (hundreds of MiB for a large scene), and
+/// doubling would leave up to as much again unused until the segment closes.
+#[inline]
+fn push_run(closed: &mut Vec<u32>, run: u32) {
+    if closed.len() == closed.capacity() {
+        closed.reserve_exact((closed.capacity() / 4).max(16));
+    }
+    closed.push(run);
+}
+
 /// Packs the runs still held in `tail` (end of a segment).
 fn flush(closed: &mut Vec<u32>, tail: &mut Tail, options: &CompressOptions) {
     for r in &tail.runs[..tail.len as usize] {
-        closed.push(pack(r, options));
+        push_run(closed, pack(r, options));
     }
     tail.len = 0;
 }
