@@ -8,7 +8,7 @@
 #   e.g. reports/compression.sh ../shared/scenes --scene cornell   # the Cornell box's rows only
 #
 # Run it on a quiet machine: rows are timed. On a 2-core CPU the Cornell box's rows take about
-# 10 to 15 minutes, the heads and the church several hours together (see the report's
+# 12 minutes, the heads about half an hour, the church about 25 minutes (see the report's
 # "Time per table").
 set -euo pipefail
 cd "$(dirname "$0")/.."

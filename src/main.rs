@@ -110,8 +110,9 @@ enum ReportCommand {
     /// casts) next to the paper's figures, and every option beyond the paper.
     ///
     /// Every row runs `cssm bake --json` and `cssm check --json` as child processes, so each
-    /// row's peak memory is its own. The full grid (atlas up to 512, three scenes) takes hours
-    /// on a small machine; `reports/compression.sh` runs it. Rows whose scene is missing from
+    /// row's peak memory is its own. The full grid (atlas up to 512, three scenes) takes about
+    /// an hour on a quiet 2-core machine, the Cornell box's rows about 12 minutes of it;
+    /// `reports/compression.sh` runs it. Rows whose scene is missing from
     /// --scenes are listed as not run.
     #[command(after_help = "Examples:\n  \
         cssm report compression --quick --out /tmp            # smoke test: atlas 32 and 64, cube 8, Cornell box\n  \

@@ -89,11 +89,64 @@ pub struct CompressOptions {
     pub near_codes: f64,
 }
 
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Open {
     start: u32,
     lo: u16,
     hi: u16,
+}
+
+/// Per pixel, for the lossy merge: the last (up to) two closed runs, not yet packed, since a
+/// short run can only be judged once the run after it is closed. Merging online keeps the
+/// compressor's memory at 4 bytes per closed run, as without merging.
+#[derive(Clone, Copy, Debug, Default)]
+struct Tail {
+    runs: [Open; 2],
+    len: u8,
+}
+
+/// Closes run `x` of one pixel: packs it into `closed`, or with merging on, first drops the run
+/// before it when that one has at most `merge_short_runs` maps and the run before *it* still
+/// intersects `x` (which then absorbs `x`).
+#[inline]
+fn close_run(closed: &mut Vec<u32>, tail: &mut Tail, x: Open, options: &CompressOptions) {
+    if options.merge_short_runs == 0 {
+        push_run(closed, pack(&x, options));
+        return;
+    }
+    if tail.len == 2 {
+        let [z, y] = tail.runs;
+        let (lo, hi) = (z.lo.max(x.lo), z.hi.min(x.hi));
+        if x.start - y.start <= options.merge_short_runs && lo <= hi {
+            tail.runs[0] = Open { lo, hi, ..z };
+            tail.len = 1;
+        } else {
+            push_run(closed, pack(&z, options));
+            tail.runs = [y, x];
+        }
+        return;
+    }
+    tail.runs[tail.len as usize] = x;
+    tail.len += 1;
+}
+
+/// Appends a packed run to a pixel's list, growing it by a quarter at a time instead of
+/// doubling: the lists of a segment hold all its runs (hundreds of MiB for a large scene), and
+/// doubling would leave up to as much again unused until the segment closes.
+#[inline]
+fn push_run(closed: &mut Vec<u32>, run: u32) {
+    if closed.len() == closed.capacity() {
+        closed.reserve_exact((closed.capacity() / 4).max(16));
+    }
+    closed.push(run);
+}
+
+/// Packs the runs still held in `tail` (end of a segment).
+fn flush(closed: &mut Vec<u32>, tail: &mut Tail, options: &CompressOptions) {
+    for r in &tail.runs[..tail.len as usize] {
+        push_run(closed, pack(r, options));
+    }
+    tail.len = 0;
 }
 
 /// Streaming compressor of one CSSM.
@@ -104,9 +157,8 @@ pub struct Compressor {
     open: Vec<Open>,
     /// Closed runs of the current segment, one list per pixel, packed as in [`RunData`].
     segment_runs: Vec<Vec<u32>>,
-    /// Their intervals `lo << 16 | hi`, kept only when short runs are merged (which needs them),
-    /// so the lossless compressor holds 4 bytes per closed run, as before.
-    segment_intervals: Vec<Vec<u32>>,
+    /// Runs awaiting the lossy merge, one per pixel (unused when merging is off).
+    tails: Vec<Tail>,
     options: CompressOptions,
     offsets: Vec<u32>,
     runs: Vec<u32>,
@@ -133,7 +185,7 @@ impl Compressor {
                 pixel_count as usize
             ],
             segment_runs: vec![Vec::new(); pixel_count as usize],
-            segment_intervals: vec![Vec::new(); pixel_count as usize],
+            tails: vec![Tail::default(); pixel_count as usize],
             offsets: vec![0],
             runs: Vec::new(),
             options,
@@ -153,14 +205,13 @@ impl Compressor {
             let first_map = self.maps_seen;
             let chunk = &maps[done * pc..(done + take) * pc];
             let options = self.options;
-            let keep_intervals = options.merge_short_runs > 0;
             self.open
                 .par_iter_mut()
                 .zip(self.segment_runs.par_iter_mut())
-                .zip(self.segment_intervals.par_iter_mut())
+                .zip(self.tails.par_iter_mut())
                 .enumerate()
                 .with_min_len(256)
-                .for_each(|(pixel, ((open, closed), intervals))| {
+                .for_each(|(pixel, ((open, closed), tail))| {
                     for k in 0..take {
                         let (a, b) = chunk[k * pc + pixel];
                         let lo = open.lo.max(a);
@@ -169,10 +220,7 @@ impl Compressor {
                             open.lo = lo;
                             open.hi = hi;
                         } else {
-                            closed.push(pack(open, &options));
-                            if keep_intervals {
-                                intervals.push((u32::from(open.lo) << 16) | u32::from(open.hi));
-                            }
+                            close_run(closed, tail, *open, &options);
                             *open = Open {
                                 start: first_map + k as u32,
                                 lo: a,
@@ -191,36 +239,26 @@ impl Compressor {
 
     fn close_segment(&mut self) {
         let next_start = self.maps_seen;
-        let closing: usize = self.segment_runs.iter().map(|c| c.len() + 1).sum();
-        self.runs.reserve_exact(closing);
         let options = self.options;
-        for ((open, closed), intervals) in self
-            .open
-            .iter_mut()
-            .zip(self.segment_runs.iter_mut())
-            .zip(self.segment_intervals.iter_mut())
-        {
-            closed.push(pack(open, &options));
-            if options.merge_short_runs > 0 {
-                intervals.push((u32::from(open.lo) << 16) | u32::from(open.hi));
-                let mut runs: Vec<Open> = closed
-                    .iter()
-                    .zip(intervals.iter())
-                    .map(|(&r, &i)| Open {
-                        start: r >> 16,
-                        lo: (i >> 16) as u16,
-                        hi: i as u16,
-                    })
-                    .collect();
-                merge_short_runs(&mut runs, options.merge_short_runs);
-                self.runs.extend(runs.iter().map(|r| pack(r, &options)));
-            } else {
-                self.runs.extend_from_slice(closed);
-            }
+        // Close every pixel's open run, and trim the per-pixel lists to their length, one at a
+        // time, so that the slack of their growth is given back before the segment's runs are
+        // copied into one array (the peak is then about twice the segment's runs).
+        self.open
+            .par_iter_mut()
+            .zip(self.segment_runs.par_iter_mut())
+            .zip(self.tails.par_iter_mut())
+            .for_each(|((open, closed), tail)| {
+                close_run(closed, tail, *open, &options);
+                flush(closed, tail, &options);
+                closed.shrink_to_fit();
+            });
+        let closing: usize = self.segment_runs.iter().map(Vec::len).sum();
+        self.runs.reserve_exact(closing);
+        for (open, closed) in self.open.iter_mut().zip(self.segment_runs.iter_mut()) {
+            self.runs.extend_from_slice(closed);
             self.offsets.push(self.runs.len() as u32);
             // Give the memory back: the next segment starts from nothing.
             *closed = Vec::new();
-            *intervals = Vec::new();
             *open = Open {
                 start: next_start,
                 lo: 0,
@@ -247,28 +285,6 @@ impl Compressor {
 fn pack(run: &Open, options: &CompressOptions) -> u32 {
     let value = options.run_value.pick(run.lo, run.hi, options.near_codes);
     ((run.start % SEGMENT_MAPS) << 16) | u32::from(value)
-}
-
-/// Lossy merge, in place: while a run of at most `max_len` maps lies between two runs whose
-/// intervals intersect, drop it and join its neighbours (their intersection). `runs` are one
-/// pixel's runs of one segment in order; the last one's length is taken as unbounded.
-fn merge_short_runs(runs: &mut Vec<Open>, max_len: u32) {
-    let mut kept: Vec<Open> = Vec::with_capacity(runs.len());
-    let mut i = 0;
-    while i < runs.len() {
-        if let (Some(prev), Some(next)) = (kept.last_mut(), runs.get(i + 1)) {
-            let (lo, hi) = (prev.lo.max(next.lo), prev.hi.min(next.hi));
-            if next.start - runs[i].start <= max_len && lo <= hi {
-                prev.lo = lo;
-                prev.hi = hi;
-                i += 2;
-                continue;
-            }
-        }
-        kept.push(runs[i]);
-        i += 1;
-    }
-    *runs = kept;
 }
 
 #[cfg(test)]
@@ -310,6 +326,28 @@ mod tests {
         assert_eq!(rd.lookup(1, 0), 17);
         assert_eq!(rd.lookup(2, 0), 32);
         assert_eq!(rd.lookup(3, 0), 32);
+    }
+
+    /// Reference for the online merge, in place, over a whole segment: while a run of at most `max_len` maps lies between two runs whose
+    /// intervals intersect, drop it and join its neighbours (their intersection). `runs` are one
+    /// pixel's runs of one segment in order; the last one's length is taken as unbounded.
+    fn merge_short_runs(runs: &mut Vec<Open>, max_len: u32) {
+        let mut kept: Vec<Open> = Vec::with_capacity(runs.len());
+        let mut i = 0;
+        while i < runs.len() {
+            if let (Some(prev), Some(next)) = (kept.last_mut(), runs.get(i + 1)) {
+                let (lo, hi) = (prev.lo.max(next.lo), prev.hi.min(next.hi));
+                if next.start - runs[i].start <= max_len && lo <= hi {
+                    prev.lo = lo;
+                    prev.hi = hi;
+                    i += 2;
+                    continue;
+                }
+            }
+            kept.push(runs[i]);
+            i += 1;
+        }
+        *runs = kept;
     }
 
     #[test]
@@ -384,9 +422,32 @@ mod tests {
                     }
                 }
             }
-            // Merging never adds runs and keeps the layout valid.
-            let merged = compress_with(&maps, 3, CompressOptions { merge_short_runs: 2, ..Default::default() });
-            prop_assert!(merged.runs.len() <= count);
+            // Merging never adds runs, and the online merge equals the whole-segment reference.
+            for k in 1..4u32 {
+                let o = CompressOptions { merge_short_runs: k, ..Default::default() };
+                let merged = compress_with(&maps, 3, o);
+                prop_assert!(merged.runs.len() <= count);
+                let mut expected = Vec::new();
+                for p in 0..3 {
+                    let mut runs: Vec<Open> = Vec::new();
+                    let mut cur = Open { start: 0, lo: 0, hi: u16::MAX };
+                    for (m, map) in maps.iter().enumerate() {
+                        let (a, b) = map[p];
+                        let (lo, hi) = (cur.lo.max(a), cur.hi.min(b));
+                        if lo <= hi {
+                            cur.lo = lo;
+                            cur.hi = hi;
+                        } else {
+                            runs.push(cur);
+                            cur = Open { start: m as u32, lo: a, hi: b };
+                        }
+                    }
+                    runs.push(cur);
+                    merge_short_runs(&mut runs, k);
+                    expected.extend(runs.iter().map(|r| pack(r, &o)));
+                }
+                prop_assert_eq!(&merged.runs, &expected);
+            }
         }
     }
 }

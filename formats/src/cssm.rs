@@ -22,7 +22,7 @@
 //! Encoding is deterministic: the same [`CssmFile`] always gives the same bytes. Decoding checks
 //! every field before trusting it, bounds every allocation, and finishes with [`validate`].
 
-use std::io::{Read, Write};
+use std::io::{Read, Seek, Write};
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -523,16 +523,16 @@ fn checksum(payload: &[u8]) -> [u8; 16] {
     out
 }
 
-/// Header + payload for a zstd payload of `uncompressed_len` bytes once decompressed.
-fn frame_compressed(flags: u32, uncompressed_len: u64, compressed: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(HEADER_LEN + compressed.len());
+/// The fixed header of a file whose zstd payload has `compressed_len` bytes with `sum` as
+/// checksum, and `uncompressed_len` bytes once decompressed.
+fn header(flags: u32, uncompressed_len: u64, compressed_len: u64, sum: [u8; 16]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(HEADER_LEN);
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     out.extend_from_slice(&flags.to_le_bytes());
     out.extend_from_slice(&uncompressed_len.to_le_bytes());
-    out.extend_from_slice(&(compressed.len() as u64).to_le_bytes());
-    out.extend_from_slice(&checksum(compressed));
-    out.extend_from_slice(compressed);
+    out.extend_from_slice(&compressed_len.to_le_bytes());
+    out.extend_from_slice(&sum);
     out
 }
 
@@ -544,9 +544,21 @@ pub fn encode(file: &CssmFile) -> Result<Vec<u8>, CssmError> {
 
 /// [`encode`] with the run data coded as `coding` says.
 pub fn encode_with(file: &CssmFile, coding: FileCoding) -> Result<Vec<u8>, CssmError> {
+    let (mut bytes, head) = encode_into(file, coding, vec![0u8; HEADER_LEN])?;
+    bytes[..HEADER_LEN].copy_from_slice(&head);
+    Ok(bytes)
+}
+
+/// Validates `file`, then streams its payload into `out` (after whatever `out` already holds)
+/// and returns `out` with the header that belongs in front of the payload.
+fn encode_into<W: Write>(
+    file: &CssmFile,
+    coding: FileCoding,
+    out: W,
+) -> Result<(W, Vec<u8>), CssmError> {
     validate(file)?;
     match coding {
-        FileCoding::Plain => compress_payload(0, file),
+        FileCoding::Plain => compress_payload(0, file, out),
         FileCoding::Packed => {
             // Borrow-free copy of the small tables; the run data is replaced by its packed form.
             let packed = PackedFile {
@@ -559,16 +571,27 @@ pub fn encode_with(file: &CssmFile, coding: FileCoding) -> Result<Vec<u8>, CssmE
                 pixel_count: file.runs.pixel_count,
                 runs: PackedRuns::pack(&file.runs),
             };
-            compress_payload(FLAG_PACKED_RUNS, &packed)
+            compress_payload(FLAG_PACKED_RUNS, &packed, out)
         }
     }
 }
 
-/// bincode of `body` streamed into zstd, framed with `flags`.
-fn compress_payload<T: Serialize>(flags: u32, body: &T) -> Result<Vec<u8>, CssmError> {
-    // Stream bincode straight into zstd, counting the uncompressed bytes, so the uncompressed
-    // body (hundreds of MiB for a 512 atlas) never exists in memory as a whole.
-    let mut encoder = zstd::stream::Encoder::new(Vec::new(), ZSTD_LEVEL)
+/// bincode of `body` streamed through zstd into `out`; returns `out` and the header (with
+/// `flags`) for the payload written.
+fn compress_payload<T: Serialize, W: Write>(
+    flags: u32,
+    body: &T,
+    out: W,
+) -> Result<(W, Vec<u8>), CssmError> {
+    // Stream bincode straight into zstd and zstd straight into `out`, counting and hashing on
+    // the way, so neither the uncompressed body (hundreds of MiB for a 512 atlas) nor the
+    // compressed one need exist in memory as a whole when `out` is a file.
+    let hashing = HashingWriter {
+        inner: out,
+        hasher: blake3::Hasher::new(),
+        count: 0,
+    };
+    let mut encoder = zstd::stream::Encoder::new(hashing, ZSTD_LEVEL)
         .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
     // zstd's multi-threaded output is the same for any number of workers, so this stays
     // deterministic while compressing on every core.
@@ -588,11 +611,35 @@ fn compress_payload<T: Serialize>(flags: u32, body: &T) -> Result<Vec<u8>, CssmE
             len: uncompressed_len,
         });
     }
-    let compressed = sink
+    let hashing = sink
         .inner
         .finish()
         .map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
-    Ok(frame_compressed(flags, uncompressed_len, &compressed))
+    let mut sum = [0u8; 16];
+    sum.copy_from_slice(&hashing.hasher.finalize().as_bytes()[..16]);
+    Ok((
+        hashing.inner,
+        header(flags, uncompressed_len, hashing.count, sum),
+    ))
+}
+
+/// A writer that counts and BLAKE3-hashes what passes through it.
+struct HashingWriter<W> {
+    inner: W,
+    hasher: blake3::Hasher,
+    count: u64,
+}
+
+impl<W: Write> Write for HashingWriter<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.hasher.update(&buf[..n]);
+        self.count += n as u64;
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
 }
 
 /// A writer that counts what passes through it.
@@ -752,20 +799,51 @@ pub fn write_atomic(path: &Path, file: &CssmFile) -> Result<u64, CssmError> {
 }
 
 /// [`write_atomic`] with the run data coded as `coding` says.
+///
+/// The payload is streamed into the temporary file and the header written last, so the file's
+/// bytes are never all in memory at once (the same bytes as [`encode_with`]).
 pub fn write_atomic_with(
     path: &Path,
     file: &CssmFile,
     coding: FileCoding,
 ) -> Result<u64, CssmError> {
-    let bytes = encode_with(file, coding)?;
-    write_bytes_atomic(path, &bytes)?;
-    Ok(bytes.len() as u64)
+    // Check before creating anything, so an invalid file leaves nothing behind.
+    validate(file)?;
+    let mut written = 0;
+    write_atomic_by(path, &mut |f, tmp| {
+        let io = |error| CssmError::Io {
+            path: tmp.to_path_buf(),
+            error,
+        };
+        f.write_all(&[0u8; HEADER_LEN]).map_err(io)?;
+        let (out, head) = encode_into(file, coding, std::io::BufWriter::new(&mut *f))?;
+        out.into_inner().map_err(|e| io(e.into_error()))?;
+        f.seek(std::io::SeekFrom::Start(0)).map_err(io)?;
+        f.write_all(&head).map_err(io)?;
+        written = f.seek(std::io::SeekFrom::End(0)).map_err(io)?;
+        Ok(())
+    })?;
+    Ok(written)
 }
 
 /// Writes `bytes` to `path` atomically: a temporary file `.NAME.tmp-PID` in the same directory,
 /// fsynced, then renamed over `path`. On any error the temporary file is removed and `path` is
 /// left untouched. Used for `.cssm` files and for the reports.
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), CssmError> {
+    write_atomic_by(path, &mut |f, tmp| {
+        f.write_all(bytes).map_err(|error| CssmError::Io {
+            path: tmp.to_path_buf(),
+            error,
+        })
+    })
+}
+
+/// The temporary-file-and-rename frame of the atomic writes: `fill(file, temporary path)`
+/// writes the contents.
+fn write_atomic_by(
+    path: &Path,
+    fill: &mut dyn FnMut(&mut std::fs::File, &Path) -> Result<(), CssmError>,
+) -> Result<(), CssmError> {
     let name = path.file_name().ok_or_else(|| CssmError::Io {
         path: path.to_path_buf(),
         error: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
@@ -785,7 +863,7 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), CssmError> {
             error,
         };
         let mut f = std::fs::File::create(&tmp).map_err(io)?;
-        f.write_all(bytes).map_err(io)?;
+        fill(&mut f, &tmp)?;
         f.sync_all().map_err(io)?;
         drop(f);
         std::fs::rename(&tmp, path).map_err(|error| CssmError::Io {

@@ -661,3 +661,23 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn streamed_writes_equal_the_encoded_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = sample();
+    for coding in [FileCoding::Plain, FileCoding::Packed] {
+        let path = dir.path().join(format!("{coding}.cssm"));
+        let n = cssm::write_atomic_with(&path, &f, coding).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(n, bytes.len() as u64);
+        assert_eq!(bytes, cssm::encode_with(&f, coding).unwrap(), "{coding}");
+        assert_eq!(cssm::read(&path).unwrap(), f);
+    }
+    // An invalid file is refused before anything is created.
+    let mut bad = sample();
+    bad.params.near = -1.0;
+    let path = dir.path().join("bad.cssm");
+    assert!(cssm::write_atomic(&path, &bad).is_err());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}

@@ -482,6 +482,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
         .progress_chars("=> "),
     );
     let mut rows = Vec::with_capacity(plans.len());
+    let mut atlas_failures: Vec<(SceneId, u32, String)> = Vec::new();
     for (k, plan) in plans.into_iter().enumerate() {
         let label = format!(
             "{} {} atlas {} cube {} {}",
@@ -498,15 +499,27 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
             .find(|(s, _)| *s == plan.scene)
             .map(|(_, d)| d.clone())
             .expect("every planned scene was prepared");
-        let outcome = dir.and_then(|dir| {
-            bake_and_check(
+        // An atlas that could not be built for one variant cannot be for another (the atlas does
+        // not depend on the bake options): say so instead of unwrapping it again.
+        let known = atlas_failures
+            .iter()
+            .find(|(s, a, _)| *s == plan.scene && *a == plan.atlas)
+            .map(|(_, _, e)| e.clone());
+        let outcome = dir.and_then(|dir| match known {
+            Some(e) => Err(e),
+            None => bake_and_check(
                 exe,
                 &dir,
                 &plan,
                 &work.path().join(format!("row{k}.cssm")),
                 args.pairs,
-            )
+            ),
         });
+        if let Err(e) = &outcome
+            && e.contains(": atlas: ")
+        {
+            atlas_failures.push((plan.scene, plan.atlas, e.clone()));
+        }
         let wall_seconds = start.elapsed().as_secs_f64();
         let line = match &outcome {
             Ok(m) => format!(

@@ -571,7 +571,7 @@ pub fn svg(r: &Report) -> Result<String, String> {
             if !ours.is_empty() {
                 lines.push((format!("{t} (ours)"), colour(t), false, ours));
                 if !paper.is_empty() && same_cube {
-                    lines.push((format!("{t} (paper)"), colour(t), true, paper));
+                    lines.push((format!("{t} (paper's Table 2)"), colour(t), true, paper));
                 }
             }
         }
@@ -610,7 +610,8 @@ pub fn svg(r: &Report) -> Result<String, String> {
                     } else {
                         c
                     };
-                    lines3.push((format!("{} ({})", scene.name(), v.name), rgb, false, pts));
+                    let what = if v == PAPER { "paper's method" } else { v.name };
+                    lines3.push((format!("{}, {what} (ours)", scene.name()), rgb, false, pts));
                 }
             }
             if rows(r, TableId::Table3).any(|row| {
@@ -623,14 +624,21 @@ pub fn svg(r: &Report) -> Result<String, String> {
                     .iter()
                     .map(|p| (p.atlas as f64, p.ratio))
                     .collect();
-                lines3.push((format!("{} (paper)", scene.name()), c, true, paper));
+                lines3.push((
+                    format!("{} (paper's Table 3)", scene.name()),
+                    c,
+                    true,
+                    paper,
+                ));
             }
         }
-        panel(
-            &right,
-            "Table 3: cube 6x64x64 (church 512: 6x32x32)",
-            &lines3,
-        )?;
+        let title3 = match rows(r, TableId::Table3).next().map(|row| row.plan.cube) {
+            Some(c) if rows(r, TableId::Table3).all(|row| row.plan.cube == c) => {
+                format!("Table 3: cube 6x{c}x{c}")
+            }
+            _ => "Table 3: cube 6x64x64 (church 512: 6x32x32)".to_string(),
+        };
+        panel(&right, &title3, &lines3)?;
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(out)
@@ -725,7 +733,7 @@ fn panel<DB: DrawingBackend>(
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
+        .position(SeriesLabelPosition::LowerRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
