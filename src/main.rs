@@ -259,6 +259,10 @@ fn run_render(args: RenderArgs) -> CliResult {
             args.shadow_resolution
         ));
     }
+    check_writable(&args.out)?;
+    if let Some(exr) = &args.exr {
+        check_writable(exr)?;
+    }
     let scene = load_scene(&dir)?;
     quiet_mesa_wsi();
     let (width, height) = args

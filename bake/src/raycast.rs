@@ -106,19 +106,24 @@ impl WatertightRay {
     }
 }
 
+/// The scene's triangles as obvhs builds BVHs from them, in the scene's order.
+pub fn scene_triangles(scene: &Scene) -> Vec<Triangle> {
+    (0..scene.triangles.len())
+        .map(|t| {
+            let [a, b, c] = scene.triangle(t);
+            Triangle {
+                v0: a.into(),
+                v1: b.into(),
+                v2: c.into(),
+            }
+        })
+        .collect()
+}
+
 impl SceneBvh {
     /// Builds the BVH (deterministic for a given scene).
     pub fn new(scene: &Scene) -> Self {
-        let tris: Vec<Triangle> = (0..scene.triangles.len())
-            .map(|t| {
-                let [a, b, c] = scene.triangle(t);
-                Triangle {
-                    v0: a.into(),
-                    v1: b.into(),
-                    v2: c.into(),
-                }
-            })
-            .collect();
+        let tris = scene_triangles(scene);
         let bvh = build_cwbvh_from_tris(
             &tris,
             BvhBuildParams::medium_build(),

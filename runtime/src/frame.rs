@@ -198,35 +198,26 @@ pub fn render_atlas_direct(
     Ok(bytemuck::cast_slice(&bytes).to_vec())
 }
 
-/// Writes `path` through a temporary file in the same directory renamed over it, so a failed
-/// write never leaves a half-written image.
-fn write_atomic(
+/// Encodes `image` as `format` in memory and writes it with the project's one atomic write
+/// (`cssm_formats::cssm::write_bytes_atomic`): a failed write never leaves a half-written image.
+fn save_image(
     path: &Path,
-    write: impl FnOnce(&Path) -> Result<(), String>,
+    image: image::DynamicImage,
+    format: image::ImageFormat,
 ) -> Result<(), RuntimeError> {
     let fail = |reason: String| RuntimeError::Output {
         path: path.to_path_buf(),
         reason,
     };
-    let name = path
-        .file_name()
-        .ok_or_else(|| fail("not a file path".into()))?;
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    match write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| e.to_string())) {
-        Ok(()) => Ok(()),
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            Err(fail(e))
-        }
-    }
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image
+        .write_to(&mut bytes, format)
+        .map_err(|e| fail(e.to_string()))?;
+    cssm_formats::cssm::write_bytes_atomic(path, bytes.get_ref()).map_err(|e| match e {
+        // The error names the path already; keep just the cause.
+        cssm_formats::cssm::CssmError::Io { error, .. } => fail(error.to_string()),
+        other => fail(other.to_string()),
+    })
 }
 
 impl Frame {
@@ -234,10 +225,7 @@ impl Frame {
     pub fn save_png(&self, path: &Path) -> Result<(), RuntimeError> {
         let img = image::RgbaImage::from_raw(self.width, self.height, self.display.clone())
             .ok_or_else(|| RuntimeError::Gpu("display image has the wrong size".into()))?;
-        write_atomic(path, |tmp| {
-            img.save_with_format(tmp, image::ImageFormat::Png)
-                .map_err(|e| e.to_string())
-        })
+        save_image(path, img.into(), image::ImageFormat::Png)
     }
 
     /// Saves the linear radiance as OpenEXR (32-bit float RGBA).
@@ -245,10 +233,6 @@ impl Frame {
         let data: Vec<f32> = self.radiance.iter().flatten().copied().collect();
         let img = image::Rgba32FImage::from_raw(self.width, self.height, data)
             .ok_or_else(|| RuntimeError::Gpu("radiance image has the wrong size".into()))?;
-        write_atomic(path, |tmp| {
-            image::DynamicImage::ImageRgba32F(img)
-                .save_with_format(tmp, image::ImageFormat::OpenExr)
-                .map_err(|e| e.to_string())
-        })
+        save_image(path, img.into(), image::ImageFormat::OpenExr)
     }
 }

@@ -7,12 +7,12 @@ use std::time::Duration;
 
 use bytemuck::{Pod, Zeroable};
 use cssm_formats::Scene;
-use obvhs::{BvhBuildParams, bvh2::builder::build_bvh2_from_tris, triangle::Triangle};
+use obvhs::{BvhBuildParams, bvh2::builder::build_bvh2_from_tris};
 use wgpu::util::DeviceExt;
 
 use crate::{
     Gpu, RuntimeError,
-    common::{layout, readback, timestamps::PassTimer},
+    common::{layout, timestamps::PassTimer},
 };
 
 /// Deepest BVH the kernel's traversal stack holds.
@@ -58,16 +58,7 @@ impl BvhKernel {
     /// [`RuntimeError::Unsupported`] for a BVH deeper than [`MAX_DEPTH`].
     pub fn new(gpu: &Gpu, scene: &Scene) -> Result<Self, RuntimeError> {
         let device = &gpu.device;
-        let tris: Vec<Triangle> = (0..scene.triangles.len())
-            .map(|t| {
-                let [a, b, c] = scene.triangle(t);
-                Triangle {
-                    v0: a.into(),
-                    v1: b.into(),
-                    v2: c.into(),
-                }
-            })
-            .collect();
+        let tris = cssm_bake::raycast::scene_triangles(scene);
         let bvh = build_bvh2_from_tris(
             &tris,
             BvhBuildParams::medium_build(),
@@ -155,37 +146,22 @@ impl BvhKernel {
             contents: bytemuck::cast_slice(segments),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let output = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("segments clear"),
-            size: 4 * segments.len() as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let output = super::answer_buffer(device, "segments clear", segments.len());
         let io = layout::bind_group(
             device,
             "segments",
             &self.io_layout,
             &[input.as_entire_binding(), output.as_entire_binding()],
         );
-        let mut encoder = device.create_command_encoder(&Default::default());
-        let (gx, gy) = super::dispatch_size(segments.len() as u32);
-        let mut timer = timer;
-        {
-            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute("bvh segments"));
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("bvh segments"),
-                timestamp_writes,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &io, &[]);
-            pass.set_bind_group(1, &self.bind_group, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
-        if let Some(t) = timer.as_deref() {
-            t.resolve(&mut encoder);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &output, 0, 4 * segments.len() as u64)?;
+        let bytes = super::dispatch_and_read(
+            gpu,
+            "bvh segments",
+            &self.pipeline,
+            &[&io, &self.bind_group],
+            segments.len(),
+            &output,
+            timer,
+        )?;
         Ok(bytemuck::cast_slice::<u8, u32>(&bytes)
             .iter()
             .map(|&c| c != 0)

@@ -8,7 +8,7 @@ use wgpu::util::DeviceExt;
 
 use crate::{
     Gpu, RuntimeError,
-    common::{layout, readback, timestamps::PassTimer},
+    common::{layout, timestamps::PassTimer},
     load::CssmGpu,
 };
 
@@ -104,12 +104,7 @@ impl GatherKernel {
             contents: bytemuck::cast_slice(receivers),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let output = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("gathered"),
-            size: 4 * receivers.len() as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let output = super::answer_buffer(device, "gathered", receivers.len());
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("gather params"),
             contents: bytemuck::bytes_of(&GatherParams {
@@ -129,25 +124,15 @@ impl GatherKernel {
                 params.as_entire_binding(),
             ],
         );
-        let mut encoder = device.create_command_encoder(&Default::default());
-        let (gx, gy) = super::dispatch_size(receivers.len() as u32);
-        let mut timer = timer;
-        {
-            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute("cssm gather"));
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("cssm gather"),
-                timestamp_writes,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &io, &[]);
-            pass.set_bind_group(1, &cssm.bind_group, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
-        if let Some(t) = timer.as_deref() {
-            t.resolve(&mut encoder);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &output, 0, 4 * receivers.len() as u64)?;
+        let bytes = super::dispatch_and_read(
+            gpu,
+            "cssm gather",
+            &self.pipeline,
+            &[&io, &cssm.bind_group],
+            receivers.len(),
+            &output,
+            timer,
+        )?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 }

@@ -152,37 +152,22 @@ impl QueryKernel {
             contents: bytemuck::cast_slice(pairs),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let output = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("query answers"),
-            size: 4 * pairs.len() as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let output = answer_buffer(device, "query answers", pairs.len());
         let io = layout::bind_group(
             device,
             "query io",
             &self.layout,
             &[input.as_entire_binding(), output.as_entire_binding()],
         );
-        let mut encoder = device.create_command_encoder(&Default::default());
-        let (gx, gy) = dispatch_size(pairs.len() as u32);
-        let mut timer = timer;
-        {
-            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute("cssm query"));
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("cssm query"),
-                timestamp_writes,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &io, &[]);
-            pass.set_bind_group(1, &cssm.bind_group, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
-        if let Some(t) = timer.as_deref() {
-            t.resolve(&mut encoder);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(gpu, &output, 0, 4 * pairs.len() as u64)?;
+        let bytes = dispatch_and_read(
+            gpu,
+            "cssm query",
+            &self.pipeline,
+            &[&io, &cssm.bind_group],
+            pairs.len(),
+            &output,
+            timer,
+        )?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 }
@@ -196,6 +181,49 @@ pub(crate) fn dispatch_size(items: u32) -> (u32, u32) {
     } else {
         (65_535, groups.div_ceil(65_535))
     }
+}
+
+/// A storage buffer for one 4-byte answer per item, readable back.
+pub(crate) fn answer_buffer(device: &wgpu::Device, label: &str, items: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: 4 * items as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
+/// Runs a one-thread-per-item kernel (indexing `id.x + id.y * groups.x * 64`) over `items`
+/// with `bind_groups` at groups 0, 1, ..., timed as `label`, and reads back `answers` (4 bytes
+/// per item).
+pub(crate) fn dispatch_and_read(
+    gpu: &Gpu,
+    label: &'static str,
+    pipeline: &wgpu::ComputePipeline,
+    bind_groups: &[&wgpu::BindGroup],
+    items: usize,
+    answers: &wgpu::Buffer,
+    mut timer: Option<&mut crate::common::timestamps::PassTimer>,
+) -> Result<Vec<u8>, RuntimeError> {
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let (gx, gy) = dispatch_size(items as u32);
+    {
+        let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute(label));
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes,
+        });
+        pass.set_pipeline(pipeline);
+        for (i, group) in bind_groups.iter().enumerate() {
+            pass.set_bind_group(i as u32, *group, &[]);
+        }
+        pass.dispatch_workgroups(gx, gy, 1);
+    }
+    if let Some(t) = timer.as_deref() {
+        t.resolve(&mut encoder);
+    }
+    gpu.queue.submit([encoder.finish()]);
+    readback::read_buffer(gpu, answers, 0, 4 * items as u64)
 }
 
 #[cfg(test)]
