@@ -3,16 +3,19 @@
 //! - [`scene`]: scene directories (`scene.toml` + OBJ/MTL, or plain OBJ directories).
 //! - [`cssm`]: the `.cssm` container of a baked Coherent Surface Shadow Map.
 //! - [`texel`]: the atlas texel table and traversal kinds.
+//! - [`hierarchy`]: the median-cut texel hierarchy with bounding spheres and normal cones (§4.2).
 //! - [`visibility`]: the CPU reference visibility query over a baked CSSM (§3.2.2).
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod cssm;
 pub mod cube;
+pub mod hierarchy;
 pub mod scene;
 pub mod texel;
 pub mod visibility;
 
 pub use cssm::{BakeParams, CssmError, CssmFile, RunData, SceneRef};
+pub use hierarchy::{Hierarchy, HierarchyNode};
 pub use scene::{Camera, Material, Scene, SceneError, SpotLight, hash_hex};
 pub use texel::{Texel, Traversal};
