@@ -1,6 +1,7 @@
 //! The CSSM bake pipeline (Ritschel et al. 2008, §3.2): scene → texture atlas (xatlas) →
 //! coherent traversal of its texels → a depth cube map per texel (ray cast with obvhs, in
-//! parallel with rayon) → per-pixel piecewise-constant compression → [`CssmFile`].
+//! parallel with rayon) → per-pixel piecewise-constant compression → the median-cut texel
+//! hierarchy (§4.2) → [`CssmFile`].
 //!
 //! ```no_run
 //! use cssm_bake::{BakeOptions, bake};
@@ -23,7 +24,9 @@ pub mod traverse;
 
 use std::time::{Duration, Instant};
 
-use cssm_formats::{BakeParams, CssmFile, Scene, SceneRef, Traversal, cube::DepthQuantizer};
+use cssm_formats::{
+    BakeParams, CssmFile, Hierarchy, Scene, SceneRef, Traversal, cube::DepthQuantizer,
+};
 use rayon::prelude::*;
 
 /// Accepted atlas and cube-map resolutions: the container's own limits, so a bake never writes a
@@ -106,6 +109,8 @@ pub struct BakeStats {
     pub traversal_time: Duration,
     /// Time spent rendering and compressing depth maps.
     pub maps_time: Duration,
+    /// Time spent building the texel hierarchy (§4.2).
+    pub hierarchy_time: Duration,
 }
 
 impl BakeStats {
@@ -219,6 +224,11 @@ pub fn bake(
     stats.gpu_bytes = runs.gpu_bytes();
     stats.runs = runs.runs.len() as u64;
 
+    // 5. The texel hierarchy over the final texel table (§4.2).
+    let t0 = Instant::now();
+    let hierarchy = Hierarchy::build(&atlas.texels);
+    stats.hierarchy_time = t0.elapsed();
+
     let file = CssmFile {
         params: BakeParams {
             atlas_resolution: atlas.resolution,
@@ -236,6 +246,7 @@ pub fn bake(
         texels: atlas.texels,
         triangle_uvs: atlas.triangle_uvs,
         sequence,
+        hierarchy,
         runs,
     };
     Ok(Baked { file, stats })

@@ -1,6 +1,7 @@
 //! The `.cssm` container: a versioned, checksummed, zstd-compressed file holding one baked
 //! Coherent Surface Shadow Map (§3.2): the bake parameters, the atlas texel table, the
-//! traversal sequence and the piecewise-constant run data laid out for random access.
+//! traversal sequence, the texel hierarchy (§4.2) and the piecewise-constant run data laid out
+//! for random access.
 //!
 //! # Layout
 //!
@@ -14,10 +15,14 @@
 //! | 16    | checksum: first 16 bytes of BLAKE3 of the compressed payload |
 //! | ...   | payload: zstd (level [`ZSTD_LEVEL`]) of the bincode 2 (serde, standard config) encoding of [`CssmFile`] (flags 0), or of the same fields with the run data entropy-coded as [`PackedRuns`] ([`FLAG_PACKED_RUNS`]) |
 //!
+//! The body's fields, in order: params, scene, texels, triangle_uvs, sequence, hierarchy
+//! ([`Hierarchy`], since version 2), then the run data.
+//!
 //! The entropy stage ([`FileCoding::Packed`], the default since it makes files smaller) changes
 //! only the file: it decodes to exactly the same [`RunData`], the layout the GPU queries. Files
-//! without it (flags 0, all files written before it) are read as before; a build that predates it
-//! refuses packed files with "unsupported header flags".
+//! without it (flags 0) are read as well; a build that predates it refuses packed files with
+//! "unsupported header flags". Version-1 files (before the hierarchy) are refused with
+//! [`CssmError::UnsupportedVersion`]: re-bake them.
 //!
 //! Encoding is deterministic: the same [`CssmFile`] always gives the same bytes. Decoding checks
 //! every field before trusting it, bounds every allocation, and finishes with [`validate`].
@@ -27,12 +32,14 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::hierarchy::Hierarchy;
 use crate::texel::{Texel, Traversal};
 
 /// First eight bytes of every `.cssm` file.
 pub const MAGIC: [u8; 8] = *b"CSSM\x00\r\n\x1a";
-/// Version written by this build; files with a larger version are refused as "newer".
-pub const FORMAT_VERSION: u32 = 1;
+/// Version written by this build; files with a larger version are refused as "newer", files with
+/// a smaller one as unsupported (version 2 added the texel [`Hierarchy`]; re-bake older files).
+pub const FORMAT_VERSION: u32 = 2;
 /// Number of consecutive depth maps per run-data segment: run starts are stored relative to
 /// their segment in 16 bits, so a segment holds at most 2^16 maps.
 pub const SEGMENT_MAPS: u32 = 1 << 16;
@@ -371,6 +378,7 @@ struct PackedFile {
     texels: Vec<Texel>,
     triangle_uvs: Vec<[[f32; 2]; 3]>,
     sequence: Vec<u32>,
+    hierarchy: Hierarchy,
     map_count: u32,
     pixel_count: u32,
     runs: PackedRuns,
@@ -390,6 +398,9 @@ pub struct CssmFile {
     pub triangle_uvs: Vec<[[f32; 2]; 3]>,
     /// `sequence[k]` is the texel index of the `k`-th depth map.
     pub sequence: Vec<u32>,
+    /// The median-cut hierarchy over the texels (§4.2), for the hierarchical radiosity and final
+    /// gathering of §4.3-§4.4; its texel indices index `texels`.
+    pub hierarchy: Hierarchy,
     /// The compressed depth maps.
     pub runs: RunData,
 }
@@ -567,6 +578,7 @@ fn encode_into<W: Write>(
                 texels: file.texels.clone(),
                 triangle_uvs: file.triangle_uvs.clone(),
                 sequence: file.sequence.clone(),
+                hierarchy: file.hierarchy.clone(),
                 map_count: file.runs.map_count,
                 pixel_count: file.runs.pixel_count,
                 runs: PackedRuns::pack(&file.runs),
@@ -758,6 +770,7 @@ pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
             texels: p.texels,
             triangle_uvs: p.triangle_uvs,
             sequence: p.sequence,
+            hierarchy: p.hierarchy,
             runs,
         }
     } else {
@@ -901,7 +914,8 @@ macro_rules! invalid {
 }
 
 /// Semantic checks of a [`CssmFile`]: parameter ranges, table sizes, the sequence being a
-/// permutation, texel coordinates in range and unique, finite geometry, and the run-data layout
+/// permutation, texel coordinates in range and unique, finite geometry, the hierarchy
+/// ([`Hierarchy::validate`]: a well-formed tree over the texels), and the run-data layout
 /// (offsets, run starts) that [`RunData::lookup`] relies on. [`decode`] and [`encode`] call it;
 /// the bake can call it on its own output.
 pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
@@ -991,6 +1005,9 @@ pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
         if !(t.area.is_finite() && t.area >= 0.0) {
             invalid!("texel {i} has invalid area {}", t.area);
         }
+    }
+    if let Err(e) = file.hierarchy.validate(maps) {
+        invalid!("hierarchy: {e}");
     }
     let segments = r.segment_count() as u64;
     let slots = segments * r.pixel_count as u64;

@@ -7,11 +7,11 @@ use cssm_formats::cssm::{
     self, BakeParams, CssmError, CssmFile, FLAG_PACKED_RUNS, FORMAT_VERSION, FileCoding,
     HEADER_LEN, MAGIC, PackedRuns, RunData, SceneRef,
 };
-use cssm_formats::{Texel, Traversal};
+use cssm_formats::{Hierarchy, Texel, Traversal};
 use proptest::prelude::*;
 
-/// A small hand-built file: 2 texels, cube 8 (384 pixels), one run per pixel except pixel 5,
-/// which changes depth at map 1.
+/// A small hand-built file: 2 texels (so a 3-node hierarchy: root 0, leaves 1 and 2), cube 8
+/// (384 pixels), one run per pixel except pixel 5, which changes depth at map 1.
 fn sample() -> CssmFile {
     let n = 8u32;
     let pixel_count = 6 * n * n;
@@ -33,7 +33,9 @@ fn sample() -> CssmFile {
         x,
         y,
     };
+    let texels = vec![texel(1, 2), texel(3, 4)];
     CssmFile {
+        hierarchy: Hierarchy::build(&texels),
         params: BakeParams {
             atlas_resolution: 32,
             cube_resolution: n,
@@ -47,7 +49,7 @@ fn sample() -> CssmFile {
             content_hash: [7; 32],
             triangle_count: 2,
         },
-        texels: vec![texel(1, 2), texel(3, 4)],
+        texels,
         triangle_uvs: vec![[[0.0, 0.0], [4.0, 0.0], [0.0, 4.0]]; 2],
         sequence: vec![1, 0],
         runs: RunData {
@@ -193,14 +195,16 @@ fn foreign_files_are_refused() {
 
 #[test]
 fn versions_and_flags() {
+    assert_eq!(FORMAT_VERSION, 2);
     let bytes = cssm::encode(&sample()).unwrap();
+    assert_eq!(bytes[8..12], 2u32.to_le_bytes());
     let mut newer = bytes.clone();
-    newer[8..12].copy_from_slice(&2u32.to_le_bytes());
+    newer[8..12].copy_from_slice(&3u32.to_le_bytes());
     let err = cssm::decode(&newer).unwrap_err();
-    assert!(matches!(err, CssmError::NewerVersion { version: 2 }));
+    assert!(matches!(err, CssmError::NewerVersion { version: 3 }));
     assert!(
         err.to_string()
-            .contains("file version 2 is newer than this build's version 1; upgrade cssm"),
+            .contains("file version 3 is newer than this build's version 2; upgrade cssm"),
         "{err}"
     );
     let mut older = bytes.clone();
@@ -209,6 +213,29 @@ fn versions_and_flags() {
         cssm::decode(&older),
         Err(CssmError::UnsupportedVersion { version: 0 })
     ));
+    // A version-1 file (written before the hierarchy): the body of a version-1 file, framed
+    // with version 1, is refused by its version before anything is decoded.
+    let f = sample();
+    let v1_body = (
+        &f.params,
+        &f.scene,
+        &f.texels,
+        &f.triangle_uvs,
+        &f.sequence,
+        &f.runs,
+    );
+    let mut v1 =
+        frame_raw(&bincode::serde::encode_to_vec(v1_body, bincode::config::standard()).unwrap());
+    v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let err = cssm::decode(&v1).unwrap_err();
+    assert!(
+        matches!(err, CssmError::UnsupportedVersion { version: 1 }),
+        "{err:?}"
+    );
+    assert_eq!(
+        err.to_string(),
+        "file version 1 is not supported (this build reads version 2); re-bake it"
+    );
     let mut flags = bytes.clone();
     flags[12] = 2;
     assert!(matches!(
@@ -349,6 +376,7 @@ fn packed_payload_unchecked(f: &CssmFile) -> Vec<u8> {
         &f.texels,
         &f.triangle_uvs,
         &f.sequence,
+        &f.hierarchy,
         f.runs.map_count,
         f.runs.pixel_count,
         PackedRuns::pack(&f.runs),
@@ -415,6 +443,48 @@ fn every_validation_failure_is_reported() {
         ("not 0", |f| f.runs.runs[0] = 1 << 16),
         ("strictly increasing", |f| f.runs.runs[6] = 0x1234),
         ("segment has 2", |f| f.runs.runs[6] = (2 << 16) | 1),
+        // The hierarchy: root 0 over leaves 1 and 2.
+        ("hierarchy: node 1: skip 3, expected 2", |f| {
+            f.hierarchy.nodes[1].skip = 3
+        }),
+        ("hierarchy: root node: first 0, count 2, skip 2", |f| {
+            f.hierarchy.nodes[0].skip = 2
+        }),
+        (
+            "hierarchy: leaf_texels[1] = 0 repeats a texel: not a permutation",
+            |f| f.hierarchy.leaf_texels = vec![0, 0],
+        ),
+        ("hierarchy: leaf_texels[0] = 2 is not a texel index", |f| {
+            f.hierarchy.leaf_texels[0] = 2
+        }),
+        ("hierarchy: 2 nodes, expected 2 * 2 texels - 1 = 3", |f| {
+            f.hierarchy.nodes.pop();
+        }),
+        ("hierarchy: 4 nodes, expected", |f| {
+            let extra = f.hierarchy.nodes[2];
+            f.hierarchy.nodes.push(extra);
+        }),
+        ("hierarchy: 0 nodes, expected", |f| {
+            f.hierarchy = Hierarchy::default()
+        }),
+        ("hierarchy: node 0: a non-finite value", |f| {
+            f.hierarchy.nodes[0].radius = f32::NAN
+        }),
+        ("hierarchy: node 2: a non-finite value", |f| {
+            f.hierarchy.nodes[2].normal[1] = f32::INFINITY
+        }),
+        ("hierarchy: node 1: negative radius", |f| {
+            f.hierarchy.nodes[1].radius = -0.5
+        }),
+        ("hierarchy: node 0: cone_cos", |f| {
+            f.hierarchy.nodes[0].cone_cos = -1.5
+        }),
+        ("hierarchy: node 2: representative 7", |f| {
+            f.hierarchy.nodes[2].representative = 7
+        }),
+        ("hierarchy: node 1: leaves", |f| {
+            f.hierarchy.nodes[1].first = 2
+        }),
     ];
     for (expect, mutate) in cases {
         let mut f = sample();
