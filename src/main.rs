@@ -51,8 +51,17 @@ enum Command {
     #[command(
         long_about = "Render a scene on the GPU (Vulkan; Mesa's lavapipe where there is no GPU) \
                       to a tone-mapped PNG and, with --exr, linear radiance in OpenEXR.",
-        after_help = "Methods:\n  direct  direct light from spot lights, PCF shadow maps (no indirect light)\n\n\
+        after_help = "Methods:\n  \
+        direct     direct light from spot lights, PCF shadow maps (no indirect light)\n  \
+        hrc        GPU hierarchical radiosity over the atlas, each pixel showing its texel (§4.1-4.3)\n  \
+        lightcuts  hierarchical radiosity, then a final gather per pixel, glossy last bounce (§4.4)\n  \
+        lightmap   hierarchical radiosity looked up per pixel with a bicubic filter (§5)\n\n\
+        Every method but direct needs the scene's .cssm: --cssm FILE, else one is baked first \
+        (atlas 64, cube 32; a few seconds for the Cornell box).\n\n\
         Examples:\n  cssm render --out cornell.png\n  \
+        cssm bake -o cornell-box.cssm && cssm render --cssm cornell-box.cssm --method lightcuts --bounces 2 --out gi.png\n  \
+        cssm render scenes/cornell-glossy --method lightcuts --frames 16 --out glossy.png\n  \
+        cssm render --method lightmap --component indirect --exr indirect.exr\n  \
         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings"
     )]
     Render(RenderArgs),
@@ -83,10 +92,28 @@ struct RenderArgs {
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
-    /// Print GPU milliseconds per pass (timestamp queries; the frame is rendered twice and the
-    /// second timed).
+    /// Print GPU milliseconds per pass (timestamp queries; one more frame is rendered first to
+    /// warm up, and the last is timed).
     #[arg(long)]
     timings: bool,
+    /// The scene's baked CSSM (`cssm bake`), for every method but direct. Default: bake one
+    /// in memory at atlas 64, cube 32.
+    #[arg(long)]
+    cssm: Option<PathBuf>,
+    /// Indirect bounces, 1 to 8 (lightcuts: the final gather is the last of them).
+    #[arg(long, default_value_t = 1)]
+    bounces: u32,
+    /// Oracle threshold (§4.3): a sender is refined while the tone-mapped upper bound of what
+    /// it sends is above this; smaller is slower and closer to the full solution.
+    #[arg(long, default_value_t = runtime::radiosity::DEFAULT_THRESHOLD)]
+    threshold: f32,
+    /// Frames to render and average (lightcuts: every frame jitters its senders over their
+    /// nodes' surfaces, §4.5, so the average converges for glossy scenes).
+    #[arg(long, default_value_t = 1)]
+    frames: u32,
+    /// Which light the image holds: direct, indirect or full.
+    #[arg(long, default_value = "full")]
+    component: runtime::frame::Component,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -268,15 +295,40 @@ fn run_render(args: RenderArgs) -> CliResult {
     let (width, height) = args
         .size
         .unwrap_or((scene.camera.resolution[0], scene.camera.resolution[1]));
+    if !(1..=runtime::frame::MAX_BOUNCES).contains(&args.bounces) {
+        return Err(format!(
+            "--bounces {} is out of range 1..={}",
+            args.bounces,
+            runtime::frame::MAX_BOUNCES
+        ));
+    }
+    if !(args.threshold.is_finite() && args.threshold >= 0.0) {
+        return Err(format!(
+            "--threshold {} must be a number >= 0",
+            args.threshold
+        ));
+    }
+    if !(1..=4096).contains(&args.frames) {
+        return Err(format!("--frames {} is out of range 1..=4096", args.frames));
+    }
+    let file = if args.method.needs_cssm() {
+        Some(render_cssm(&args, &scene)?)
+    } else {
+        None
+    };
     let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
     let options = runtime::frame::RenderOptions {
         width,
         height,
         exposure: args.exposure.exp2(),
         shadow_resolution: args.shadow_resolution,
-        frames: if args.timings { 2 } else { 1 },
+        frames: args.frames + u32::from(args.timings),
+        bounces: args.bounces,
+        threshold: args.threshold,
+        jitter: args.frames > 1,
+        component: args.component,
     };
-    let frame = runtime::frame::render(&gpu, &scene, args.method, &options)
+    let frame = runtime::frame::render(&gpu, &scene, file.as_ref(), args.method, &options)
         .map_err(|e| format!("{}: {e}", dir.display()))?;
     frame.save_png(&args.out).map_err(|e| e.to_string())?;
     if let Some(exr) = &args.exr {
@@ -307,6 +359,40 @@ fn run_render(args: RenderArgs) -> CliResult {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The CSSM `cssm render` uses: `--cssm`, checked against the scene, else a small one baked in
+/// memory.
+fn render_cssm(args: &RenderArgs, scene: &Scene) -> Result<formats::CssmFile, String> {
+    if let Some(path) = &args.cssm {
+        return runtime::load::read_cssm(path, scene).map_err(|e| e.to_string());
+    }
+    eprintln!(
+        "no --cssm given: baking {} at atlas 64, cube 32 first (bake once with `cssm bake` and \
+         pass --cssm to skip this)",
+        scene.name
+    );
+    let options = bake::BakeOptions {
+        atlas_resolution: 64,
+        cube_resolution: 32,
+        ..Default::default()
+    };
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_message(scene.name.clone());
+    let baked = bake::bake(scene, &options, &mut |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    })
+    .map_err(|e| format!("{}: {e}", scene.dir.display()))?;
+    bar.finish_and_clear();
+    Ok(baked.file)
 }
 
 fn run_bake(args: BakeArgs) -> CliResult {

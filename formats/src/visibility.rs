@@ -98,28 +98,33 @@ impl<'a> VisibilityQuery<'a> {
     /// `triangle`: the atlas cell under its atlas coordinates, or, where that cell is undefined
     /// (chart borders), the nearest defined cell of the same chart within two texels.
     pub fn texel_at(&self, triangle: usize, bary: [f32; 3]) -> Option<u32> {
-        let p = self.atlas_point(triangle, bary)?;
+        self.texel_at_point(self.atlas_point(triangle, bary)?)
+    }
+
+    /// Texel of the atlas cell `(x, y)`; `None` outside the atlas or where the cell is
+    /// undefined.
+    pub fn cell(&self, x: i64, y: i64) -> Option<u32> {
         let r = self.file.params.atlas_resolution as i64;
+        if x < 0 || y < 0 || x >= r || y >= r {
+            return None;
+        }
+        Some(self.grid[(y * r + x) as usize]).filter(|&t| t != NONE)
+    }
+
+    /// [`Self::texel_at`] for atlas coordinates `p` (texel units): the cell under `p`, or the
+    /// nearest defined cell within two texels.
+    pub fn texel_at_point(&self, p: Vec2) -> Option<u32> {
         let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
-        let cell = |x: i64, y: i64| -> u32 {
-            if x < 0 || y < 0 || x >= r || y >= r {
-                NONE
-            } else {
-                self.grid[(y * r + x) as usize]
-            }
-        };
-        let direct = cell(cx, cy);
-        if direct != NONE {
+        if let Some(direct) = self.cell(cx, cy) {
             return Some(direct);
         }
         // Chart of the triangle: the chart of any defined texel near its atlas footprint.
         let mut best: Option<(f32, u32)> = None;
         for dy in -2..=2 {
             for dx in -2..=2 {
-                let t = cell(cx + dx, cy + dy);
-                if t == NONE {
+                let Some(t) = self.cell(cx + dx, cy + dy) else {
                     continue;
-                }
+                };
                 let centre = Vec2::new((cx + dx) as f32 + 0.5, (cy + dy) as f32 + 0.5);
                 let d = centre.distance_squared(p);
                 if best.is_none_or(|(bd, _)| d < bd) {
@@ -229,15 +234,20 @@ impl<'a> VisibilityQuery<'a> {
     /// atlas texels around its atlas coordinates with bilinear weights, restricted to the chart
     /// of the texel under it and renormalised; just that texel when sender filtering is off.
     pub fn sender_texels(&self, triangle: usize, bary: [f32; 3]) -> Vec<(u32, f32)> {
-        let Some(centre) = self.texel_at(triangle, bary) else {
+        match self.atlas_point(triangle, bary) {
+            Some(p) => self.sender_texels_at(p),
+            None => Vec::new(),
+        }
+    }
+
+    /// [`Self::sender_texels`] for atlas coordinates `p` (texel units).
+    pub fn sender_texels_at(&self, p: Vec2) -> Vec<(u32, f32)> {
+        let Some(centre) = self.texel_at_point(p) else {
             return Vec::new();
         };
         if !self.options.sender_filter {
             return vec![(centre, 1.0)];
         }
-        let Some(p) = self.atlas_point(triangle, bary) else {
-            return Vec::new();
-        };
         let chart = self.file.texels[centre as usize].chart;
         let r = self.file.params.atlas_resolution as i64;
         let (fx, fy) = (p.x - 0.5, p.y - 0.5);
@@ -279,7 +289,13 @@ impl<'a> VisibilityQuery<'a> {
         p_i: Vec3,
         n_i: Option<Vec3>,
     ) -> Option<f32> {
-        let senders = self.sender_texels(triangle, bary);
+        self.visibility_from_atlas(self.atlas_point(triangle, bary)?, p_i, n_i)
+    }
+
+    /// [`Self::visibility_from_surface`] for the surface point at atlas coordinates `p`
+    /// (texel units), as a G-buffer stores it.
+    pub fn visibility_from_atlas(&self, p: Vec2, p_i: Vec3, n_i: Option<Vec3>) -> Option<f32> {
+        let senders = self.sender_texels_at(p);
         if senders.is_empty() {
             return None;
         }

@@ -3,25 +3,36 @@
 //!
 //! 1. `common::shadow_map` — one depth map per spot light (§4.7)
 //! 2. `common::gbuffer` — position, normal, material, albedo, atlas coordinates per pixel
-//! 3. the method's own passes — `direct`: `direct::ScreenDirect` (spot lights, PCF shadows)
-//! 4. `common::tonemap` — exposure, ACES, sRGB
+//! 3. `direct::ScreenDirect` — direct light per pixel (spot lights, PCF shadows)
+//! 4. the method's indirect light, for `hrc`, `lightmap` and `lightcuts`:
+//!    1. `direct::AtlasDirect` — direct light into the atlas texels
+//!    2. `radiosity::Radiosity` — the diffuse bounces over the hierarchy (§4.1-§4.3): gather,
+//!       then pull, per bounce
+//!    3. `lightmap::AtlasLookup` (`hrc`: nearest texel, `lightmap`: bicubic) or
+//!       `lightcuts::FinalGather` (`lightcuts`: the last, glossy bounce per pixel, §4.4)
+//! 5. `common::compose` — direct + indirect, or either alone (`--component`)
+//! 6. `common::tonemap` — exposure, ACES, sRGB
 //!
-//! and [`render_atlas_direct`] runs 1 and `direct::AtlasDirect`: the direct light in the atlas
-//! texels that the indirect methods start from.
+//! `reference` is the CPU path tracer (`reference`), the ground truth; [`render_atlas_direct`]
+//! runs 1 and `direct::AtlasDirect` alone.
 
 use std::{fmt, path::Path, str::FromStr};
 
 use cssm_formats::{CssmFile, Scene, visibility::QueryOptions};
 use wgpu::util::DeviceExt;
 
+pub use crate::common::compose::Component;
 use crate::{
     Gpu, RuntimeError,
     common::{
-        camera::View, gbuffer::GBuffer, readback, shadow_map, shadow_map::ShadowMaps,
-        timestamps::PassTimer, tonemap::Tonemap,
+        camera::View, compose::Compose, gbuffer::GBuffer, readback, shadow_map,
+        shadow_map::ShadowMaps, timestamps::PassTimer, tonemap::Tonemap,
     },
     direct::{AtlasDirect, ScreenDirect},
+    lightcuts::FinalGather,
+    lightmap::{AtlasLookup, Filter},
     load::{CssmGpu, SceneGpu},
+    radiosity::{HierarchyGpu, Radiosity, RadiosityOptions},
 };
 
 /// A rendering method: what `cssm render --method` picks from.
@@ -29,16 +40,31 @@ use crate::{
 pub enum Method {
     /// Direct light from the spot lights with shadow maps, no indirect light.
     Direct,
+    /// GPU hierarchical radiosity, shown directly: each pixel takes its atlas texel's indirect
+    /// light (§4.1-§4.3).
+    Hrc,
+    /// GPU hierarchical radiosity with a final gather per pixel, lightcuts-style (§4.4, §4.5).
+    Lightcuts,
+    /// GPU hierarchical radiosity looked up per pixel with a bicubic filter (§5, Fig. 17).
+    Lightmap,
 }
 
 impl Method {
     /// Every method, in the order `--help` lists them.
-    pub const ALL: [Method; 1] = [Method::Direct];
+    pub const ALL: [Method; 4] = [
+        Method::Direct,
+        Method::Hrc,
+        Method::Lightcuts,
+        Method::Lightmap,
+    ];
 
     /// Name on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Method::Direct => "direct",
+            Method::Hrc => "hrc",
+            Method::Lightcuts => "lightcuts",
+            Method::Lightmap => "lightmap",
         }
     }
 
@@ -46,7 +72,21 @@ impl Method {
     pub fn describe(self) -> &'static str {
         match self {
             Method::Direct => "direct light from spot lights, PCF shadow maps (no indirect light)",
+            Method::Hrc => {
+                "GPU hierarchical radiosity over the atlas, each pixel showing its texel (§4.1-4.3)"
+            }
+            Method::Lightcuts => {
+                "hierarchical radiosity, then a final gather per pixel with a glossy last bounce (§4.4)"
+            }
+            Method::Lightmap => {
+                "hierarchical radiosity looked up per pixel with a bicubic filter (§5, Fig. 17)"
+            }
         }
+    }
+
+    /// Whether the method needs a `.cssm` file (the indirect light).
+    pub fn needs_cssm(self) -> bool {
+        self != Method::Direct
     }
 }
 
@@ -80,8 +120,18 @@ pub struct RenderOptions {
     pub exposure: f32,
     /// Shadow-map resolution.
     pub shadow_resolution: u32,
-    /// Frames rendered; GPU timings are those of the last (the first warms caches up).
+    /// Frames rendered; GPU timings are those of the last (the first warms caches up). The
+    /// final gather averages them (progressive refinement of a still camera, §4.5).
     pub frames: u32,
+    /// Indirect bounces (`hrc`, `lightmap`: radiosity iterations; `lightcuts`: iterations + 1,
+    /// the final gather being the last bounce).
+    pub bounces: u32,
+    /// Oracle threshold (§4.3): refine while a sender's tone-mapped bound exceeds it.
+    pub threshold: f32,
+    /// Jitter every sender over its node's texels (§4.5), a new draw each frame.
+    pub jitter: bool,
+    /// Which light paths the image holds.
+    pub component: Component,
 }
 
 impl Default for RenderOptions {
@@ -92,9 +142,16 @@ impl Default for RenderOptions {
             exposure: 1.0,
             shadow_resolution: shadow_map::DEFAULT_RESOLUTION,
             frames: 1,
+            bounces: 1,
+            threshold: crate::radiosity::DEFAULT_THRESHOLD,
+            jitter: false,
+            component: Component::Full,
         }
     }
 }
+
+/// Most bounces `render` accepts.
+pub const MAX_BOUNCES: u32 = 8;
 
 /// A rendered frame.
 pub struct Frame {
@@ -113,13 +170,16 @@ pub struct Frame {
 /// Largest image side `render` accepts.
 pub const MAX_SIDE: u32 = 8192;
 
-/// Renders `scene` with `method`.
+/// Renders `scene` with `method`; `file` is the scene's baked CSSM, which every method but
+/// `direct` needs.
 ///
 /// # Errors
-/// Unsupported lights or sizes, unreadable textures, GPU errors.
+/// Unsupported lights, sizes or bounces, a missing or mismatched `.cssm`, unreadable textures,
+/// GPU errors.
 pub fn render(
     gpu: &Gpu,
     scene: &Scene,
+    file: Option<&CssmFile>,
     method: Method,
     options: &RenderOptions,
 ) -> Result<Frame, RuntimeError> {
@@ -129,8 +189,29 @@ pub fn render(
             "image size {w}x{h}: each side must be 1 to {MAX_SIDE}"
         )));
     }
+    if options.bounces > MAX_BOUNCES {
+        return Err(RuntimeError::Unsupported(format!(
+            "{} bounces: at most {MAX_BOUNCES}",
+            options.bounces
+        )));
+    }
+    if !(options.threshold.is_finite() && options.threshold >= 0.0) {
+        return Err(RuntimeError::Unsupported(format!(
+            "threshold {}: must be finite and >= 0",
+            options.threshold
+        )));
+    }
+    let file = match (method.needs_cssm(), file) {
+        (true, None) => {
+            return Err(RuntimeError::Unsupported(format!(
+                "method '{method}' needs the scene's .cssm file"
+            )));
+        }
+        (true, Some(f)) => Some(f),
+        (false, _) => None,
+    };
     let device = &gpu.device;
-    let scene_gpu = SceneGpu::new(device, &gpu.queue, scene, None)?;
+    let scene_gpu = SceneGpu::new(device, &gpu.queue, scene, file)?;
     let lights = shadow_map::gpu_lights(scene, options.shadow_resolution)?;
     let shadows = ShadowMaps::new(device, &lights, options.shadow_resolution);
     let view = View::of_scene(scene, w, h);
@@ -140,23 +221,60 @@ pub fn render(
         usage: wgpu::BufferUsages::UNIFORM,
     });
     let gbuffer = GBuffer::new(device, &scene_gpu, &view_buffer, w, h);
-    let Method::Direct = method;
     let direct = ScreenDirect::new(device, &view_buffer, &scene_gpu, &shadows, &gbuffer);
-    let tonemap = Tonemap::new(device, &view_buffer, &direct.radiance);
+    let indirect = match file {
+        Some(file) => Some(Indirect::new(
+            gpu,
+            scene,
+            &view_buffer,
+            &scene_gpu,
+            &shadows,
+            &gbuffer,
+            file,
+            method,
+            options,
+        )?),
+        None => None,
+    };
+    let no_indirect;
+    let indirect_buffer = match &indirect {
+        Some(i) => i.output(),
+        None => {
+            no_indirect = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("no indirect light"),
+                size: 16 * (w * h) as u64,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            });
+            &no_indirect
+        }
+    };
+    let compose = Compose::new(
+        device,
+        &view_buffer,
+        &direct.radiance,
+        indirect_buffer,
+        options.component,
+    );
+    let tonemap = Tonemap::new(device, &view_buffer, &compose.radiance);
     let mut timer = PassTimer::new(gpu);
     let mut timings = Vec::new();
-    for _ in 0..options.frames.max(1) {
+    for frame in 0..options.frames.max(1) {
         let mut encoder = device.create_command_encoder(&Default::default());
         shadows.render(&mut encoder, &scene_gpu, &mut timer);
         gbuffer.render(&mut encoder, &scene_gpu, &mut timer);
         direct.run(&mut encoder, &mut timer);
+        if let Some(i) = &indirect {
+            i.run(gpu, &mut encoder, &mut timer, frame);
+        }
+        compose.run(&mut encoder, &mut timer);
         tonemap.run(&mut encoder, &mut timer);
         timer.resolve(&mut encoder);
         gpu.queue.submit([encoder.finish()]);
         gpu.wait()?;
         timings = timer.read(gpu)?;
     }
-    let radiance = readback::read_texture(gpu, &direct.radiance, 16)?;
+    let radiance = readback::read_texture(gpu, &compose.radiance, 16)?;
     let display = readback::read_texture(gpu, &tonemap.ldr, 4)?;
     Ok(Frame {
         width: w,
@@ -167,6 +285,131 @@ pub fn render(
     })
 }
 
+/// Diffuse albedo of every texel of `file` (Kd of its material; textures are not sampled in
+/// the atlas), as the radiosity iteration takes it.
+pub fn texel_albedo(scene: &Scene, file: &CssmFile) -> Vec<[f32; 4]> {
+    file.texels
+        .iter()
+        .map(|t| {
+            let kd = scene.materials[t.material as usize].kd;
+            [kd[0], kd[1], kd[2], 0.0]
+        })
+        .collect()
+}
+
+/// The indirect-light passes of a frame.
+struct Indirect {
+    cssm: CssmGpu,
+    atlas: AtlasDirect,
+    radiosity: Radiosity,
+    iterations: u32,
+    per_pixel: PerPixel,
+    jitter: bool,
+}
+
+enum PerPixel {
+    Lookup(AtlasLookup),
+    Gather(FinalGather),
+}
+
+impl Indirect {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        gpu: &Gpu,
+        scene: &Scene,
+        view_buffer: &wgpu::Buffer,
+        scene_gpu: &SceneGpu,
+        shadows: &ShadowMaps,
+        gbuffer: &GBuffer,
+        file: &CssmFile,
+        method: Method,
+        options: &RenderOptions,
+    ) -> Result<Self, RuntimeError> {
+        let device = &gpu.device;
+        let cssm = CssmGpu::new(device, &gpu.queue, file, QueryOptions::default())?;
+        let hierarchy = HierarchyGpu::new(device, &file.hierarchy)?;
+        let atlas = AtlasDirect::new(device, view_buffer, scene_gpu, shadows, &cssm);
+        let radiosity_options = RadiosityOptions {
+            threshold: options.threshold,
+            exposure: options.exposure,
+        };
+        let radiosity = Radiosity::new(
+            device,
+            &cssm,
+            &hierarchy,
+            &atlas.texel_radiance,
+            &texel_albedo(scene, file),
+            radiosity_options,
+        )?;
+        let (iterations, per_pixel) = match method {
+            Method::Lightcuts => {
+                let iterations = options.bounces.saturating_sub(1);
+                let gather = FinalGather::new(
+                    device,
+                    view_buffer,
+                    scene_gpu,
+                    gbuffer,
+                    &cssm,
+                    &hierarchy,
+                    radiosity.radiance(iterations),
+                    options.threshold,
+                    options.exposure,
+                );
+                (iterations, PerPixel::Gather(gather))
+            }
+            _ => {
+                let filter = if method == Method::Hrc {
+                    Filter::Nearest
+                } else {
+                    Filter::Bicubic
+                };
+                let lookup = AtlasLookup::new(
+                    device,
+                    view_buffer,
+                    gbuffer,
+                    &cssm,
+                    &radiosity.texel_irradiance,
+                    filter,
+                );
+                (options.bounces, PerPixel::Lookup(lookup))
+            }
+        };
+        Ok(Self {
+            cssm,
+            atlas,
+            radiosity,
+            iterations,
+            per_pixel,
+            jitter: options.jitter,
+        })
+    }
+
+    fn output(&self) -> &wgpu::Buffer {
+        match &self.per_pixel {
+            PerPixel::Lookup(l) => &l.indirect,
+            PerPixel::Gather(g) => &g.indirect,
+        }
+    }
+
+    fn run(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut PassTimer,
+        frame: u32,
+    ) {
+        self.atlas.run(encoder, timer);
+        self.radiosity
+            .run(encoder, &self.cssm, timer, self.iterations);
+        match &self.per_pixel {
+            PerPixel::Lookup(l) => l.run(encoder, &self.cssm, timer),
+            PerPixel::Gather(g) => {
+                g.run(&gpu.queue, encoder, &self.cssm, timer, frame, self.jitter)
+            }
+        }
+    }
+}
+
 /// Direct light in the atlas texels of `file` (baked from `scene`): diffuse radiance leaving
 /// each texel, in texel order.
 pub fn render_atlas_direct(
@@ -175,9 +418,45 @@ pub fn render_atlas_direct(
     file: &CssmFile,
     shadow_resolution: u32,
 ) -> Result<Vec<[f32; 4]>, RuntimeError> {
+    Ok(atlas_radiosity(
+        gpu,
+        scene,
+        file,
+        shadow_resolution,
+        0,
+        RadiosityOptions::default(),
+    )?
+    .direct)
+}
+
+/// The radiosity solution in the atlas, read back (what the view-independent part of a frame
+/// computes).
+#[derive(Clone, Debug)]
+pub struct AtlasRadiosity {
+    /// Direct radiance leaving every texel (texel order, rgb).
+    pub direct: Vec<[f32; 4]>,
+    /// Indirect irradiance of every texel after the iterations (texel order, rgb).
+    pub irradiance: Vec<[f32; 4]>,
+    /// Mean radiance of every hierarchy node after the iterations (rgb).
+    pub node_radiance: Vec<[f32; 4]>,
+    /// GPU milliseconds per pass, empty without timestamps.
+    pub timings: Vec<(&'static str, f64)>,
+}
+
+/// Runs the direct light into the atlas and `iterations` radiosity bounces (§4.1-§4.3) on
+/// `file` (baked from `scene`).
+pub fn atlas_radiosity(
+    gpu: &Gpu,
+    scene: &Scene,
+    file: &CssmFile,
+    shadow_resolution: u32,
+    iterations: u32,
+    options: RadiosityOptions,
+) -> Result<AtlasRadiosity, RuntimeError> {
     let device = &gpu.device;
     let scene_gpu = SceneGpu::new(device, &gpu.queue, scene, Some(file))?;
     let cssm = CssmGpu::new(device, &gpu.queue, file, QueryOptions::default())?;
+    let hierarchy = HierarchyGpu::new(device, &file.hierarchy)?;
     let lights = shadow_map::gpu_lights(scene, shadow_resolution)?;
     let shadows = ShadowMaps::new(device, &lights, shadow_resolution);
     let view = View::of_scene(scene, 1, 1);
@@ -187,15 +466,36 @@ pub fn render_atlas_direct(
         usage: wgpu::BufferUsages::UNIFORM,
     });
     let atlas = AtlasDirect::new(device, &view_buffer, &scene_gpu, &shadows, &cssm);
+    let radiosity = Radiosity::new(
+        device,
+        &cssm,
+        &hierarchy,
+        &atlas.texel_radiance,
+        &texel_albedo(scene, file),
+        options,
+    )?;
     let mut timer = PassTimer::new(gpu);
     let mut encoder = device.create_command_encoder(&Default::default());
     shadows.render(&mut encoder, &scene_gpu, &mut timer);
     atlas.run(&mut encoder, &mut timer);
+    radiosity.run(&mut encoder, &cssm, &mut timer, iterations);
+    timer.resolve(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
     gpu.wait()?;
-    let bytes =
-        readback::read_buffer(gpu, &atlas.texel_radiance, 0, 16 * atlas.texel_count as u64)?;
-    Ok(bytemuck::cast_slice(&bytes).to_vec())
+    let timings = timer.read(gpu)?;
+    let texels = 16 * atlas.texel_count as u64;
+    let read = |buffer: &wgpu::Buffer, bytes: u64| -> Result<Vec<[f32; 4]>, RuntimeError> {
+        Ok(bytemuck::cast_slice(&readback::read_buffer(gpu, buffer, 0, bytes)?).to_vec())
+    };
+    Ok(AtlasRadiosity {
+        direct: read(&atlas.texel_radiance, texels)?,
+        irradiance: read(&radiosity.texel_irradiance, texels)?,
+        node_radiance: read(
+            radiosity.radiance(iterations),
+            16 * hierarchy.node_count as u64,
+        )?,
+        timings,
+    })
 }
 
 /// Encodes `image` as `format` in memory and writes it with the project's one atomic write

@@ -130,6 +130,73 @@ pub struct GpuCssmParams {
     pub _pad: u32,
 }
 
+/// One node of the texel hierarchy (§4.2.1) as the GPU sees it: the file's
+/// `cssm_formats::hierarchy::HierarchyNode`, 64 bytes, depth-first order (left child = next
+/// node, right child = left child's `skip`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuNode {
+    /// Bounding-sphere centre.
+    pub center: [f32; 3],
+    /// Bounding-sphere radius (contains every leaf texel's disk).
+    pub radius: f32,
+    /// Area-weighted mean of the unit texel normals (length <= 1).
+    pub normal: [f32; 3],
+    /// Cosine of the normal cone's half-angle (-1: no bound).
+    pub cone_cos: f32,
+    /// Surface area of the subtree.
+    pub area: f32,
+    /// Next node when the subtree is skipped (node count at the end).
+    pub skip: u32,
+    /// First leaf of the subtree in leaf order.
+    pub first: u32,
+    /// Number of leaves (1: a leaf).
+    pub count: u32,
+    /// Texel standing for the node as a sender.
+    pub representative: u32,
+    /// Unused.
+    pub _pad: [u32; 3],
+}
+
+impl From<&cssm_formats::hierarchy::HierarchyNode> for GpuNode {
+    fn from(n: &cssm_formats::hierarchy::HierarchyNode) -> Self {
+        Self {
+            center: n.center,
+            radius: n.radius,
+            normal: n.normal,
+            cone_cos: n.cone_cos,
+            area: n.area,
+            skip: n.skip,
+            first: n.first,
+            count: n.count,
+            representative: n.representative,
+            _pad: [0; 3],
+        }
+    }
+}
+
+/// Constants of one hierarchy traversal pass (radiosity gather or final gather).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTraversalParams {
+    /// Receivers of the pass (texels, or pixels).
+    pub receiver_count: u32,
+    /// Nodes in the hierarchy.
+    pub node_count: u32,
+    /// Refine a sender while its tone-mapped upper bound exceeds this (§4.3).
+    pub threshold: f32,
+    /// Exposure of the tone mapper the oracle uses.
+    pub exposure: f32,
+    /// Seed of the sender jitter (§4.5); only used when `jitter` is 1.
+    pub seed: u32,
+    /// 1: each sender is a random leaf of its node (§4.5); 0: the node's representative.
+    pub jitter: u32,
+    /// 1: gather (a bounce); 0: write the direct light only (the start of the iteration).
+    pub gather: u32,
+    /// Frames accumulated so far (final gather's progressive average).
+    pub frame: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -210,6 +277,38 @@ mod tests {
                 ("material", offset_of!(GpuTexel, material)),
                 ("x", offset_of!(GpuTexel, x)),
                 ("y", offset_of!(GpuTexel, y)),
+            ],
+        );
+        check(
+            "Node",
+            size_of::<GpuNode>(),
+            &[
+                ("center", offset_of!(GpuNode, center)),
+                ("radius", offset_of!(GpuNode, radius)),
+                ("normal", offset_of!(GpuNode, normal)),
+                ("cone_cos", offset_of!(GpuNode, cone_cos)),
+                ("area", offset_of!(GpuNode, area)),
+                ("skip", offset_of!(GpuNode, skip)),
+                ("first", offset_of!(GpuNode, first)),
+                ("count", offset_of!(GpuNode, count)),
+                ("representative", offset_of!(GpuNode, representative)),
+            ],
+        );
+        check(
+            "TraversalParams",
+            size_of::<GpuTraversalParams>(),
+            &[
+                (
+                    "receiver_count",
+                    offset_of!(GpuTraversalParams, receiver_count),
+                ),
+                ("node_count", offset_of!(GpuTraversalParams, node_count)),
+                ("threshold", offset_of!(GpuTraversalParams, threshold)),
+                ("exposure", offset_of!(GpuTraversalParams, exposure)),
+                ("seed", offset_of!(GpuTraversalParams, seed)),
+                ("jitter", offset_of!(GpuTraversalParams, jitter)),
+                ("gather", offset_of!(GpuTraversalParams, gather)),
+                ("frame", offset_of!(GpuTraversalParams, frame)),
             ],
         );
         check(

@@ -10,6 +10,10 @@
 //!   pass timing, read-back).
 //! - [`direct`]: the direct-light technique, on screen and into the atlas texels, with its CPU
 //!   reference.
+//! - [`radiosity`]: GPU hierarchical radiosity over the atlas texels (§4.1-§4.3), with its CPU
+//!   twin and a brute-force CPU reference.
+//! - [`lightcuts`]: the final gather per pixel (§4.4, §4.5); [`lightmap`]: the atlas looked up
+//!   per pixel (§5).
 //! - [`frame`]: the passes of a frame in order, and [`frame::Method`], what `cssm render
 //!   --method` picks from.
 //!
@@ -40,7 +44,10 @@ pub mod direct;
 mod error;
 pub mod frame;
 pub mod gpu_types;
+pub mod lightcuts;
+pub mod lightmap;
 pub mod load;
+pub mod radiosity;
 pub mod visibility;
 
 pub use device::Gpu;

@@ -49,7 +49,11 @@ pub fn check_scene(path: &Path, file: &CssmFile, scene: &Scene) -> Result<(), Ru
     Ok(())
 }
 
-fn limit_check(device: &wgpu::Device, what: &'static str, bytes: u64) -> Result<(), RuntimeError> {
+pub(crate) fn limit_check(
+    device: &wgpu::Device,
+    what: &'static str,
+    bytes: u64,
+) -> Result<(), RuntimeError> {
     let limit = device.limits().max_storage_buffer_binding_size;
     if bytes > limit {
         return Err(RuntimeError::TooLarge {
@@ -62,7 +66,7 @@ fn limit_check(device: &wgpu::Device, what: &'static str, bytes: u64) -> Result<
 }
 
 /// A storage buffer holding `data` (at least 16 bytes: empty bindings are not allowed).
-fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
+pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
     let mut padded;
     let contents = if data.len() < 16 {
         padded = data.to_vec();

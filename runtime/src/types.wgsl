@@ -51,3 +51,29 @@ struct CssmParams {
     triangle_count: u32,
     _pad: u32,
 }
+
+struct Node {
+    center: vec3f,
+    radius: f32,
+    normal: vec3f,
+    cone_cos: f32,
+    area: f32,
+    skip: u32,
+    first: u32,
+    count: u32,
+    representative: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+struct TraversalParams {
+    receiver_count: u32,
+    node_count: u32,
+    threshold: f32,
+    exposure: f32,
+    seed: u32,
+    jitter: u32,
+    gather: u32,
+    frame: u32,
+}

@@ -2,6 +2,7 @@
 //! spot-light shadow map, tone mapping, pass timing, read-back, and bind-group shorthands.
 
 pub mod camera;
+pub mod compose;
 pub mod gbuffer;
 pub mod layout;
 pub mod readback;

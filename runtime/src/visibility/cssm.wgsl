@@ -264,7 +264,12 @@ fn cssm_visibility(triangle: u32, bary: vec3f, p_i: vec3f, n_i: vec3f) -> f32 {
     if triangle >= cssm.triangle_count {
         return -1.0;
     }
-    let p = cssm_atlas_point(triangle, bary);
+    return cssm_visibility_atlas(cssm_atlas_point(triangle, bary), p_i, n_i);
+}
+
+// VisibilityQuery::visibility_from_atlas: cssm_visibility for the surface point at atlas
+// coordinates `p` (texels), as the G-buffer stores it.
+fn cssm_visibility_atlas(p: vec2f, p_i: vec3f, n_i: vec3f) -> f32 {
     let centre = cssm_texel_at(p);
     if centre == CSSM_NONE {
         return -1.0;

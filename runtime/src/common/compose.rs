@@ -1,0 +1,162 @@
+//! The last pass before tone mapping: a frame's radiance = its direct light per pixel plus its
+//! indirect light per pixel, or either part alone (`--component`), in `compose.wgsl`.
+
+use std::{fmt, str::FromStr};
+
+use wgpu::util::DeviceExt;
+
+use crate::{common::layout, common::timestamps::PassTimer, gpu_types::TYPES_WGSL};
+
+/// Which light paths an image holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Component {
+    /// Light reaching the eye after one reflection from a light source.
+    Direct = 0,
+    /// Light reaching the eye after two or more reflections.
+    Indirect = 1,
+    /// Both.
+    #[default]
+    Full = 2,
+}
+
+impl Component {
+    /// Every component, in the order `--help` lists them.
+    pub const ALL: [Component; 3] = [Component::Direct, Component::Indirect, Component::Full];
+
+    /// Name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Component::Direct => "direct",
+            Component::Indirect => "indirect",
+            Component::Full => "full",
+        }
+    }
+}
+
+impl fmt::Display for Component {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Component {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Component::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| format!("unknown component '{s}' (available: direct, indirect, full)"))
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ComposeParams {
+    component: u32,
+    _pad: [u32; 3],
+}
+
+/// The compose pass into [`Self::radiance`] (`Rgba32Float`).
+pub struct Compose {
+    /// The frame's linear radiance.
+    pub radiance: wgpu::Texture,
+    pipeline: wgpu::ComputePipeline,
+    bind_group: wgpu::BindGroup,
+    size: (u32, u32),
+}
+
+impl Compose {
+    /// Composes `direct` (texture) and `indirect` (`vec4f` per pixel) as `component`.
+    pub fn new(
+        device: &wgpu::Device,
+        view: &wgpu::Buffer,
+        direct: &wgpu::Texture,
+        indirect: &wgpu::Buffer,
+        component: Component,
+    ) -> Self {
+        let radiance = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("radiance"),
+            size: direct.size(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("compose params"),
+            contents: bytemuck::bytes_of(&ComposeParams {
+                component: component as u32,
+                _pad: [0; 3],
+            }),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let c = wgpu::ShaderStages::COMPUTE;
+        let module = layout::shader(
+            device,
+            "compose",
+            format!("{TYPES_WGSL}\n{}", include_str!("compose.wgsl")),
+        );
+        let bind_layout = layout::bind_group_layout(
+            device,
+            "compose",
+            &[
+                layout::uniform(0, c),
+                layout::uniform(1, c),
+                layout::texture(2, wgpu::TextureViewDimension::D2, c),
+                layout::storage(3, true, c),
+                layout::storage_texture(4, wgpu::TextureFormat::Rgba32Float, c),
+            ],
+        );
+        let pipeline = layout::compute_pipeline(device, "compose", &module, &[&bind_layout]);
+        let direct_view = direct.create_view(&Default::default());
+        let out_view = radiance.create_view(&Default::default());
+        let bind_group = layout::bind_group(
+            device,
+            "compose",
+            &bind_layout,
+            &[
+                params.as_entire_binding(),
+                view.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&direct_view),
+                indirect.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&out_view),
+            ],
+        );
+        Self {
+            radiance,
+            pipeline,
+            bind_group,
+            size: (direct.width(), direct.height()),
+        }
+    }
+
+    /// Records the pass.
+    pub fn run(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut PassTimer) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("compose"),
+            timestamp_writes: timer.compute("compose"),
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn shader_validates_with_naga() {
+        crate::tests::validate_wgsl(
+            "common/compose",
+            &format!(
+                "{}\n{}",
+                crate::gpu_types::TYPES_WGSL,
+                include_str!("compose.wgsl")
+            ),
+        );
+    }
+}

@@ -1,0 +1,82 @@
+//! CPU twin of `final_gather.wgsl`: the same traversal, oracle and transfer per receiver
+//! point, with the CPU visibility query.
+
+use cssm_formats::visibility::VisibilityQuery;
+use glam::{Vec2, Vec3};
+
+use crate::{
+    gpu_types::{GpuMaterial, GpuNode},
+    radiosity::transfer::{
+        brdf, brdf_bound, irradiance_bound, irradiance_from, jitter_leaf, tone_mapped,
+    },
+};
+
+/// A receiver point of the final gather, as the G-buffer holds it.
+#[derive(Clone, Copy, Debug)]
+pub struct Receiver {
+    /// World position.
+    pub position: Vec3,
+    /// Unit normal turned towards the eye.
+    pub normal: Vec3,
+    /// Unit direction towards the eye.
+    pub view: Vec3,
+    /// Diffuse albedo (Kd times the texture).
+    pub albedo: Vec3,
+    /// Atlas coordinates, texels.
+    pub atlas: Vec2,
+}
+
+/// `final_gather.wgsl::gather_pixel`: indirect radiance leaving the receiver towards the eye
+/// and the cut size, gathering from the node radiance `radiance` (`jitter`: the seed when
+/// senders are random texels of their node, and the receiver's id).
+#[allow(clippy::too_many_arguments)]
+pub fn gather_pixel(
+    query: &VisibilityQuery,
+    nodes: &[GpuNode],
+    leaf_texels: &[u32],
+    radiance: &[Vec3],
+    threshold: f32,
+    exposure: f32,
+    jitter: Option<(u32, u32)>,
+    r: &Receiver,
+    material: &GpuMaterial,
+) -> (Vec3, u32) {
+    let texels = &query.file().texels;
+    let (ks, ns) = (Vec3::from(material.ks), material.ns);
+    let (p, n, v) = (r.position, r.normal, r.view);
+    let mut out = Vec3::ZERO;
+    let mut cut = 0;
+    let mut s = 0usize;
+    while s < nodes.len() {
+        let node = &nodes[s];
+        let l = radiance[s];
+        if node.count > 1 {
+            let to_center = Vec3::from(node.center) - p;
+            let bound = irradiance_bound(p, n, node, l)
+                * brdf_bound(n, v, r.albedo, ks, ns, to_center, node.radius);
+            if tone_mapped(bound, exposure) > threshold {
+                s += 1;
+                continue;
+            }
+        }
+        cut += 1;
+        let sender = match jitter {
+            Some((seed, receiver)) if node.count > 1 => {
+                leaf_texels[jitter_leaf(seed, receiver, s as u32, node) as usize]
+            }
+            _ => node.representative,
+        };
+        if l.cmpgt(Vec3::ZERO).any() {
+            let y = &texels[sender as usize];
+            let (e, w) = irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l);
+            if e.cmpgt(Vec3::ZERO).any() {
+                let visibility = query
+                    .visibility_from_atlas(r.atlas, y.pos(), Some(y.nrm()))
+                    .unwrap_or(1.0);
+                out += brdf(n, v, w, r.albedo, ks, ns) * e * visibility;
+            }
+        }
+        s = node.skip as usize;
+    }
+    (out, cut)
+}

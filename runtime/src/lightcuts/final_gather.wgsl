@@ -1,0 +1,83 @@
+// Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
+// pixel instead of a receiver leaf, the oracle bounding the normalised Phong BRDF so glossy
+// surfaces refine towards their highlight; each node of the cut is a VPL holding the direct
+// light and the diffuse bounces of the radiosity iteration. With jittering (§4.5) every sender
+// is a random texel of its node and frames are averaged progressively.
+// CPU twin: lightcuts/cpu.rs::gather_pixel. Needs types.wgsl, transfer.wgsl, the CSSM library
+// at group 1.
+
+@group(0) @binding(0) var<uniform> params: TraversalParams;
+@group(0) @binding(1) var<uniform> view: View;
+@group(0) @binding(2) var<storage, read> nodes: array<Node>;
+@group(0) @binding(3) var<storage, read> leaves: array<vec2u>;
+@group(0) @binding(4) var<storage, read> radiance: array<vec4f>;
+@group(0) @binding(5) var<storage, read> materials: array<Material>;
+@group(0) @binding(6) var gbuffer_position: texture_2d<f32>;
+@group(0) @binding(7) var gbuffer_normal: texture_2d<f32>;
+@group(0) @binding(8) var gbuffer_albedo: texture_2d<f32>;
+@group(0) @binding(9) var gbuffer_atlas: texture_2d<f32>;
+// Per pixel: rgb indirect radiance towards the eye (progressive mean over frames), w: cut size.
+@group(0) @binding(10) var<storage, read_write> indirect: array<vec4f>;
+
+// Indirect radiance leaving `p` towards `v`, and the cut size.
+fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, atlas: vec2f) -> vec4f {
+    var l_out = vec3f(0.0);
+    var cut = 0u;
+    var s = 0u;
+    loop {
+        if s >= params.node_count {
+            break;
+        }
+        let node = nodes[s];
+        let l = radiance[s].rgb;
+        if node.count > 1u {
+            let bound = irradiance_bound(p, n, node, l) * brdf_bound(n, v, albedo, m.ks, m.ns, node.center - p, node.radius);
+            if tone_mapped(bound, params.exposure) > params.threshold {
+                s += 1u;
+                continue;
+            }
+        }
+        cut += 1u;
+        var sender = node.representative;
+        if params.jitter != 0u && node.count > 1u {
+            sender = leaves[jitter_leaf(params.seed, receiver, s, node)].x;
+        }
+        if any(l > vec3f(0.0)) {
+            let y = cssm_texels[sender];
+            let e = irradiance_from(p, n, y.position, node.normal, node.area, l);
+            if any(e > vec3f(0.0)) {
+                var visibility = cssm_visibility_atlas(atlas, y.position, y.normal);
+                // No texel stands for the point (far outside its chart): unshadowed.
+                if visibility < 0.0 {
+                    visibility = 1.0;
+                }
+                let w = normalize(y.position - p);
+                l_out += brdf(n, v, w, albedo, m.ks, m.ns) * e * visibility;
+            }
+        }
+        s = node.skip;
+    }
+    return vec4f(l_out, f32(cut));
+}
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) id: vec3u) {
+    if id.x >= view.size.x || id.y >= view.size.y {
+        return;
+    }
+    let pixel = id.y * view.size.x + id.x;
+    let xy = vec2i(id.xy);
+    let position = textureLoad(gbuffer_position, xy, 0);
+    var value = vec4f(0.0);
+    if position.w > 0.0 {
+        let normal = textureLoad(gbuffer_normal, xy, 0);
+        let albedo = textureLoad(gbuffer_albedo, xy, 0).rgb;
+        let atlas = textureLoad(gbuffer_atlas, xy, 0).xy;
+        let m = materials[u32(normal.w)];
+        let v = normalize(view.eye - position.xyz);
+        value = gather_pixel(pixel, position.xyz, normal.xyz, v, albedo, m, atlas);
+    }
+    // Progressive mean over the frames of a still camera (§4.5).
+    let k = f32(params.frame);
+    indirect[pixel] = select((indirect[pixel] * k + value) / (k + 1.0), value, params.frame == 0u);
+}

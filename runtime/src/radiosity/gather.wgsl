@@ -1,0 +1,72 @@
+// GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
+// (texel) walks the hierarchy without a stack from the root, refining a sender while the oracle
+// says so, else gathering from it with the clamped form factor and CSSM visibility, then
+// skipping its subtree (Fig. 10). Writes the texel's indirect irradiance and its leaf node's
+// new radiance (direct + reflected indirect); the pull pass (pull.wgsl) then rebuilds the
+// inner nodes. CPU twin: radiosity/cpu.rs::gather_texel.
+// Needs types.wgsl, transfer.wgsl and the CSSM library at group 1.
+
+@group(0) @binding(0) var<uniform> params: TraversalParams;
+@group(0) @binding(1) var<storage, read> nodes: array<Node>;
+// Per leaf in leaf order: (texel, node index).
+@group(0) @binding(2) var<storage, read> leaves: array<vec2u>;
+// Per texel: rgb direct radiance leaving it.
+@group(0) @binding(3) var<storage, read> texel_direct: array<vec4f>;
+// Per texel: rgb diffuse albedo.
+@group(0) @binding(4) var<storage, read> texel_albedo: array<vec4f>;
+// Per node: rgb mean radiance of the previous iteration.
+@group(0) @binding(5) var<storage, read> radiance_in: array<vec4f>;
+// Per node: this iteration's radiance (leaves written here, inner nodes by the pull).
+@group(0) @binding(6) var<storage, read_write> radiance_out: array<vec4f>;
+// Per texel: rgb indirect irradiance gathered in this iteration.
+@group(0) @binding(7) var<storage, read_write> texel_irradiance: array<vec4f>;
+
+// Irradiance at texel `receiver` (position p, normal n, albedo rho) from the whole scene.
+fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
+    var e = vec3f(0.0);
+    var s = 0u;
+    loop {
+        if s >= params.node_count {
+            break;
+        }
+        let node = nodes[s];
+        let radiance = radiance_in[s].rgb;
+        // Refine: descend into the left child (§4.3, Fig. 10).
+        if node.count > 1u && tone_mapped(irradiance_bound(p, n, node, radiance) * (rho / TRANSFER_PI), params.exposure) > params.threshold {
+            s += 1u;
+            continue;
+        }
+        // Gather from the node, then skip its subtree.
+        var sender = node.representative;
+        if params.jitter != 0u && node.count > 1u {
+            sender = leaves[jitter_leaf(params.seed, receiver, s, node)].x;
+        }
+        if sender != receiver && any(radiance > vec3f(0.0)) {
+            let y = cssm_texels[sender];
+            let unoccluded = irradiance_from(p, n, y.position, node.normal, node.area, radiance);
+            if any(unoccluded > vec3f(0.0)) {
+                e += unoccluded * cssm_visibility_texel(receiver, y.position, y.normal);
+            }
+        }
+        s = node.skip;
+    }
+    return e;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3u) {
+    let leaf = id.x;
+    if leaf >= params.receiver_count {
+        return;
+    }
+    let ln = leaves[leaf];
+    let texel = ln.x;
+    let t = cssm_texels[texel];
+    let albedo = texel_albedo[texel].rgb;
+    var e = vec3f(0.0);
+    if params.gather != 0u {
+        e = gather_texel(texel, t.position, t.normal, max(albedo.x, max(albedo.y, albedo.z)));
+    }
+    texel_irradiance[texel] = vec4f(e, 1.0);
+    radiance_out[ln.y] = vec4f(texel_direct[texel].rgb + albedo / TRANSFER_PI * e, 1.0);
+}

@@ -1,0 +1,374 @@
+//! GPU hierarchical radiosity with clustering (§4.1-§4.3): diffuse indirect bounces over the
+//! atlas texels, every visibility answered by the CSSM.
+//!
+//! - [`HierarchyGpu`]: the bake's median-cut tree (§4.2, `cssm_formats::hierarchy`) on the GPU,
+//!   with the leaf table and the inner nodes ordered by depth for the pull.
+//! - [`Radiosity`]: the iteration. Each bounce runs `gather.wgsl` (one thread per receiver leaf
+//!   walks the tree stacklessly, Fig. 10; refine while the energy oracle's tone-mapped bound is
+//!   above the threshold, else gather with the clamped form factor of [`transfer`] and the
+//!   receiver's own depth cube map) and `pull.wgsl` (inner nodes = area-weighted mean of their
+//!   children, deepest level first). The source is the direct light in the atlas
+//!   ([`crate::direct::AtlasDirect`]).
+//!
+//! After `k` iterations a node's radiance holds the direct light plus `k` diffuse bounces, and
+//! every texel's indirect irradiance the last `k`-bounce gather.
+//!
+//! CPU references: [`cpu::radiosity`] runs the same iteration with the CPU query (its twin,
+//! held to it by `runtime/tests/gpu.rs::radiosity_matches_cpu_twin`) and [`cpu::brute_force`]
+//! gathers from every texel with exact ray casts and no hierarchy (the ground truth of
+//! `radiosity_matches_brute_force`).
+
+pub mod cpu;
+pub mod transfer;
+
+use cssm_formats::hierarchy::Hierarchy;
+use wgpu::util::DeviceExt;
+
+use crate::{
+    RuntimeError,
+    common::{layout, timestamps::PassTimer},
+    gpu_types::{GpuNode, GpuTraversalParams, TYPES_WGSL},
+    load::{CssmGpu, limit_check, storage_buffer},
+    visibility::library_wgsl,
+};
+
+/// Threshold of the oracle when none is given: refine while a sender's tone-mapped bound is
+/// above 2% of display white (the lightcuts paper's perceptual 2%, §4.4, on the oracle's scale).
+pub const DEFAULT_THRESHOLD: f32 = 0.02;
+
+/// Options of the radiosity iteration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadiosityOptions {
+    /// Oracle threshold on the tone-mapped upper bound (§4.3); smaller is slower and closer.
+    pub threshold: f32,
+    /// Exposure of the oracle's tone mapper (the display's exposure).
+    pub exposure: f32,
+}
+
+impl Default for RadiosityOptions {
+    fn default() -> Self {
+        Self {
+            threshold: DEFAULT_THRESHOLD,
+            exposure: 1.0,
+        }
+    }
+}
+
+/// Depth of every node (root 0) of a depth-first node array.
+pub fn node_depths(nodes: &[GpuNode]) -> Vec<u32> {
+    let mut depth = vec![0u32; nodes.len()];
+    for i in 0..nodes.len() {
+        if nodes[i].count > 1 {
+            let (left, right) = (i + 1, nodes[i + 1].skip as usize);
+            depth[left] = depth[i] + 1;
+            depth[right] = depth[i] + 1;
+        }
+    }
+    depth
+}
+
+/// The hierarchy of a loaded CSSM in GPU memory.
+pub struct HierarchyGpu {
+    /// [`GpuNode`] per node, depth-first.
+    pub nodes: wgpu::Buffer,
+    /// Per leaf in leaf order: `(texel, node index)`.
+    pub leaves: wgpu::Buffer,
+    /// Inner nodes ordered by depth, deepest first.
+    pub pull_order: wgpu::Buffer,
+    /// `pull_order` range of every level, deepest first.
+    pub levels: Vec<(u32, u32)>,
+    /// Number of nodes.
+    pub node_count: u32,
+    /// Number of leaves (= texels).
+    pub leaf_count: u32,
+    /// The nodes as uploaded.
+    pub cpu_nodes: Vec<GpuNode>,
+}
+
+impl HierarchyGpu {
+    /// Uploads `hierarchy` (validated with its file).
+    ///
+    /// # Errors
+    /// [`RuntimeError::TooLarge`] when the node array exceeds the device's binding limit.
+    pub fn new(device: &wgpu::Device, hierarchy: &Hierarchy) -> Result<Self, RuntimeError> {
+        let cpu_nodes: Vec<GpuNode> = hierarchy.nodes.iter().map(GpuNode::from).collect();
+        limit_check(
+            device,
+            "hierarchy nodes",
+            (cpu_nodes.len() * size_of::<GpuNode>()) as u64,
+        )?;
+        let mut leaves = vec![[0u32; 2]; hierarchy.leaf_texels.len()];
+        for (i, n) in cpu_nodes.iter().enumerate() {
+            if n.count == 1 {
+                leaves[n.first as usize] = [hierarchy.leaf_texels[n.first as usize], i as u32];
+            }
+        }
+        let depth = node_depths(&cpu_nodes);
+        let mut inner: Vec<u32> = (0..cpu_nodes.len() as u32)
+            .filter(|&i| cpu_nodes[i as usize].count > 1)
+            .collect();
+        inner.sort_by_key(|&i| (std::cmp::Reverse(depth[i as usize]), i));
+        let mut levels = Vec::new();
+        let mut start = 0;
+        for k in 1..=inner.len() {
+            if k == inner.len() || depth[inner[k] as usize] != depth[inner[start] as usize] {
+                levels.push((start as u32, k as u32));
+                start = k;
+            }
+        }
+        Ok(Self {
+            nodes: storage_buffer(device, "hierarchy nodes", bytemuck::cast_slice(&cpu_nodes)),
+            leaves: storage_buffer(device, "hierarchy leaves", bytemuck::cast_slice(&leaves)),
+            pull_order: storage_buffer(
+                device,
+                "hierarchy pull order",
+                bytemuck::cast_slice(&inner),
+            ),
+            levels,
+            node_count: cpu_nodes.len() as u32,
+            leaf_count: leaves.len() as u32,
+            cpu_nodes,
+        })
+    }
+}
+
+/// Pull level constants; one 256-byte-aligned uniform per level.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct PullLevel {
+    start: u32,
+    end: u32,
+    _pad: [u32; 2],
+}
+
+/// The radiosity iteration over a loaded CSSM: see the module docs.
+pub struct Radiosity {
+    /// Radiance per node (`vec4f`, rgb), two buffers used in turn; [`Self::radiance`] says
+    /// which holds the result of a given number of iterations.
+    pub node_radiance: [wgpu::Buffer; 2],
+    /// Indirect irradiance per texel (`vec4f`, rgb) of the last iteration.
+    pub texel_irradiance: wgpu::Buffer,
+    gather_pipeline: wgpu::ComputePipeline,
+    pull_pipeline: wgpu::ComputePipeline,
+    /// `[gather][written buffer]`: index 0 writes the direct light only, 1 gathers.
+    gather_groups: [[wgpu::BindGroup; 2]; 2],
+    /// `[level][written buffer]`.
+    pull_groups: Vec<[wgpu::BindGroup; 2]>,
+    leaf_count: u32,
+    level_sizes: Vec<u32>,
+}
+
+impl Radiosity {
+    /// The passes over `cssm` and `hierarchy`, starting from `texel_direct` (`vec4f` radiance per
+    /// texel, [`crate::direct::AtlasDirect::texel_radiance`]) with `texel_albedo` (rgb diffuse
+    /// albedo per texel, texel order).
+    pub fn new(
+        device: &wgpu::Device,
+        cssm: &CssmGpu,
+        hierarchy: &HierarchyGpu,
+        texel_direct: &wgpu::Buffer,
+        texel_albedo: &[[f32; 4]],
+        options: RadiosityOptions,
+    ) -> Result<Self, RuntimeError> {
+        let node_bytes = 16 * hierarchy.node_count.max(1) as u64;
+        limit_check(device, "node radiance", node_bytes)?;
+        let vec4_buffer = |label: &str, size: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let node_radiance = [
+            vec4_buffer("node radiance 0", node_bytes),
+            vec4_buffer("node radiance 1", node_bytes),
+        ];
+        let texel_irradiance = vec4_buffer(
+            "texel indirect irradiance",
+            16 * hierarchy.leaf_count.max(1) as u64,
+        );
+        let albedo = storage_buffer(device, "texel albedo", bytemuck::cast_slice(texel_albedo));
+        let c = wgpu::ShaderStages::COMPUTE;
+
+        // Gather: group 0 its own buffers, group 1 the CSSM.
+        let source = library_wgsl(1) + include_str!("transfer.wgsl") + include_str!("gather.wgsl");
+        let module = layout::shader(device, "radiosity gather", source);
+        let entries = [
+            layout::uniform(0, c),
+            layout::storage(1, true, c),
+            layout::storage(2, true, c),
+            layout::storage(3, true, c),
+            layout::storage(4, true, c),
+            layout::storage(5, true, c),
+            layout::storage(6, false, c),
+            layout::storage(7, false, c),
+        ];
+        let gather_layout = layout::bind_group_layout(device, "radiosity gather", &entries);
+        let gather_pipeline = layout::compute_pipeline(
+            device,
+            "radiosity gather",
+            &module,
+            &[&gather_layout, &cssm.bind_group_layout],
+        );
+        let params = |gather: u32| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("radiosity params"),
+                contents: bytemuck::bytes_of(&GpuTraversalParams {
+                    receiver_count: hierarchy.leaf_count,
+                    node_count: hierarchy.node_count,
+                    threshold: options.threshold,
+                    exposure: options.exposure,
+                    seed: 0,
+                    jitter: 0,
+                    gather,
+                    frame: 0,
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        };
+        let param_buffers = [params(0), params(1)];
+        let gather_group = |gather: usize, written: usize| {
+            layout::bind_group(
+                device,
+                "radiosity gather",
+                &gather_layout,
+                &[
+                    param_buffers[gather].as_entire_binding(),
+                    hierarchy.nodes.as_entire_binding(),
+                    hierarchy.leaves.as_entire_binding(),
+                    texel_direct.as_entire_binding(),
+                    albedo.as_entire_binding(),
+                    node_radiance[1 - written].as_entire_binding(),
+                    node_radiance[written].as_entire_binding(),
+                    texel_irradiance.as_entire_binding(),
+                ],
+            )
+        };
+        let gather_groups = [
+            [gather_group(0, 0), gather_group(0, 1)],
+            [gather_group(1, 0), gather_group(1, 1)],
+        ];
+
+        // Pull: one uniform per level.
+        let module = layout::shader(
+            device,
+            "radiosity pull",
+            format!("{TYPES_WGSL}\n{}", include_str!("pull.wgsl")),
+        );
+        let pull_layout = layout::bind_group_layout(
+            device,
+            "radiosity pull",
+            &[
+                layout::uniform(0, c),
+                layout::storage(1, true, c),
+                layout::storage(2, true, c),
+                layout::storage(3, false, c),
+            ],
+        );
+        let pull_pipeline =
+            layout::compute_pipeline(device, "radiosity pull", &module, &[&pull_layout]);
+        let pull_groups = hierarchy
+            .levels
+            .iter()
+            .map(|&(start, end)| {
+                let level = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("pull level"),
+                    contents: bytemuck::bytes_of(&PullLevel {
+                        start,
+                        end,
+                        _pad: [0; 2],
+                    }),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+                [0, 1].map(|written| {
+                    layout::bind_group(
+                        device,
+                        "radiosity pull",
+                        &pull_layout,
+                        &[
+                            level.as_entire_binding(),
+                            hierarchy.nodes.as_entire_binding(),
+                            hierarchy.pull_order.as_entire_binding(),
+                            node_radiance[written].as_entire_binding(),
+                        ],
+                    )
+                })
+            })
+            .collect();
+        Ok(Self {
+            node_radiance,
+            texel_irradiance,
+            gather_pipeline,
+            pull_pipeline,
+            gather_groups,
+            pull_groups,
+            leaf_count: hierarchy.leaf_count,
+            level_sizes: hierarchy.levels.iter().map(|&(s, e)| e - s).collect(),
+        })
+    }
+
+    /// The buffer holding the node radiance after `iterations` bounces.
+    pub fn radiance(&self, iterations: u32) -> &wgpu::Buffer {
+        &self.node_radiance[(iterations % 2) as usize]
+    }
+
+    /// Records the start (direct light into the leaves, pulled) and `iterations` bounces.
+    pub fn run(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        cssm: &CssmGpu,
+        timer: &mut PassTimer,
+        iterations: u32,
+    ) {
+        for k in 0..=iterations {
+            let written = (k % 2) as usize;
+            let gather = usize::from(k > 0);
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("radiosity gather"),
+                    timestamp_writes: timer.compute(if k == 0 {
+                        "radiosity: direct into leaves"
+                    } else {
+                        "radiosity: gather"
+                    }),
+                });
+                pass.set_pipeline(&self.gather_pipeline);
+                pass.set_bind_group(0, &self.gather_groups[gather][written], &[]);
+                pass.set_bind_group(1, &cssm.bind_group, &[]);
+                pass.dispatch_workgroups(self.leaf_count.max(1).div_ceil(64), 1, 1);
+            }
+            // wgpu orders the dispatches of one pass: each level reads what the one before wrote.
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("radiosity pull"),
+                timestamp_writes: timer.compute("radiosity: pull"),
+            });
+            pass.set_pipeline(&self.pull_pipeline);
+            for (groups, &size) in self.pull_groups.iter().zip(&self.level_sizes) {
+                pass.set_bind_group(0, &groups[written], &[]);
+                pass.dispatch_workgroups(size.div_ceil(64), 1, 1);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn shaders_validate_with_naga() {
+        crate::tests::validate_wgsl(
+            "radiosity/gather",
+            &(super::library_wgsl(1) + include_str!("transfer.wgsl") + include_str!("gather.wgsl")),
+        );
+        crate::tests::validate_wgsl(
+            "radiosity/pull",
+            &format!(
+                "{}\n{}",
+                crate::gpu_types::TYPES_WGSL,
+                include_str!("pull.wgsl")
+            ),
+        );
+    }
+}

@@ -1,0 +1,176 @@
+//! The light transfer between a hierarchy node and a receiver point, and the oracle's upper
+//! bound of it (§4.3, §4.4): the CPU twin of `transfer.wgsl`, function by function, used by the
+//! CPU references of the radiosity gather and of the final gather.
+//!
+//! Model (conventions in `docs/architecture.md`):
+//! - A sender node is a Lambertian emitter of area `A` with the area-weighted mean radiance `L`
+//!   of its texels and their area-weighted mean normal `n_s` (length <= 1: for a cluster whose
+//!   texels all face the receiver, `A * dot(n_s, w)` is exactly the summed projected area).
+//! - It sits at one of its texels: the node's representative, or with jittering (§4.5) a random
+//!   texel of the node, so that visibility is always asked between two surface points.
+//! - Irradiance at `p` (normal `n`): `L * A * cos_r * cos_s / (d² + A / pi)`. The `A / pi` is the
+//!   clamping near the sender (§4.4, §5 "clamping is used"): it is the exact on-axis irradiance
+//!   from a disk of area `A` (`pi L a² / (h² + a²)`), so a close sender gives a finite disk's
+//!   light instead of a point's singularity.
+//!
+//! Oracle (§4.3): an upper bound of the radiance the receiver would reflect from the whole node,
+//! `Σ L_i A_i cos cos / d_i² <= L A · max cos_r · max cos_s / d_min²` with the cosine maxima over
+//! the node's bounding sphere and normal cone; the node is refined while the tone-mapped bound
+//! exceeds the threshold.
+
+use glam::Vec3;
+
+use crate::gpu_types::GpuNode;
+
+const PI: f32 = std::f32::consts::PI;
+
+/// Stands for an unbounded bound (the receiver inside the sender's sphere).
+pub const UNBOUNDED: f32 = 3.0e38;
+
+/// The largest cosine between the unit `axis` and any direction from the apex into the sphere
+/// (`to_center` = centre - apex, `radius`), widened by `spread` radians (a normal cone's
+/// half-angle); 1 when the apex is inside the sphere. `transfer.wgsl`: `cos_bound`.
+pub fn cos_bound(axis: Vec3, spread: f32, to_center: Vec3, radius: f32) -> f32 {
+    let dist = to_center.length();
+    if dist <= radius {
+        return 1.0;
+    }
+    let theta = (axis.dot(to_center) / dist).clamp(-1.0, 1.0).acos();
+    let alpha = (radius / dist).min(1.0).asin();
+    let phi = (theta - alpha - spread).max(0.0);
+    if phi >= 0.5 * PI { 0.0 } else { phi.cos() }
+}
+
+/// Tone-mapped value of a radiance for the oracle: the paper's simple gamma tone mapper on the
+/// largest channel (§4.3). `transfer.wgsl`: `tone_mapped`.
+pub fn tone_mapped(radiance: Vec3, exposure: f32) -> f32 {
+    (exposure * radiance.max_element()).max(0.0).powf(1.0 / 2.2)
+}
+
+/// Upper bound of the irradiance at `p` (normal `n`) from every texel of `node`, whose mean
+/// radiance is `radiance`. `transfer.wgsl`: `irradiance_bound`.
+pub fn irradiance_bound(p: Vec3, n: Vec3, node: &GpuNode, radiance: Vec3) -> Vec3 {
+    let center = Vec3::from(node.center);
+    let to_center = center - p;
+    let d_min = to_center.length() - node.radius;
+    if d_min <= 0.0 {
+        return Vec3::splat(UNBOUNDED);
+    }
+    let cos_r = cos_bound(n, 0.0, to_center, node.radius);
+    let mean = Vec3::from(node.normal);
+    let len = mean.length();
+    let cos_s = if node.cone_cos <= -1.0 || len < 1e-6 {
+        1.0
+    } else {
+        let spread = node.cone_cos.clamp(-1.0, 1.0).acos();
+        cos_bound(-mean / len, spread, to_center, node.radius)
+    };
+    radiance * (node.area * cos_r * cos_s / (d_min * d_min))
+}
+
+/// Largest value of the normalised Phong BRDF (`light.wgsl`) at a point with normal `n`, view
+/// direction `v` (towards the eye), for light arriving from anywhere in the sphere.
+/// `transfer.wgsl`: `brdf_bound`.
+pub fn brdf_bound(
+    n: Vec3,
+    v: Vec3,
+    albedo: Vec3,
+    ks: Vec3,
+    ns: f32,
+    to_center: Vec3,
+    radius: f32,
+) -> Vec3 {
+    let mirror = (-v).reflect(n);
+    let c = cos_bound(mirror, 0.0, to_center, radius);
+    albedo / PI + ks * ((ns + 2.0) / (2.0 * PI) * c.powf(ns))
+}
+
+/// The normalised Phong BRDF of `light.wgsl` for light from the unit direction `w`.
+/// `transfer.wgsl`: `brdf`.
+pub fn brdf(n: Vec3, v: Vec3, w: Vec3, albedo: Vec3, ks: Vec3, ns: f32) -> Vec3 {
+    let r = (-w).reflect(n);
+    albedo / PI + ks * ((ns + 2.0) / (2.0 * PI) * r.dot(v).max(0.0).powf(ns))
+}
+
+/// Unoccluded irradiance at `p` (normal `n`) from a sender at `y` with mean normal
+/// `sender_normal`, area `area` and radiance `radiance` (clamped near the sender), and the unit
+/// direction towards it. `transfer.wgsl`: `irradiance_from`.
+pub fn irradiance_from(
+    p: Vec3,
+    n: Vec3,
+    y: Vec3,
+    sender_normal: Vec3,
+    area: f32,
+    radiance: Vec3,
+) -> (Vec3, Vec3) {
+    let d = y - p;
+    let dist2 = d.dot(d);
+    if dist2 <= 0.0 {
+        return (Vec3::ZERO, Vec3::ZERO);
+    }
+    let w = d / dist2.sqrt();
+    let cos_r = n.dot(w).max(0.0);
+    let cos_s = (-sender_normal.dot(w)).max(0.0);
+    (radiance * (area * cos_r * cos_s / (dist2 + area / PI)), w)
+}
+
+/// PCG hash (Jarzynski and Olano 2020), the jitter's random numbers on both sides.
+/// `transfer.wgsl`: `pcg_hash`.
+pub fn pcg_hash(x: u32) -> u32 {
+    let state = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+/// Leaf (in leaf order) standing for `node` as seen by `receiver`: with `jitter` a random leaf
+/// of the node (§4.5), else none (the caller takes the representative).
+/// `transfer.wgsl`: `jitter_leaf`.
+pub fn jitter_leaf(seed: u32, receiver: u32, node_index: u32, node: &GpuNode) -> u32 {
+    node.first + pcg_hash(seed ^ pcg_hash(receiver ^ pcg_hash(node_index))) % node.count.max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cos_bound_is_an_upper_bound_of_sampled_cosines() {
+        let mut state = 1u32;
+        let mut rnd = || {
+            state = pcg_hash(state);
+            state as f32 / u32::MAX as f32
+        };
+        for _ in 0..2000 {
+            let axis = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let center = Vec3::new(rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0);
+            let radius = rnd();
+            let spread = rnd() * 0.5;
+            let bound = cos_bound(axis, spread, center, radius);
+            for _ in 0..20 {
+                let q = center
+                    + Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize() * radius * rnd();
+                let d = q.normalize();
+                assert!(axis.dot(d) <= bound + 1e-4, "{} > {bound}", axis.dot(d));
+            }
+        }
+    }
+
+    #[test]
+    fn close_sender_stays_finite_and_far_sender_is_a_point() {
+        let n = Vec3::Y;
+        let (e, _) = irradiance_from(Vec3::ZERO, n, Vec3::new(0.0, 1e-6, 0.0), -n, 1.0, Vec3::ONE);
+        assert!(
+            (e.x - PI).abs() < 1e-3,
+            "a disk touching the receiver gives pi L: {e}"
+        );
+        let (e, _) = irradiance_from(
+            Vec3::ZERO,
+            n,
+            Vec3::new(0.0, 100.0, 0.0),
+            -n,
+            1.0,
+            Vec3::ONE,
+        );
+        assert!((e.x - 1e-4).abs() < 1e-8);
+    }
+}

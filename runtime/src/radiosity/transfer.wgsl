@@ -1,0 +1,81 @@
+// Light transfer from a hierarchy node to a receiver point and the oracle's upper bound of it
+// (§4.3, §4.4). Twin of radiosity/transfer.rs, function by function; read its docs for the
+// model. Needs types.wgsl (Node) and the binding `nodes: array<Node>`.
+
+const TRANSFER_PI: f32 = 3.14159265358979;
+const UNBOUNDED: f32 = 3.0e38;
+
+// transfer::cos_bound.
+fn cos_bound(axis: vec3f, spread: f32, to_center: vec3f, radius: f32) -> f32 {
+    let dist = length(to_center);
+    if dist <= radius {
+        return 1.0;
+    }
+    let theta = acos(clamp(dot(axis, to_center) / dist, -1.0, 1.0));
+    let alpha = asin(min(radius / dist, 1.0));
+    let phi = max(theta - alpha - spread, 0.0);
+    if phi >= 0.5 * TRANSFER_PI {
+        return 0.0;
+    }
+    return cos(phi);
+}
+
+// transfer::tone_mapped.
+fn tone_mapped(radiance: vec3f, exposure: f32) -> f32 {
+    return pow(max(exposure * max(radiance.x, max(radiance.y, radiance.z)), 0.0), 1.0 / 2.2);
+}
+
+// transfer::irradiance_bound.
+fn irradiance_bound(p: vec3f, n: vec3f, node: Node, radiance: vec3f) -> vec3f {
+    let to_center = node.center - p;
+    let d_min = length(to_center) - node.radius;
+    if d_min <= 0.0 {
+        return vec3f(UNBOUNDED);
+    }
+    let cos_r = cos_bound(n, 0.0, to_center, node.radius);
+    let len = length(node.normal);
+    var cos_s = 1.0;
+    if !(node.cone_cos <= -1.0 || len < 1e-6) {
+        let spread = acos(clamp(node.cone_cos, -1.0, 1.0));
+        cos_s = cos_bound(-node.normal / len, spread, to_center, node.radius);
+    }
+    return radiance * (node.area * cos_r * cos_s / (d_min * d_min));
+}
+
+// transfer::brdf_bound.
+fn brdf_bound(n: vec3f, v: vec3f, albedo: vec3f, ks: vec3f, ns: f32, to_center: vec3f, radius: f32) -> vec3f {
+    let mirror = reflect(-v, n);
+    let c = cos_bound(mirror, 0.0, to_center, radius);
+    return albedo / TRANSFER_PI + ks * ((ns + 2.0) / (2.0 * TRANSFER_PI) * pow(c, ns));
+}
+
+// transfer::brdf.
+fn brdf(n: vec3f, v: vec3f, w: vec3f, albedo: vec3f, ks: vec3f, ns: f32) -> vec3f {
+    let r = reflect(-w, n);
+    return albedo / TRANSFER_PI + ks * ((ns + 2.0) / (2.0 * TRANSFER_PI) * pow(max(dot(r, v), 0.0), ns));
+}
+
+// transfer::irradiance_from: xyz irradiance; the direction is recomputed by the caller.
+fn irradiance_from(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, area: f32, radiance: vec3f) -> vec3f {
+    let d = y - p;
+    let dist2 = dot(d, d);
+    if dist2 <= 0.0 {
+        return vec3f(0.0);
+    }
+    let w = d / sqrt(dist2);
+    let cos_r = max(dot(n, w), 0.0);
+    let cos_s = max(-dot(sender_normal, w), 0.0);
+    return radiance * (area * cos_r * cos_s / (dist2 + area / TRANSFER_PI));
+}
+
+// transfer::pcg_hash.
+fn pcg_hash(x: u32) -> u32 {
+    let state = x * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+// transfer::jitter_leaf.
+fn jitter_leaf(seed: u32, receiver: u32, node_index: u32, node: Node) -> u32 {
+    return node.first + pcg_hash(seed ^ pcg_hash(receiver ^ pcg_hash(node_index))) % max(node.count, 1u);
+}
