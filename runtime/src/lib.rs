@@ -10,6 +10,7 @@
 //!   pass timing, read-back).
 //! - [`direct`]: the direct-light technique, on screen and into the atlas texels, with its CPU
 //!   reference.
+//! - [`reference`]: the CPU path tracer, ground truth of the global-illumination methods.
 //! - [`frame`]: the passes of a frame in order, and [`frame::Method`], what `cssm render
 //!   --method` picks from.
 //!
@@ -41,6 +42,7 @@ mod error;
 pub mod frame;
 pub mod gpu_types;
 pub mod load;
+pub mod reference;
 pub mod visibility;
 
 pub use device::Gpu;
