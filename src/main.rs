@@ -55,13 +55,15 @@ enum Command {
         direct     direct light from spot lights, PCF shadow maps (no indirect light)\n  \
         hrc        GPU hierarchical radiosity over the atlas, each pixel showing its texel (§4.1-4.3)\n  \
         lightcuts  hierarchical radiosity, then a final gather per pixel, glossy last bounce (§4.4)\n  \
-        lightmap   hierarchical radiosity looked up per pixel with a bicubic filter (§5)\n\n\
+        lightmap   hierarchical radiosity looked up per pixel with a bicubic filter (§5)\n  \
+        reference  CPU path tracer with exact ray casts: ground truth (--samples paths per pixel)\n\n\
         Every method but direct needs the scene's .cssm: --cssm FILE, else one is baked first \
         (atlas 64, cube 32; a few seconds for the Cornell box).\n\n\
         Examples:\n  cssm render --out cornell.png\n  \
         cssm bake -o cornell-box.cssm && cssm render --cssm cornell-box.cssm --method lightcuts --bounces 2 --out gi.png\n  \
         cssm render scenes/cornell-glossy --method lightcuts --frames 16 --out glossy.png\n  \
         cssm render --method lightmap --component indirect --exr indirect.exr\n  \
+        cssm render --method reference --bounces 3 --samples 1024 --exr truth.exr\n  \
         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings"
     )]
     Render(RenderArgs),
@@ -114,6 +116,9 @@ struct RenderArgs {
     /// Which light the image holds: direct, indirect or full.
     #[arg(long, default_value = "full")]
     component: runtime::frame::Component,
+    /// Paths per pixel of `--method reference`.
+    #[arg(long, default_value_t = 256)]
+    samples: u32,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -311,12 +316,12 @@ fn run_render(args: RenderArgs) -> CliResult {
     if !(1..=4096).contains(&args.frames) {
         return Err(format!("--frames {} is out of range 1..=4096", args.frames));
     }
-    let file = if args.method.needs_cssm() {
-        Some(render_cssm(&args, &scene)?)
-    } else {
-        None
-    };
-    let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
+    if !(1..=1 << 20).contains(&args.samples) {
+        return Err(format!(
+            "--samples {} is out of range 1..=1048576",
+            args.samples
+        ));
+    }
     let options = runtime::frame::RenderOptions {
         width,
         height,
@@ -327,7 +332,17 @@ fn run_render(args: RenderArgs) -> CliResult {
         threshold: args.threshold,
         jitter: args.frames > 1,
         component: args.component,
+        samples: args.samples,
     };
+    if args.method == runtime::frame::Method::Reference {
+        return render_reference(&args, &scene, &options);
+    }
+    let file = if args.method.needs_cssm() {
+        Some(render_cssm(&args, &scene)?)
+    } else {
+        None
+    };
+    let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
     let frame = runtime::frame::render(&gpu, &scene, file.as_ref(), args.method, &options)
         .map_err(|e| format!("{}: {e}", dir.display()))?;
     frame.save_png(&args.out).map_err(|e| e.to_string())?;
@@ -358,6 +373,42 @@ fn run_render(args: RenderArgs) -> CliResult {
             println!("  {:<24} {total:8.3} ms", "total");
         }
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `cssm render --method reference`: the CPU path tracer, with a progress bar.
+fn render_reference(
+    args: &RenderArgs,
+    scene: &Scene,
+    options: &runtime::frame::RenderOptions,
+) -> CliResult {
+    let bar = indicatif::ProgressBar::new(options.height as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} path tracing {msg} [{bar:32}] {pos}/{len} rows, eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_message(format!("{} spp", options.samples));
+    let frame = runtime::frame::render_reference(scene, options, &|done, _| {
+        bar.set_position(done / options.width.max(1) as u64)
+    })
+    .map_err(|e| format!("{}: {e}", scene.dir.display()))?;
+    bar.finish_and_clear();
+    frame.save_png(&args.out).map_err(|e| e.to_string())?;
+    if let Some(exr) = &args.exr {
+        frame.save_exr(exr).map_err(|e| e.to_string())?;
+    }
+    eprintln!(
+        "path traced {} at {}x{}, {} paths per pixel, {} bounces: {}",
+        scene.name,
+        options.width,
+        options.height,
+        options.samples,
+        options.bounces,
+        args.out.display()
+    );
     Ok(ExitCode::SUCCESS)
 }
 

@@ -47,6 +47,8 @@ pub enum Method {
     Lightcuts,
     /// GPU hierarchical radiosity looked up per pixel with a bicubic filter (§5, Fig. 17).
     Lightmap,
+    /// The CPU path tracer (`reference`), ground truth: no GPU, no CSSM.
+    Reference,
 }
 
 impl Method {
@@ -65,6 +67,7 @@ impl Method {
             Method::Hrc => "hrc",
             Method::Lightcuts => "lightcuts",
             Method::Lightmap => "lightmap",
+            Method::Reference => "reference",
         }
     }
 
@@ -81,12 +84,15 @@ impl Method {
             Method::Lightmap => {
                 "hierarchical radiosity looked up per pixel with a bicubic filter (§5, Fig. 17)"
             }
+            Method::Reference => {
+                "CPU path tracer with exact ray casts (obvhs, rayon): ground truth"
+            }
         }
     }
 
     /// Whether the method needs a `.cssm` file (the indirect light).
     pub fn needs_cssm(self) -> bool {
-        self != Method::Direct
+        !matches!(self, Method::Direct | Method::Reference)
     }
 }
 
@@ -132,6 +138,8 @@ pub struct RenderOptions {
     pub jitter: bool,
     /// Which light paths the image holds.
     pub component: Component,
+    /// Paths per pixel of the `reference` path tracer.
+    pub samples: u32,
 }
 
 impl Default for RenderOptions {
@@ -146,6 +154,7 @@ impl Default for RenderOptions {
             threshold: crate::radiosity::DEFAULT_THRESHOLD,
             jitter: false,
             component: Component::Full,
+            samples: 256,
         }
     }
 }
@@ -200,6 +209,9 @@ pub fn render(
             "threshold {}: must be finite and >= 0",
             options.threshold
         )));
+    }
+    if method == Method::Reference {
+        return render_reference(scene, options, &|_, _| {});
     }
     let file = match (method.needs_cssm(), file) {
         (true, None) => {
@@ -282,6 +294,52 @@ pub fn render(
         radiance: bytemuck::cast_slice(&radiance).to_vec(),
         display,
         timings,
+    })
+}
+
+/// Renders `scene` with the CPU path tracer ([`crate::reference`]): `options.samples` paths
+/// per pixel, `options.bounces` indirect bounces, tone-mapped on the CPU with the GPU's curve.
+/// `progress(done, total)` is called as rows complete.
+///
+/// # Errors
+/// Unsupported sizes or an unreadable texture.
+pub fn render_reference(
+    scene: &Scene,
+    options: &RenderOptions,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Frame, RuntimeError> {
+    let (w, h) = (options.width, options.height);
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+        return Err(RuntimeError::Unsupported(format!(
+            "image size {w}x{h}: each side must be 1 to {MAX_SIDE}"
+        )));
+    }
+    let (materials, textures) = crate::load::cpu_materials(scene)?;
+    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+    let view = View::of_scene(scene, w, h);
+    let reference = crate::reference::ReferenceOptions {
+        samples_per_pixel: options.samples.max(1),
+        bounces: options.bounces,
+        component: options.component,
+        ..Default::default()
+    };
+    let image = crate::reference::render_reference(
+        scene, &view, &materials, &textures, &bvh, &reference, progress,
+    );
+    let radiance: Vec<[f32; 4]> = image.iter().map(|c| [c.x, c.y, c.z, 1.0]).collect();
+    let display = radiance
+        .iter()
+        .flat_map(|c| {
+            let [r, g, b] = crate::common::tonemap::tonemap([c[0], c[1], c[2]], options.exposure);
+            [r, g, b, 255]
+        })
+        .collect();
+    Ok(Frame {
+        width: w,
+        height: h,
+        radiance,
+        display,
+        timings: Vec::new(),
     })
 }
 

@@ -14,6 +14,7 @@
 //!   twin and a brute-force CPU reference.
 //! - [`lightcuts`]: the final gather per pixel (§4.4, §4.5); [`lightmap`]: the atlas looked up
 //!   per pixel (§5).
+//! - [`reference`]: the CPU path tracer, ground truth of the global-illumination methods.
 //! - [`frame`]: the passes of a frame in order, and [`frame::Method`], what `cssm render
 //!   --method` picks from.
 //!
@@ -48,6 +49,7 @@ pub mod lightcuts;
 pub mod lightmap;
 pub mod load;
 pub mod radiosity;
+pub mod reference;
 pub mod visibility;
 
 pub use device::Gpu;

@@ -82,6 +82,29 @@ pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) ->
     })
 }
 
+/// The scene's materials as the GPU and the CPU references see them, with their albedo
+/// textures (what [`SceneGpu`] uploads).
+///
+/// # Errors
+/// A texture that cannot be read.
+pub fn cpu_materials(
+    scene: &Scene,
+) -> Result<(Vec<GpuMaterial>, Vec<AlbedoTexture>), RuntimeError> {
+    let (textures, texture_index) = load_albedo_textures(scene)?;
+    let materials = scene
+        .materials
+        .iter()
+        .zip(&texture_index)
+        .map(|(m, &texture)| GpuMaterial {
+            kd: m.kd,
+            ns: m.ns,
+            ks: m.ks,
+            texture,
+        })
+        .collect();
+    Ok((materials, textures))
+}
+
 /// A `.cssm` file in GPU memory: the query constants, the texel table, the atlas grid, the
 /// triangles' atlas coordinates and the run data, bound as one bind group that the WGSL library
 /// ([`crate::visibility::library_wgsl`]) reads.
@@ -411,18 +434,7 @@ impl SceneGpu {
             contents: bytemuck::cast_slice(&vertices),
             usage: wgpu::BufferUsages::VERTEX,
         });
-        let (cpu_textures, texture_index) = load_albedo_textures(scene)?;
-        let cpu_materials: Vec<GpuMaterial> = scene
-            .materials
-            .iter()
-            .zip(&texture_index)
-            .map(|(m, &texture)| GpuMaterial {
-                kd: m.kd,
-                ns: m.ns,
-                ks: m.ks,
-                texture,
-            })
-            .collect();
+        let (cpu_materials, cpu_textures) = cpu_materials(scene)?;
         let materials = storage_buffer(device, "materials", bytemuck::cast_slice(&cpu_materials));
         let layers = cpu_textures.len().max(1) as u32;
         let side = if cpu_textures.is_empty() {

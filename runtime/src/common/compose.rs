@@ -8,13 +8,14 @@ use wgpu::util::DeviceExt;
 use crate::{common::layout, common::timestamps::PassTimer, gpu_types::TYPES_WGSL};
 
 /// Which light paths an image holds.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Component {
-    /// Light reaching the eye after one reflection from a light source.
+    /// Light reaching the first surface straight from the lights (what `direct::cpu` renders).
     Direct = 0,
-    /// Light reaching the eye after two or more reflections.
+    /// Light that bounced off one surface or more before the first one: everything but
+    /// [`Component::Direct`] (black when `bounces` is 0).
     Indirect = 1,
-    /// Both.
+    /// Both: [`Component::Direct`] plus [`Component::Indirect`].
     #[default]
     Full = 2,
 }
@@ -31,6 +32,23 @@ impl Component {
             Component::Full => "full",
         }
     }
+
+    /// One line on what the image holds.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Component::Direct => "direct light only (light -> surface -> eye)",
+            Component::Indirect => "indirect light only (at least one bounce)",
+            Component::Full => "direct plus indirect light",
+        }
+    }
+
+    pub(crate) fn has_direct(self) -> bool {
+        self != Component::Indirect
+    }
+
+    pub(crate) fn has_indirect(self) -> bool {
+        self != Component::Direct
+    }
 }
 
 impl fmt::Display for Component {
@@ -45,7 +63,10 @@ impl FromStr for Component {
         Component::ALL
             .into_iter()
             .find(|c| c.name() == s)
-            .ok_or_else(|| format!("unknown component '{s}' (available: direct, indirect, full)"))
+            .ok_or_else(|| {
+                let names: Vec<&str> = Component::ALL.iter().map(|c| c.name()).collect();
+                format!("unknown component '{s}' (available: {})", names.join(", "))
+            })
     }
 }
 

@@ -1,6 +1,9 @@
 //! CPU reference of the direct light: the shading of `light.wgsl` with exact shadows, ray cast
 //! with obvhs (`cssm_bake::raycast::SceneBvh`) through the same pixel centres the rasteriser
 //! samples.
+//!
+//! Its shading pieces (light, BRDF, albedo, facing normal) are shared with the path tracer,
+//! [`crate::reference`], so the two see the same scene.
 
 use cssm_bake::raycast::SceneBvh;
 use cssm_formats::{CssmFile, Scene};
@@ -21,8 +24,10 @@ pub struct CpuPixel {
     pub lit: u32,
 }
 
-/// Irradiance at `p` (normal `n`) from `light`, and whether the light reaches `p`.
-fn spot_irradiance(
+/// Irradiance at `p` (normal `n`) from `light`, and the unit direction to the light, when the
+/// light reaches `p` (inside its cone, on the front side, and an exact shadow ray from `p` lifted
+/// by `eps` along `n` is clear).
+pub(crate) fn spot_irradiance(
     light: &cssm_formats::scene::SpotLight,
     bvh: &SceneBvh,
     eps: f32,
@@ -43,6 +48,77 @@ fn spot_irradiance(
     Some((Vec3::from(light.intensity) * (cos_i / dist2), l))
 }
 
+/// The offset that lifts ray origins off a surface of `scene` (shadow rays, path continuations).
+pub(crate) fn ray_epsilon(scene: &Scene) -> f32 {
+    1e-4 * scene.diameter()
+}
+
+/// Unit geometric (flat) normal of `triangle`, flipped to the side of `towards` (the direction
+/// from the surface point to the viewer or the previous path vertex): surfaces are two-sided.
+pub(crate) fn facing_normal(scene: &Scene, triangle: u32, towards: Vec3) -> Vec3 {
+    let [a, b, c] = scene.triangle(triangle as usize);
+    let n = (b - a).cross(c - a).normalize_or_zero();
+    if n.dot(towards) < 0.0 { -n } else { n }
+}
+
+/// Albedo at `p` on `triangle`: the material's Kd times its albedo texture, sampled as the
+/// G-buffer pass does.
+pub(crate) fn albedo_at(
+    scene: &Scene,
+    m: &GpuMaterial,
+    textures: &[AlbedoTexture],
+    triangle: u32,
+    p: Vec3,
+) -> Vec3 {
+    let mut albedo = Vec3::from(m.kd);
+    if m.texture >= 0 && !scene.texcoords.is_empty() {
+        let [a, b, c] = scene.triangle(triangle as usize);
+        let bary = barycentric(p, a, b, c);
+        let idx = scene.triangles[triangle as usize];
+        let uv = idx.iter().zip(bary).fold([0.0f32; 2], |acc, (&v, w)| {
+            let t = scene.texcoords[v as usize];
+            [acc[0] + t[0] * w, acc[1] + t[1] * w]
+        });
+        albedo *= textures[m.texture as usize].sample(uv);
+    }
+    albedo
+}
+
+/// The BRDF of `light.wgsl` for the unit light direction `l` and view direction `v` at normal
+/// `n`: `albedo / pi + Ks (Ns + 2) / (2 pi) max(0, reflect(-l, n) . v)^Ns` (Lambert plus
+/// normalised Phong).
+pub(crate) fn brdf(albedo: Vec3, m: &GpuMaterial, l: Vec3, n: Vec3, v: Vec3) -> Vec3 {
+    let r = (-l).reflect(n);
+    let lobe = Vec3::from(m.ks)
+        * ((m.ns + 2.0) / (2.0 * std::f32::consts::PI) * r.dot(v).max(0.0).powf(m.ns));
+    albedo / std::f32::consts::PI + lobe
+}
+
+/// Radiance leaving `p` (normal `n`, facing the unit direction `v`) under every light of
+/// `scene`, exactly shadowed, and the lights that reach `p` as a bit set (bit `min(i, 31)`).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn direct_radiance(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    eps: f32,
+    p: Vec3,
+    n: Vec3,
+    v: Vec3,
+    albedo: Vec3,
+    m: &GpuMaterial,
+) -> (Vec3, u32) {
+    let mut radiance = Vec3::ZERO;
+    let mut lit = 0;
+    for (k, light) in scene.lights.iter().enumerate() {
+        let Some((e, l)) = spot_irradiance(light, bvh, eps, p, n) else {
+            continue;
+        };
+        lit |= 1 << k.min(31);
+        radiance += brdf(albedo, m, l, n, v) * e;
+    }
+    (radiance, lit)
+}
+
 /// Direct radiance per pixel of `view`, row-major, row 0 at the top.
 pub fn render_screen(
     scene: &Scene,
@@ -51,7 +127,7 @@ pub fn render_screen(
     textures: &[AlbedoTexture],
     bvh: &SceneBvh,
 ) -> Vec<CpuPixel> {
-    let eps = 1e-4 * scene.diameter();
+    let eps = ray_epsilon(scene);
     let (w, h) = (view.width, view.height);
     (0..w * h)
         .into_par_iter()
@@ -65,35 +141,10 @@ pub fn render_screen(
                 };
             };
             let p = view.eye + dir * t;
-            let [a, b, c] = scene.triangle(triangle as usize);
-            let mut n = (b - a).cross(c - a).normalize_or_zero();
-            if n.dot(view.eye - p) < 0.0 {
-                n = -n;
-            }
+            let n = facing_normal(scene, triangle, view.eye - p);
             let m = &materials[scene.triangle_materials[triangle as usize] as usize];
-            let mut albedo = Vec3::from(m.kd);
-            if m.texture >= 0 && !scene.texcoords.is_empty() {
-                let bary = barycentric(p, a, b, c);
-                let idx = scene.triangles[triangle as usize];
-                let uv = idx.iter().zip(bary).fold([0.0f32; 2], |acc, (&v, w)| {
-                    let t = scene.texcoords[v as usize];
-                    [acc[0] + t[0] * w, acc[1] + t[1] * w]
-                });
-                albedo *= textures[m.texture as usize].sample(uv);
-            }
-            let v = -dir;
-            let mut radiance = Vec3::ZERO;
-            let mut lit = 0;
-            for (k, light) in scene.lights.iter().enumerate() {
-                let Some((e, l)) = spot_irradiance(light, bvh, eps, p, n) else {
-                    continue;
-                };
-                lit |= 1 << k.min(31);
-                let r = (-l).reflect(n);
-                let lobe = Vec3::from(m.ks)
-                    * ((m.ns + 2.0) / (2.0 * std::f32::consts::PI) * r.dot(v).max(0.0).powf(m.ns));
-                radiance += (albedo / std::f32::consts::PI + lobe) * e;
-            }
+            let albedo = albedo_at(scene, m, textures, triangle, p);
+            let (radiance, lit) = direct_radiance(scene, bvh, eps, p, n, -dir, albedo, m);
             CpuPixel {
                 radiance,
                 triangle,
@@ -120,7 +171,7 @@ pub fn barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3] {
 /// Diffuse radiance leaving every texel of `file` (front side), in texel order: Kd/pi times the
 /// exact irradiance.
 pub fn render_atlas(scene: &Scene, file: &CssmFile, bvh: &SceneBvh) -> Vec<Vec3> {
-    let eps = 1e-4 * scene.diameter();
+    let eps = ray_epsilon(scene);
     file.texels
         .par_iter()
         .map(|t| {
