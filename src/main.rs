@@ -516,6 +516,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "ratio_file": s.uncompressed_bytes as f64 / file_bytes.max(1) as f64,
         "atlas_seconds": s.atlas_time.as_secs_f64(),
         "maps_seconds": s.maps_time.as_secs_f64(),
+        "hierarchy_seconds": s.hierarchy_time.as_secs_f64(),
         "total_seconds": seconds,
         "rays_per_second": s.rays as f64 / s.maps_time.as_secs_f64().max(1e-9),
         "threads": rayon_threads(),
@@ -552,10 +553,11 @@ fn run_bake(args: BakeArgs) -> CliResult {
             s.uncompressed_bytes as f64 / file_bytes.max(1) as f64
         );
         println!(
-            "  time {:.2} s (atlas {:.2} s, depth maps {:.2} s)",
+            "  time {:.2} s (atlas {:.2} s, depth maps {:.2} s, hierarchy {:.2} s)",
             seconds,
             s.atlas_time.as_secs_f64(),
-            s.maps_time.as_secs_f64()
+            s.maps_time.as_secs_f64(),
+            s.hierarchy_time.as_secs_f64()
         );
     }
     Ok(ExitCode::SUCCESS)

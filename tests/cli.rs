@@ -46,6 +46,7 @@ fn bake_inspect_and_determinism() {
     assert!(o.status.success(), "{}", stderr(&o));
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(summary["defined_texels"].as_u64().unwrap() > 100);
+    assert!(summary["hierarchy_seconds"].as_f64().unwrap() >= 0.0);
     let o = bake_small(&cornell(), &b);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
