@@ -511,6 +511,24 @@ fn render_rejects_bad_arguments() {
         (vec!["--size", "640"], "WIDTHxHEIGHT"),
         (vec!["--method", "radiosity"], "unknown method"),
         (vec!["--shadow-resolution", "3"], "out of range"),
+        (
+            vec!["--method", "lightcuts", "--bounces", "9"],
+            "out of range",
+        ),
+        (
+            vec!["--method", "hrc", "--threshold=-1"],
+            "must be a number",
+        ),
+        (vec!["--frames", "0"], "out of range"),
+        (vec!["--component", "glossy"], "unknown component"),
+        (
+            vec!["--method", "reference", "--samples", "0"],
+            "out of range",
+        ),
+        (
+            vec!["--method", "lightmap", "--cssm", "/nonexistent/box.cssm"],
+            "/nonexistent/box.cssm",
+        ),
     ] {
         let mut all = vec!["render", "--out", png.to_str().unwrap()];
         all.extend(args);

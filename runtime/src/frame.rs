@@ -53,11 +53,12 @@ pub enum Method {
 
 impl Method {
     /// Every method, in the order `--help` lists them.
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 5] = [
         Method::Direct,
         Method::Hrc,
         Method::Lightcuts,
         Method::Lightmap,
+        Method::Reference,
     ];
 
     /// Name on the command line.

@@ -30,32 +30,34 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
         }
         let node = nodes[s];
         let l = radiance[s].rgb;
+        var refine = false;
         if node.count > 1u {
             let bound = irradiance_bound(p, n, node, l) * brdf_bound(n, v, albedo, m.ks, m.ns, node.center - p, node.radius);
-            if tone_mapped(bound, params.exposure) > params.threshold {
-                s += 1u;
-                continue;
+            refine = tone_mapped(bound, params.exposure) > params.threshold;
+        }
+        if refine {
+            s += 1u;
+        } else {
+            cut += 1u;
+            var sender = node.representative;
+            if params.jitter != 0u && node.count > 1u {
+                sender = leaves[jitter_leaf(params.seed, receiver, s, node)].x;
             }
-        }
-        cut += 1u;
-        var sender = node.representative;
-        if params.jitter != 0u && node.count > 1u {
-            sender = leaves[jitter_leaf(params.seed, receiver, s, node)].x;
-        }
-        if any(l > vec3f(0.0)) {
-            let y = cssm_texels[sender];
-            let e = irradiance_from(p, n, y.position, node.normal, node.area, l);
-            if any(e > vec3f(0.0)) {
-                var visibility = cssm_visibility_atlas(atlas, y.position, y.normal);
-                // No texel stands for the point (far outside its chart): unshadowed.
-                if visibility < 0.0 {
-                    visibility = 1.0;
+            if any(l > vec3f(0.0)) {
+                let y = cssm_texels[sender];
+                let e = irradiance_from(p, n, y.position, node.normal, node.area, l);
+                if any(e > vec3f(0.0)) {
+                    var visibility = cssm_visibility_atlas(atlas, y.position, y.normal);
+                    // No texel stands for the point (far outside its chart): unshadowed.
+                    if visibility < 0.0 {
+                        visibility = 1.0;
+                    }
+                    let w = normalize(y.position - p);
+                    l_out += brdf(n, v, w, albedo, m.ks, m.ns) * e * visibility;
                 }
-                let w = normalize(y.position - p);
-                l_out += brdf(n, v, w, albedo, m.ks, m.ns) * e * visibility;
             }
+            s = node.skip;
         }
-        s = node.skip;
     }
     return vec4f(l_out, f32(cut));
 }
