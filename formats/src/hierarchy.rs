@@ -24,7 +24,17 @@ use crate::texel::Texel;
 /// 16 four-byte words (64 bytes, 16-byte aligned in a WGSL `array<struct>`): the 13 fields, then
 /// [`_pad`](Self::_pad).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Serialize,
+    Deserialize,
+    bytemuck::Pod,
+    bytemuck::Zeroable,
+)]
 pub struct HierarchyNode {
     /// Centre of the bounding sphere.
     pub center: [f32; 3],

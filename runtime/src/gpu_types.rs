@@ -130,50 +130,9 @@ pub struct GpuCssmParams {
     pub _pad: u32,
 }
 
-/// One node of the texel hierarchy (§4.2.1) as the GPU sees it: the file's
-/// `cssm_formats::hierarchy::HierarchyNode`, 64 bytes, depth-first order (left child = next
-/// node, right child = left child's `skip`).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuNode {
-    /// Bounding-sphere centre.
-    pub center: [f32; 3],
-    /// Bounding-sphere radius (contains every leaf texel's disk).
-    pub radius: f32,
-    /// Area-weighted mean of the unit texel normals (length <= 1).
-    pub normal: [f32; 3],
-    /// Cosine of the normal cone's half-angle (-1: no bound).
-    pub cone_cos: f32,
-    /// Surface area of the subtree.
-    pub area: f32,
-    /// Next node when the subtree is skipped (node count at the end).
-    pub skip: u32,
-    /// First leaf of the subtree in leaf order.
-    pub first: u32,
-    /// Number of leaves (1: a leaf).
-    pub count: u32,
-    /// Texel standing for the node as a sender.
-    pub representative: u32,
-    /// Unused.
-    pub _pad: [u32; 3],
-}
-
-impl From<&cssm_formats::hierarchy::HierarchyNode> for GpuNode {
-    fn from(n: &cssm_formats::hierarchy::HierarchyNode) -> Self {
-        Self {
-            center: n.center,
-            radius: n.radius,
-            normal: n.normal,
-            cone_cos: n.cone_cos,
-            area: n.area,
-            skip: n.skip,
-            first: n.first,
-            count: n.count,
-            representative: n.representative,
-            _pad: [0; 3],
-        }
-    }
-}
+/// One node of the texel hierarchy (§4.2.1): the file's own node, uploaded as it is (64 bytes,
+/// `#[repr(C)]`, `Pod`); its WGSL twin is `Node` in `types.wgsl`.
+pub use cssm_formats::hierarchy::HierarchyNode as GpuNode;
 
 /// Constants of one hierarchy traversal pass (radiosity gather or final gather).
 #[repr(C)]

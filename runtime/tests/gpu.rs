@@ -643,7 +643,6 @@ fn interior(
 fn final_gather_matches_cpu_twin() {
     use cssm_runtime::{
         frame::{self, Component, Method, RenderOptions},
-        gpu_types::GpuNode,
         radiosity::RadiosityOptions,
     };
     let (scene, file) = cornell32();
@@ -668,7 +667,7 @@ fn final_gather_matches_cpu_twin() {
     )
     .expect("radiosity");
     let radiance = vec3s(&atlas.node_radiance);
-    let nodes: Vec<GpuNode> = file.hierarchy.nodes.iter().map(GpuNode::from).collect();
+    let nodes = &file.hierarchy.nodes;
     let query = VisibilityQuery::new(file, QueryOptions::default());
     let seen = cpu_receivers(scene, file, w, h);
     let keep = interior(scene, &seen, w, h);
@@ -685,7 +684,7 @@ fn final_gather_matches_cpu_twin() {
                 };
                 cssm_runtime::lightcuts::cpu::gather_pixel(
                     &query,
-                    &nodes,
+                    nodes,
                     &file.hierarchy.leaf_texels,
                     &radiance,
                     options.threshold,

@@ -116,7 +116,7 @@ pub fn radiosity(
     iterations: u32,
 ) -> CpuRadiosity {
     let file = query.file();
-    let nodes: Vec<GpuNode> = file.hierarchy.nodes.iter().map(GpuNode::from).collect();
+    let nodes = &file.hierarchy.nodes;
     let leaf_texels = &file.hierarchy.leaf_texels;
     let leaf_nodes: Vec<(u32, usize)> = nodes
         .iter()
@@ -128,7 +128,7 @@ pub fn radiosity(
     for &(t, i) in &leaf_nodes {
         radiance[i] = direct[t as usize];
     }
-    pull(&nodes, &mut radiance);
+    pull(nodes, &mut radiance);
     let mut irradiance = vec![Vec3::ZERO; file.texels.len()];
     let mut gathered_total = 0;
     for _ in 0..iterations {
@@ -139,7 +139,7 @@ pub fn radiosity(
                 let a = albedo[t as usize];
                 let (e, cut) = gather_texel(
                     query,
-                    &nodes,
+                    nodes,
                     leaf_texels,
                     &radiance,
                     traversal,
@@ -157,7 +157,7 @@ pub fn radiosity(
             irradiance[t as usize] = e;
             next[i] = direct[t as usize] + albedo[t as usize] / PI * e;
         }
-        pull(&nodes, &mut next);
+        pull(nodes, &mut next);
         radiance = next;
     }
     CpuRadiosity {

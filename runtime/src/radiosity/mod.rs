@@ -81,8 +81,6 @@ pub struct HierarchyGpu {
     pub node_count: u32,
     /// Number of leaves (= texels).
     pub leaf_count: u32,
-    /// The nodes as uploaded.
-    pub cpu_nodes: Vec<GpuNode>,
 }
 
 impl HierarchyGpu {
@@ -91,21 +89,21 @@ impl HierarchyGpu {
     /// # Errors
     /// [`RuntimeError::TooLarge`] when the node array exceeds the device's binding limit.
     pub fn new(device: &wgpu::Device, hierarchy: &Hierarchy) -> Result<Self, RuntimeError> {
-        let cpu_nodes: Vec<GpuNode> = hierarchy.nodes.iter().map(GpuNode::from).collect();
+        let nodes = &hierarchy.nodes;
         limit_check(
             device,
             "hierarchy nodes",
-            (cpu_nodes.len() * size_of::<GpuNode>()) as u64,
+            (nodes.len() * size_of::<GpuNode>()) as u64,
         )?;
         let mut leaves = vec![[0u32; 2]; hierarchy.leaf_texels.len()];
-        for (i, n) in cpu_nodes.iter().enumerate() {
+        for (i, n) in nodes.iter().enumerate() {
             if n.count == 1 {
                 leaves[n.first as usize] = [hierarchy.leaf_texels[n.first as usize], i as u32];
             }
         }
-        let depth = node_depths(&cpu_nodes);
-        let mut inner: Vec<u32> = (0..cpu_nodes.len() as u32)
-            .filter(|&i| cpu_nodes[i as usize].count > 1)
+        let depth = node_depths(nodes);
+        let mut inner: Vec<u32> = (0..nodes.len() as u32)
+            .filter(|&i| nodes[i as usize].count > 1)
             .collect();
         inner.sort_by_key(|&i| (std::cmp::Reverse(depth[i as usize]), i));
         let mut levels = Vec::new();
@@ -117,7 +115,7 @@ impl HierarchyGpu {
             }
         }
         Ok(Self {
-            nodes: storage_buffer(device, "hierarchy nodes", bytemuck::cast_slice(&cpu_nodes)),
+            nodes: storage_buffer(device, "hierarchy nodes", bytemuck::cast_slice(nodes)),
             leaves: storage_buffer(device, "hierarchy leaves", bytemuck::cast_slice(&leaves)),
             pull_order: storage_buffer(
                 device,
@@ -125,9 +123,8 @@ impl HierarchyGpu {
                 bytemuck::cast_slice(&inner),
             ),
             levels,
-            node_count: cpu_nodes.len() as u32,
+            node_count: nodes.len() as u32,
             leaf_count: leaves.len() as u32,
-            cpu_nodes,
         })
     }
 }
