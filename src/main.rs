@@ -428,22 +428,27 @@ fn render_cssm(args: &RenderArgs, scene: &Scene) -> Result<formats::CssmFile, St
         cube_resolution: 32,
         ..Default::default()
     };
+    Ok(bake_with_progress(scene, &options)?.file)
+}
+
+/// Bakes `scene` with a progress bar of depth maps on stderr; errors name the scene directory.
+fn bake_with_progress(scene: &Scene, options: &bake::BakeOptions) -> Result<bake::Baked, String> {
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, eta {eta}",
+            "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, {per_sec}, eta {eta}",
         )
         .expect("valid template")
         .progress_chars("=> "),
     );
     bar.set_message(scene.name.clone());
-    let baked = bake::bake(scene, &options, &mut |done, total| {
+    let baked = bake::bake(scene, options, &mut |done, total| {
         bar.set_length(total);
         bar.set_position(done);
     })
     .map_err(|e| format!("{}: {e}", scene.dir.display()))?;
     bar.finish_and_clear();
-    Ok(baked.file)
+    Ok(baked)
 }
 
 fn run_bake(args: BakeArgs) -> CliResult {
@@ -475,21 +480,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         run_value: args.run_value,
         merge_short_runs: args.merge_short_runs,
     };
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, {per_sec}, eta {eta}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    bar.set_message(scene.name.clone());
-    let baked = bake::bake(&scene, &options, &mut |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
-    })
-    .map_err(|e| format!("{}: {e}", dir.display()))?;
-    bar.finish_and_clear();
+    let baked = bake_with_progress(&scene, &options)?;
     let file_bytes = formats::cssm::write_atomic_with(&output, &baked.file, args.file_coding)
         .map_err(|e| e.to_string())?;
     let seconds = start.elapsed().as_secs_f64();

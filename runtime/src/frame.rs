@@ -180,6 +180,32 @@ pub struct Frame {
 /// Largest image side `render` accepts.
 pub const MAX_SIDE: u32 = 8192;
 
+/// Refuses image sizes outside 1 to [`MAX_SIDE`].
+fn check_size(w: u32, h: u32) -> Result<(), RuntimeError> {
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+        return Err(RuntimeError::Unsupported(format!(
+            "image size {w}x{h}: each side must be 1 to {MAX_SIDE}"
+        )));
+    }
+    Ok(())
+}
+
+/// The view constants of a `w`x`h` image of `scene` as a uniform buffer.
+fn view_buffer(
+    device: &wgpu::Device,
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    lights: u32,
+    exposure: f32,
+) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("view"),
+        contents: bytemuck::bytes_of(&View::of_scene(scene, w, h).gpu(lights, exposure)),
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
+}
+
 /// Renders `scene` with `method`; `file` is the scene's baked CSSM, which every method but
 /// `direct` needs.
 ///
@@ -194,11 +220,7 @@ pub fn render(
     options: &RenderOptions,
 ) -> Result<Frame, RuntimeError> {
     let (w, h) = (options.width, options.height);
-    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
-        return Err(RuntimeError::Unsupported(format!(
-            "image size {w}x{h}: each side must be 1 to {MAX_SIDE}"
-        )));
-    }
+    check_size(w, h)?;
     if options.bounces > MAX_BOUNCES {
         return Err(RuntimeError::Unsupported(format!(
             "{} bounces: at most {MAX_BOUNCES}",
@@ -227,12 +249,7 @@ pub fn render(
     let scene_gpu = SceneGpu::new(device, &gpu.queue, scene, file)?;
     let lights = shadow_map::gpu_lights(scene, options.shadow_resolution)?;
     let shadows = ShadowMaps::new(device, &lights, options.shadow_resolution);
-    let view = View::of_scene(scene, w, h);
-    let view_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("view"),
-        contents: bytemuck::bytes_of(&view.gpu(lights.len() as u32, options.exposure)),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
+    let view_buffer = view_buffer(device, scene, w, h, lights.len() as u32, options.exposure);
     let gbuffer = GBuffer::new(device, &scene_gpu, &view_buffer, w, h);
     let direct = ScreenDirect::new(device, &view_buffer, &scene_gpu, &shadows, &gbuffer);
     let indirect = match file {
@@ -310,11 +327,7 @@ pub fn render_reference(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Frame, RuntimeError> {
     let (w, h) = (options.width, options.height);
-    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
-        return Err(RuntimeError::Unsupported(format!(
-            "image size {w}x{h}: each side must be 1 to {MAX_SIDE}"
-        )));
-    }
+    check_size(w, h)?;
     let (materials, textures) = crate::load::cpu_materials(scene)?;
     let bvh = cssm_bake::raycast::SceneBvh::new(scene);
     let view = View::of_scene(scene, w, h);
@@ -357,10 +370,55 @@ pub fn texel_albedo(scene: &Scene, file: &CssmFile) -> Vec<[f32; 4]> {
 }
 
 /// The indirect-light passes of a frame.
-struct Indirect {
+/// The view-independent part of the indirect light: the direct light into the atlas texels,
+/// then the radiosity iteration over the hierarchy.
+struct AtlasGi {
     cssm: CssmGpu,
+    hierarchy: HierarchyGpu,
     atlas: AtlasDirect,
     radiosity: Radiosity,
+}
+
+impl AtlasGi {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        gpu: &Gpu,
+        scene: &Scene,
+        view_buffer: &wgpu::Buffer,
+        scene_gpu: &SceneGpu,
+        shadows: &ShadowMaps,
+        file: &CssmFile,
+        options: RadiosityOptions,
+    ) -> Result<Self, RuntimeError> {
+        let device = &gpu.device;
+        let cssm = CssmGpu::new(device, &gpu.queue, file, QueryOptions::default())?;
+        let hierarchy = HierarchyGpu::new(device, &file.hierarchy)?;
+        let atlas = AtlasDirect::new(device, view_buffer, scene_gpu, shadows, &cssm);
+        let radiosity = Radiosity::new(
+            device,
+            &cssm,
+            &hierarchy,
+            &atlas.texel_radiance,
+            &texel_albedo(scene, file),
+            options,
+        )?;
+        Ok(Self {
+            cssm,
+            hierarchy,
+            atlas,
+            radiosity,
+        })
+    }
+
+    fn run(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut PassTimer, iterations: u32) {
+        self.atlas.run(encoder, timer);
+        self.radiosity.run(encoder, &self.cssm, timer, iterations);
+    }
+}
+
+/// The indirect-light passes of a frame.
+struct Indirect {
+    gi: AtlasGi,
     iterations: u32,
     per_pixel: PerPixel,
     jitter: bool,
@@ -385,19 +443,17 @@ impl Indirect {
         options: &RenderOptions,
     ) -> Result<Self, RuntimeError> {
         let device = &gpu.device;
-        let cssm = CssmGpu::new(device, &gpu.queue, file, QueryOptions::default())?;
-        let hierarchy = HierarchyGpu::new(device, &file.hierarchy)?;
-        let atlas = AtlasDirect::new(device, view_buffer, scene_gpu, shadows, &cssm);
         let radiosity_options = RadiosityOptions {
             threshold: options.threshold,
             exposure: options.exposure,
         };
-        let radiosity = Radiosity::new(
-            device,
-            &cssm,
-            &hierarchy,
-            &atlas.texel_radiance,
-            &texel_albedo(scene, file),
+        let gi = AtlasGi::new(
+            gpu,
+            scene,
+            view_buffer,
+            scene_gpu,
+            shadows,
+            file,
             radiosity_options,
         )?;
         let (iterations, per_pixel) = match method {
@@ -408,9 +464,9 @@ impl Indirect {
                     view_buffer,
                     scene_gpu,
                     gbuffer,
-                    &cssm,
-                    &hierarchy,
-                    radiosity.radiance(iterations),
+                    &gi.cssm,
+                    &gi.hierarchy,
+                    gi.radiosity.radiance(iterations),
                     options.threshold,
                     options.exposure,
                 );
@@ -426,17 +482,15 @@ impl Indirect {
                     device,
                     view_buffer,
                     gbuffer,
-                    &cssm,
-                    &radiosity.texel_irradiance,
+                    &gi.cssm,
+                    &gi.radiosity.texel_irradiance,
                     filter,
                 );
                 (options.bounces, PerPixel::Lookup(lookup))
             }
         };
         Ok(Self {
-            cssm,
-            atlas,
-            radiosity,
+            gi,
             iterations,
             per_pixel,
             jitter: options.jitter,
@@ -457,14 +511,11 @@ impl Indirect {
         timer: &mut PassTimer,
         frame: u32,
     ) {
-        self.atlas.run(encoder, timer);
-        self.radiosity
-            .run(encoder, &self.cssm, timer, self.iterations);
+        self.gi.run(encoder, timer, self.iterations);
+        let cssm = &self.gi.cssm;
         match &self.per_pixel {
-            PerPixel::Lookup(l) => l.run(encoder, &self.cssm, timer),
-            PerPixel::Gather(g) => {
-                g.run(&gpu.queue, encoder, &self.cssm, timer, frame, self.jitter)
-            }
+            PerPixel::Lookup(l) => l.run(encoder, cssm, timer),
+            PerPixel::Gather(g) => g.run(&gpu.queue, encoder, cssm, timer, frame, self.jitter),
         }
     }
 }
@@ -514,34 +565,27 @@ pub fn atlas_radiosity(
 ) -> Result<AtlasRadiosity, RuntimeError> {
     let device = &gpu.device;
     let scene_gpu = SceneGpu::new(device, &gpu.queue, scene, Some(file))?;
-    let cssm = CssmGpu::new(device, &gpu.queue, file, QueryOptions::default())?;
-    let hierarchy = HierarchyGpu::new(device, &file.hierarchy)?;
     let lights = shadow_map::gpu_lights(scene, shadow_resolution)?;
     let shadows = ShadowMaps::new(device, &lights, shadow_resolution);
-    let view = View::of_scene(scene, 1, 1);
-    let view_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("view"),
-        contents: bytemuck::bytes_of(&view.gpu(lights.len() as u32, 1.0)),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
-    let atlas = AtlasDirect::new(device, &view_buffer, &scene_gpu, &shadows, &cssm);
-    let radiosity = Radiosity::new(
-        device,
-        &cssm,
-        &hierarchy,
-        &atlas.texel_radiance,
-        &texel_albedo(scene, file),
+    let view_buffer = view_buffer(device, scene, 1, 1, lights.len() as u32, 1.0);
+    let gi = AtlasGi::new(
+        gpu,
+        scene,
+        &view_buffer,
+        &scene_gpu,
+        &shadows,
+        file,
         options,
     )?;
     let mut timer = PassTimer::new(gpu);
     let mut encoder = device.create_command_encoder(&Default::default());
     shadows.render(&mut encoder, &scene_gpu, &mut timer);
-    atlas.run(&mut encoder, &mut timer);
-    radiosity.run(&mut encoder, &cssm, &mut timer, iterations);
+    gi.run(&mut encoder, &mut timer, iterations);
     timer.resolve(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
     gpu.wait()?;
     let timings = timer.read(gpu)?;
+    let (atlas, radiosity) = (&gi.atlas, &gi.radiosity);
     let texels = 16 * atlas.texel_count as u64;
     let read = |buffer: &wgpu::Buffer, bytes: u64| -> Result<Vec<[f32; 4]>, RuntimeError> {
         Ok(bytemuck::cast_slice(&readback::read_buffer(gpu, buffer, 0, bytes)?).to_vec())
@@ -551,7 +595,7 @@ pub fn atlas_radiosity(
         irradiance: read(&radiosity.texel_irradiance, texels)?,
         node_radiance: read(
             radiosity.radiance(iterations),
-            16 * hierarchy.node_count as u64,
+            16 * gi.hierarchy.node_count as u64,
         )?,
         timings,
     })
