@@ -639,20 +639,20 @@ fn interior(
         .collect()
 }
 
-#[test]
-fn final_gather_matches_cpu_twin() {
+/// Relative RMSE over the interior pixels of the GPU final gather (1 bounce, `w`x`h`, oracle
+/// `threshold`) against its CPU twin gathering from the same node radiance.
+fn final_gather_vs_twin(scene: &Scene, file: &CssmFile, w: u32, h: u32, threshold: f32) -> f64 {
     use cssm_runtime::{
         frame::{self, Component, Method, RenderOptions},
         radiosity::RadiosityOptions,
     };
-    let (scene, file) = cornell32();
-    let (w, h) = (64u32, 48u32);
     let options = RenderOptions {
         width: w,
         height: h,
         shadow_resolution: GI_SHADOW,
         bounces: 1,
         component: Component::Indirect,
+        threshold,
         ..Default::default()
     };
     let image =
@@ -663,7 +663,10 @@ fn final_gather_matches_cpu_twin() {
         file,
         GI_SHADOW,
         0,
-        RadiosityOptions::default(),
+        RadiosityOptions {
+            threshold,
+            exposure: options.exposure,
+        },
     )
     .expect("radiosity");
     let radiance = vec3s(&atlas.node_radiance);
@@ -700,11 +703,48 @@ fn final_gather_matches_cpu_twin() {
         .collect();
     let rmse = relative_rmse(&vec3s(&image.radiance), &twin, &keep);
     eprintln!(
-        "final gather {w}x{h}, 1 bounce: GPU vs CPU twin relative RMSE {:.4}% over {} interior pixels",
+        "final gather {w}x{h}, 1 bounce, atlas {}, threshold {threshold}: GPU vs CPU twin relative \
+         RMSE {:.4}% over {} interior pixels",
+        file.params.atlas_resolution,
         100.0 * rmse,
         keep.iter().filter(|&&k| k).count()
     );
+    rmse
+}
+
+#[test]
+fn final_gather_matches_cpu_twin() {
+    let (scene, file) = cornell32();
+    let rmse = final_gather_vs_twin(
+        scene,
+        file,
+        64,
+        48,
+        cssm_runtime::radiosity::DEFAULT_THRESHOLD,
+    );
     assert!(rmse < 0.01, "relative RMSE {rmse}");
+}
+
+/// The open bug of `reports/runtime.md`: at atlas 64 and the default threshold, pixels whose
+/// cut holds more than about 300 nodes come out darker on the GPU (lavapipe) than in the CPU
+/// twin; at threshold 0.1 (cuts of about 100 nodes) the two agree. Reproduce with
+/// `cargo test --release -p cssm-runtime --test gpu -- --ignored final_gather_long_cuts`.
+#[test]
+#[ignore = "known bug: the final gather's long cuts disagree with the CPU twin (reports/runtime.md)"]
+fn final_gather_long_cuts_match_cpu_twin() {
+    let (scene, file) = cornell();
+    let short = final_gather_vs_twin(scene, file, 40, 30, 0.1);
+    let long = final_gather_vs_twin(
+        scene,
+        file,
+        40,
+        30,
+        cssm_runtime::radiosity::DEFAULT_THRESHOLD,
+    );
+    assert!(
+        short < 0.01 && long < 0.01,
+        "threshold 0.1: {short}, default: {long}"
+    );
 }
 
 #[test]
