@@ -295,7 +295,18 @@ impl<'a> VisibilityQuery<'a> {
     /// [`Self::visibility_from_surface`] for the surface point at atlas coordinates `p`
     /// (texel units), as a G-buffer stores it.
     pub fn visibility_from_atlas(&self, p: Vec2, p_i: Vec3, n_i: Option<Vec3>) -> Option<f32> {
-        let senders = self.sender_texels_at(p);
+        self.visibility_from_senders(&self.sender_texels_at(p), p_i, n_i)
+    }
+
+    /// Fraction of `p_i` visible from a surface point whose [`Self::sender_texels_at`] are
+    /// `senders` (`None` when there are none): the weighted mean of their cube maps' answers.
+    /// A receiver that asks many queries (a final-gather pixel) finds its senders once.
+    pub fn visibility_from_senders(
+        &self,
+        senders: &[(u32, f32)],
+        p_i: Vec3,
+        n_i: Option<Vec3>,
+    ) -> Option<f32> {
         if senders.is_empty() {
             return None;
         }

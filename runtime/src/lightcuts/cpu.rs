@@ -44,6 +44,8 @@ pub fn gather_pixel(
     let texels = &query.file().texels;
     let (ks, ns) = (Vec3::from(material.ks), material.ns);
     let (p, n, v) = (r.position, r.normal, r.view);
+    // The receiver's own texels, found once for all its senders (as the kernel does).
+    let senders = query.sender_texels_at(r.atlas);
     let mut out = Vec3::ZERO;
     let mut cut = 0;
     let mut s = 0usize;
@@ -71,7 +73,7 @@ pub fn gather_pixel(
             let (e, w) = irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l);
             if e.cmpgt(Vec3::ZERO).any() {
                 let visibility = query
-                    .visibility_from_atlas(r.atlas, y.pos(), Some(y.nrm()))
+                    .visibility_from_senders(&senders, y.pos(), Some(y.nrm()))
                     .unwrap_or(1.0);
                 out += brdf(n, v, w, r.albedo, ks, ns) * e * visibility;
             }

@@ -21,6 +21,8 @@
 
 // Indirect radiance leaving `p` towards `v`, and the cut size.
 fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, atlas: vec2f) -> vec4f {
+    // The receiver's own texels, found once for all its senders.
+    let senders = cssm_senders_at(atlas);
     var l_out = vec3f(0.0);
     var cut = 0u;
     var s = 0u;
@@ -47,7 +49,7 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                 let y = cssm_texels[sender];
                 let e = irradiance_from(p, n, y.position, node.normal, node.area, l);
                 if any(e > vec3f(0.0)) {
-                    var visibility = cssm_visibility_atlas(atlas, y.position, y.normal);
+                    var visibility = cssm_visibility_senders(senders, y.position, y.normal);
                     // No texel stands for the point (far outside its chart): unshadowed.
                     if visibility < 0.0 {
                         visibility = 1.0;

@@ -23,7 +23,25 @@ const CSSM_FLAG_SENDER_FILTER: u32 = 2u;
 // Stands for "nothing within the far plane": larger than any receiver depth.
 const CSSM_FAR_AWAY: f32 = 3.0e38;
 
+// One step of cssm_lookup's binary search over runs [first, first + count).
+fn cssm_search_step(first: ptr<function, u32>, count: ptr<function, u32>, local: u32) {
+    if *count > 0u {
+        let step = *count / 2u;
+        let i = *first + step;
+        if (cssm_runs[i] >> 16u) <= local {
+            *first = i + 1u;
+            *count -= step + 1u;
+        } else {
+            *count = step;
+        }
+    }
+}
+
 // RunData::lookup: binary search for the last run starting at or before the map (§3.1).
+// Unrolled to 17 steps, enough for the 65,536 runs a segment's pixel can hold, rather than
+// looped: llvmpipe ends every loop of an invocation once all its loops together have run
+// 65,535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), and a final gather's long cut, with 16
+// lookups per sender, went past that and silently lost most of its senders.
 fn cssm_lookup(map: u32, pixel: u32) -> u32 {
     let segment = map >> 16u;
     let local = map & 0xffffu;
@@ -32,16 +50,23 @@ fn cssm_lookup(map: u32, pixel: u32) -> u32 {
     let hi = cssm_offsets[slot + 1u];
     var first = lo;
     var count = hi - lo;
-    while count > 0u {
-        let step = count / 2u;
-        let i = first + step;
-        if (cssm_runs[i] >> 16u) <= local {
-            first = i + 1u;
-            count -= step + 1u;
-        } else {
-            count = step;
-        }
-    }
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
+    cssm_search_step(&first, &count, local);
     return cssm_runs[max(first, lo + 1u) - 1u] & 0xffffu;
 }
 
@@ -267,15 +292,32 @@ fn cssm_visibility(triangle: u32, bary: vec3f, p_i: vec3f, n_i: vec3f) -> f32 {
     return cssm_visibility_atlas(cssm_atlas_point(triangle, bary), p_i, n_i);
 }
 
-// VisibilityQuery::visibility_from_atlas: cssm_visibility for the surface point at atlas
-// coordinates `p` (texels), as the G-buffer stores it.
-fn cssm_visibility_atlas(p: vec2f, p_i: vec3f, n_i: vec3f) -> f32 {
+// VisibilityQuery::sender_texels_at: the texels whose cube maps answer for the surface point
+// at atlas coordinates `p` (texels), and their normalised weights (sender filtering: the 2x2
+// texels around it in its chart, bilinear; weight 0: no texel). All weights are 0 when no texel
+// stands for the point.
+struct CssmSenders {
+    texels: vec4u,
+    weights: vec4f,
+}
+
+// One tap of the sender filter: the texel of cell (x, y) when it has weight and lies in `chart`.
+fn cssm_sender_tap(x: i32, y: i32, weight: f32, chart: u32) -> u32 {
+    let t = cssm_cell(x, y);
+    if weight > 0.0 && t != CSSM_NONE && cssm_texels[t].chart == chart {
+        return t;
+    }
+    return CSSM_NONE;
+}
+
+fn cssm_senders_at(p: vec2f) -> CssmSenders {
     let centre = cssm_texel_at(p);
     if centre == CSSM_NONE {
-        return -1.0;
+        return CssmSenders(vec4u(CSSM_NONE), vec4f(0.0));
     }
+    let alone = CssmSenders(vec4u(centre, CSSM_NONE, CSSM_NONE, CSSM_NONE), vec4f(1.0, 0.0, 0.0, 0.0));
     if (cssm.flags & CSSM_FLAG_SENDER_FILTER) == 0u {
-        return cssm_visibility_texel(centre, p_i, n_i);
+        return alone;
     }
     let chart = cssm_texels[centre].chart;
     let fx = p.x - 0.5;
@@ -284,26 +326,47 @@ fn cssm_visibility_atlas(p: vec2f, p_i: vec3f, n_i: vec3f) -> f32 {
     let y0 = i32(floor(fy));
     let wx = fx - floor(fx);
     let wy = fy - floor(fy);
-    let weights = array<f32, 4>((1.0 - wx) * (1.0 - wy), wx * (1.0 - wy), (1.0 - wx) * wy, wx * wy);
-    var texels = array<u32, 4>(CSSM_NONE, CSSM_NONE, CSSM_NONE, CSSM_NONE);
-    var total = 0.0;
-    for (var k = 0; k < 4; k++) {
-        let t = cssm_cell(x0 + (k & 1), y0 + (k >> 1u));
-        if weights[k] > 0.0 && t != CSSM_NONE && cssm_texels[t].chart == chart {
-            texels[k] = t;
-            total += weights[k];
-        }
-    }
+    let w = vec4f((1.0 - wx) * (1.0 - wy), wx * (1.0 - wy), (1.0 - wx) * wy, wx * wy);
+    let t = vec4u(
+        cssm_sender_tap(x0, y0, w.x, chart),
+        cssm_sender_tap(x0 + 1, y0, w.y, chart),
+        cssm_sender_tap(x0, y0 + 1, w.z, chart),
+        cssm_sender_tap(x0 + 1, y0 + 1, w.w, chart),
+    );
+    let used = select(vec4f(0.0), w, t != vec4u(CSSM_NONE));
+    let total = used.x + used.y + used.z + used.w;
     if total <= 0.0 {
-        return cssm_visibility_texel(centre, p_i, n_i);
+        return alone;
+    }
+    return CssmSenders(t, used / total);
+}
+
+// VisibilityQuery::visibility_from_senders: the weighted mean of the senders' answers, -1 when
+// there are none. A receiver that asks many queries (a final-gather pixel) finds its senders once.
+fn cssm_visibility_senders(s: CssmSenders, p_i: vec3f, n_i: vec3f) -> f32 {
+    if all(s.weights == vec4f(0.0)) {
+        return -1.0;
     }
     var sum = 0.0;
-    for (var k = 0; k < 4; k++) {
-        if texels[k] != CSSM_NONE {
-            sum += weights[k] / total * cssm_visibility_texel(texels[k], p_i, n_i);
-        }
+    if s.weights.x > 0.0 {
+        sum += s.weights.x * cssm_visibility_texel(s.texels.x, p_i, n_i);
+    }
+    if s.weights.y > 0.0 {
+        sum += s.weights.y * cssm_visibility_texel(s.texels.y, p_i, n_i);
+    }
+    if s.weights.z > 0.0 {
+        sum += s.weights.z * cssm_visibility_texel(s.texels.z, p_i, n_i);
+    }
+    if s.weights.w > 0.0 {
+        sum += s.weights.w * cssm_visibility_texel(s.texels.w, p_i, n_i);
     }
     return sum;
+}
+
+// VisibilityQuery::visibility_from_atlas: cssm_visibility for the surface point at atlas
+// coordinates `p` (texels), as the G-buffer stores it.
+fn cssm_visibility_atlas(p: vec2f, p_i: vec3f, n_i: vec3f) -> f32 {
+    return cssm_visibility_senders(cssm_senders_at(p), p_i, n_i);
 }
 
 // The paper's binary query: is `p_i` visible from the surface point (`triangle`, `bary`)?
