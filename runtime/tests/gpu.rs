@@ -641,7 +641,14 @@ fn interior(
 
 /// Relative RMSE over the interior pixels of the GPU final gather (1 bounce, `w`x`h`, oracle
 /// `threshold`) against its CPU twin gathering from the same node radiance.
-fn final_gather_vs_twin(scene: &Scene, file: &CssmFile, w: u32, h: u32, threshold: f32) -> f64 {
+fn final_gather_vs_twin(
+    scene: &Scene,
+    file: &CssmFile,
+    w: u32,
+    h: u32,
+    threshold: f32,
+    jitter: bool,
+) -> f64 {
     use cssm_runtime::{
         frame::{self, Component, Method, RenderOptions},
         radiosity::RadiosityOptions,
@@ -653,10 +660,13 @@ fn final_gather_vs_twin(scene: &Scene, file: &CssmFile, w: u32, h: u32, threshol
         bounces: 1,
         component: Component::Indirect,
         threshold,
+        jitter,
         ..Default::default()
     };
     let image =
         frame::render(gpu(), scene, Some(file), Method::Lightcuts, &options).expect("render");
+    // One frame: frame 0's seed, and the receiver's id is its pixel index.
+    let seed = cssm_runtime::lightcuts::frame_seed(0);
     let atlas = frame::atlas_radiosity(
         gpu(),
         scene,
@@ -676,7 +686,8 @@ fn final_gather_vs_twin(scene: &Scene, file: &CssmFile, w: u32, h: u32, threshol
     let keep = interior(scene, &seen, w, h);
     let twin: Vec<glam::Vec3> = seen
         .iter()
-        .map(|s| match s {
+        .enumerate()
+        .map(|(pixel, s)| match s {
             Some((r, t)) => {
                 let m = &scene.materials[scene.triangle_materials[*t as usize] as usize];
                 let material = cssm_runtime::gpu_types::GpuMaterial {
@@ -692,7 +703,7 @@ fn final_gather_vs_twin(scene: &Scene, file: &CssmFile, w: u32, h: u32, threshol
                     &radiance,
                     options.threshold,
                     options.exposure,
-                    None,
+                    jitter.then_some((seed, pixel as u32)),
                     r,
                     &material,
                 )
@@ -703,8 +714,8 @@ fn final_gather_vs_twin(scene: &Scene, file: &CssmFile, w: u32, h: u32, threshol
         .collect();
     let rmse = relative_rmse(&vec3s(&image.radiance), &twin, &keep);
     eprintln!(
-        "final gather {w}x{h}, 1 bounce, atlas {}, threshold {threshold}: GPU vs CPU twin relative \
-         RMSE {:.4}% over {} interior pixels",
+        "final gather {w}x{h}, 1 bounce, atlas {}, threshold {threshold}, jitter {jitter}: GPU vs \
+         CPU twin relative RMSE {:.4}% over {} interior pixels",
         file.params.atlas_resolution,
         100.0 * rmse,
         keep.iter().filter(|&&k| k).count()
@@ -715,14 +726,12 @@ fn final_gather_vs_twin(scene: &Scene, file: &CssmFile, w: u32, h: u32, threshol
 #[test]
 fn final_gather_matches_cpu_twin() {
     let (scene, file) = cornell32();
-    let rmse = final_gather_vs_twin(
-        scene,
-        file,
-        64,
-        48,
-        cssm_runtime::radiosity::DEFAULT_THRESHOLD,
-    );
+    let threshold = cssm_runtime::radiosity::DEFAULT_THRESHOLD;
+    let rmse = final_gather_vs_twin(scene, file, 64, 48, threshold, false);
+    // §4.5: every sender a random point of a random texel of its node, drawn alike on both sides.
+    let jittered = final_gather_vs_twin(scene, file, 64, 48, threshold, true);
     assert!(rmse < 0.01, "relative RMSE {rmse}");
+    assert!(jittered < 0.01, "jittered: relative RMSE {jittered}");
 }
 
 /// Long cuts (about 900 senders per pixel at atlas 64 and the default threshold, 16 depth
@@ -733,13 +742,14 @@ fn final_gather_matches_cpu_twin() {
 #[test]
 fn final_gather_long_cuts_match_cpu_twin() {
     let (scene, file) = cornell();
-    let short = final_gather_vs_twin(scene, file, 40, 30, 0.1);
+    let short = final_gather_vs_twin(scene, file, 40, 30, 0.1, false);
     let long = final_gather_vs_twin(
         scene,
         file,
         40,
         30,
         cssm_runtime::radiosity::DEFAULT_THRESHOLD,
+        false,
     );
     assert!(
         short < 0.01 && long < 0.01,
@@ -859,4 +869,82 @@ fn final_gather_matches_path_tracer() {
         100.0 * noise
     );
     assert!(rmse < 0.15, "final gather: relative RMSE {rmse}");
+}
+
+fn glossy32() -> &'static (Scene, CssmFile) {
+    static GLOSSY: OnceLock<(Scene, CssmFile)> = OnceLock::new();
+    GLOSSY.get_or_init(|| {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-glossy");
+        let scene = Scene::load(&dir).expect("built-in glossy Cornell box loads");
+        let options = BakeOptions {
+            atlas_resolution: 32,
+            cube_resolution: 64,
+            ..Default::default()
+        };
+        let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
+        (scene, baked.file)
+    })
+}
+
+/// §4.5, Fig. 12: on a glossy floor the representative texel of every node leaves a biased,
+/// blotchy reflection; jittering each sender over its node's texels and averaging frames
+/// converges towards the path tracer.
+#[test]
+fn jittered_frames_converge_on_a_glossy_floor() {
+    use cssm_runtime::frame::{self, Component, Method, RenderOptions};
+    let (scene, file) = glossy32();
+    let (w, h) = (64u32, 48u32);
+    let options = RenderOptions {
+        width: w,
+        height: h,
+        shadow_resolution: GI_SHADOW,
+        bounces: 1,
+        component: Component::Indirect,
+        samples: 2048,
+        ..Default::default()
+    };
+    let truth = vec3s(
+        &frame::render_reference(scene, &options, &|_, _| {})
+            .expect("path tracer")
+            .radiance,
+    );
+    let seen = cpu_receivers(scene, file, w, h);
+    let interior = interior(scene, &seen, w, h);
+    // The glossy floor's interior pixels: where the jitter matters.
+    let floor: Vec<bool> = seen
+        .iter()
+        .zip(&interior)
+        .map(|(s, &keep)| {
+            keep && matches!(s, Some((_, t))
+                if scene.materials[scene.triangle_materials[*t as usize] as usize].ns > 1.0)
+        })
+        .collect();
+    let error = |frames: u32, jitter: bool| {
+        let options = RenderOptions {
+            frames,
+            jitter,
+            ..options.clone()
+        };
+        let image =
+            frame::render(gpu(), scene, Some(file), Method::Lightcuts, &options).expect("render");
+        relative_rmse(&vec3s(&image.radiance), &truth, &floor)
+    };
+    let fixed = error(1, false);
+    let jittered: Vec<(u32, f64)> = [1, 4, 16, 64].map(|f| (f, error(f, true))).to_vec();
+    eprintln!(
+        "glossy floor (Ns 50), indirect light, 1 bounce, atlas 32, {w}x{h}, {} floor pixels, \
+         against the path tracer (2048 paths): representative texels {:.2}%; jittered {}",
+        floor.iter().filter(|&&k| k).count(),
+        100.0 * fixed,
+        jittered
+            .iter()
+            .map(|(f, e)| format!("{f} frames {:.2}%", 100.0 * e))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let (one, many) = (jittered[0].1, jittered[3].1);
+    assert!(
+        many < one && many < fixed,
+        "64 jittered frames ({many}) should beat one ({one}) and the representative texels ({fixed})"
+    );
 }

@@ -7,7 +7,8 @@ use glam::{Vec2, Vec3};
 use crate::{
     gpu_types::{GpuMaterial, GpuNode},
     radiosity::transfer::{
-        brdf, brdf_bound, irradiance_bound, irradiance_from, jitter_leaf, tone_mapped,
+        brdf, brdf_bound, irradiance_bound, irradiance_from, jitter_in_disk, jitter_leaf,
+        tone_mapped,
     },
 };
 
@@ -70,10 +71,16 @@ pub fn gather_pixel(
         };
         if l.cmpgt(Vec3::ZERO).any() {
             let y = &texels[sender as usize];
-            let (e, w) = irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l);
+            let position = match jitter {
+                Some((seed, receiver)) => {
+                    jitter_in_disk(seed, receiver, s as u32, y.pos(), y.nrm(), y.area)
+                }
+                None => y.pos(),
+            };
+            let (e, w) = irradiance_from(p, n, position, Vec3::from(node.normal), node.area, l);
             if e.cmpgt(Vec3::ZERO).any() {
                 let visibility = query
-                    .visibility_from_senders(&senders, y.pos(), Some(y.nrm()))
+                    .visibility_from_senders(&senders, position, Some(y.nrm()))
                     .unwrap_or(1.0);
                 out += brdf(n, v, w, r.albedo, ks, ns) * e * visibility;
             }

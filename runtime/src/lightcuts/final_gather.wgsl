@@ -2,7 +2,7 @@
 // pixel instead of a receiver leaf, the oracle bounding the normalised Phong BRDF so glossy
 // surfaces refine towards their highlight; each node of the cut is a VPL holding the direct
 // light and the diffuse bounces of the radiosity iteration. With jittering (§4.5) every sender
-// is a random texel of its node and frames are averaged progressively.
+// is a random point of a random texel of its node and frames are averaged progressively.
 // CPU twin: lightcuts/cpu.rs::gather_pixel. Needs types.wgsl, transfer.wgsl, the CSSM library
 // at group 1.
 
@@ -47,14 +47,18 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
             }
             if any(l > vec3f(0.0)) {
                 let y = cssm_texels[sender];
-                let e = irradiance_from(p, n, y.position, node.normal, node.area, l);
+                var y_position = y.position;
+                if params.jitter != 0u {
+                    y_position = jitter_in_disk(params.seed, receiver, s, y.position, y.normal, y.area);
+                }
+                let e = irradiance_from(p, n, y_position, node.normal, node.area, l);
                 if any(e > vec3f(0.0)) {
-                    var visibility = cssm_visibility_senders(senders, y.position, y.normal);
+                    var visibility = cssm_visibility_senders(senders, y_position, y.normal);
                     // No texel stands for the point (far outside its chart): unshadowed.
                     if visibility < 0.0 {
                         visibility = 1.0;
                     }
-                    let w = normalize(y.position - p);
+                    let w = normalize(y_position - p);
                     l_out += brdf(n, v, w, albedo, m.ks, m.ns) * e * visibility;
                 }
             }

@@ -7,7 +7,9 @@
 //!   of its texels and their area-weighted mean normal `n_s` (length <= 1: for a cluster whose
 //!   texels all face the receiver, `A * dot(n_s, w)` is exactly the summed projected area).
 //! - It sits at one of its texels: the node's representative, or with jittering (§4.5) a random
-//!   texel of the node, so that visibility is always asked between two surface points.
+//!   texel of the node, so that visibility is always asked between two surface points. The final
+//!   gather also moves it to a random point of that texel's footprint, taken as a disk of the
+//!   texel's area ([`jitter_in_disk`]), so that even a cut of single texels converges.
 //! - Irradiance at `p` (normal `n`): `L * A * cos_r * cos_s / (d² + A / pi)`. The `A / pi` is the
 //!   clamping near the sender (§4.4, §5 "clamping is used"): it is the exact on-axis irradiance
 //!   from a disk of area `A` (`pi L a² / (h² + a²)`), so a close sender gives a finite disk's
@@ -122,16 +124,92 @@ pub fn pcg_hash(x: u32) -> u32 {
     (word >> 22) ^ word
 }
 
+/// The jitter's random word for (`seed`, `receiver`, `node_index`): one draw per frame,
+/// receiver and node. `transfer.wgsl`: `jitter_hash`.
+pub fn jitter_hash(seed: u32, receiver: u32, node_index: u32) -> u32 {
+    pcg_hash(seed ^ pcg_hash(receiver ^ pcg_hash(node_index)))
+}
+
 /// Leaf (in leaf order) standing for `node` as seen by `receiver`: with `jitter` a random leaf
 /// of the node (§4.5), else none (the caller takes the representative).
 /// `transfer.wgsl`: `jitter_leaf`.
 pub fn jitter_leaf(seed: u32, receiver: u32, node_index: u32, node: &GpuNode) -> u32 {
-    node.first + pcg_hash(seed ^ pcg_hash(receiver ^ pcg_hash(node_index))) % node.count.max(1)
+    node.first + jitter_hash(seed, receiver, node_index) % node.count.max(1)
+}
+
+/// A random point of the disk of area `area` around `center`, in the plane normal to the unit
+/// `normal`: §4.5 associates "an approximate area with every VPL from which we pick a random
+/// location"; the approximate area of a texel is a disk of its own area. Uniform over the disk.
+/// `transfer.wgsl`: `jitter_in_disk`.
+pub fn jitter_in_disk(
+    seed: u32,
+    receiver: u32,
+    node_index: u32,
+    center: Vec3,
+    normal: Vec3,
+    area: f32,
+) -> Vec3 {
+    let a = pcg_hash(jitter_hash(seed, receiver, node_index));
+    let b = pcg_hash(a);
+    let u = (a >> 8) as f32 / 16_777_216.0;
+    let v = (b >> 8) as f32 / 16_777_216.0;
+    let r = (area / PI).sqrt() * u.sqrt();
+    let phi = 2.0 * PI * v;
+    let (t, s) = tangent_frame(normal);
+    center + t * (r * phi.cos()) + s * (r * phi.sin())
+}
+
+/// Two unit tangents completing the unit `n` to an orthonormal frame, without a branch on a
+/// near-zero axis (Duff et al. 2017). `transfer.wgsl`: `tangent_frame`.
+pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
+    let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn jitter_in_disk_stays_in_the_disk_and_covers_it() {
+        let normal = Vec3::new(0.3, -0.8, 0.52).normalize();
+        let (t, s) = tangent_frame(normal);
+        assert!(t.dot(s).abs() < 1e-6 && t.dot(normal).abs() < 1e-6 && s.dot(normal).abs() < 1e-6);
+        assert!((t.length() - 1.0).abs() < 1e-6 && (s.length() - 1.0).abs() < 1e-6);
+        let (center, area) = (Vec3::new(1.0, 2.0, 3.0), 0.5);
+        let radius = (area / PI).sqrt();
+        let mut outer = 0;
+        let n = 20_000;
+        let mut mean = Vec3::ZERO;
+        for frame in 0..n {
+            let p = jitter_in_disk(frame, 7, 11, center, normal, area);
+            let d = p - center;
+            assert!(d.dot(normal).abs() < 1e-5, "off the plane: {d}");
+            assert!(
+                d.length() <= radius * 1.0001,
+                "outside the disk: {}",
+                d.length()
+            );
+            // Uniform over the area: the outer ring (r > radius / sqrt 2) holds half of it.
+            outer += usize::from(d.length() > radius / 2f32.sqrt());
+            mean += d;
+        }
+        let outer = outer as f32 / n as f32;
+        assert!(
+            (outer - 0.5).abs() < 0.02,
+            "outer half of the area got {outer}"
+        );
+        assert!(
+            (mean / n as f32).length() < 0.02 * radius,
+            "biased: {}",
+            mean / n as f32
+        );
+    }
 
     #[test]
     fn cos_bound_is_an_upper_bound_of_sampled_cosines() {

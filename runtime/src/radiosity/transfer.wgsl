@@ -75,7 +75,32 @@ fn pcg_hash(x: u32) -> u32 {
     return (word >> 22u) ^ word;
 }
 
+// transfer::jitter_hash.
+fn jitter_hash(seed: u32, receiver: u32, node_index: u32) -> u32 {
+    return pcg_hash(seed ^ pcg_hash(receiver ^ pcg_hash(node_index)));
+}
+
 // transfer::jitter_leaf.
 fn jitter_leaf(seed: u32, receiver: u32, node_index: u32, node: Node) -> u32 {
-    return node.first + pcg_hash(seed ^ pcg_hash(receiver ^ pcg_hash(node_index))) % max(node.count, 1u);
+    return node.first + jitter_hash(seed, receiver, node_index) % max(node.count, 1u);
+}
+
+// transfer::tangent_frame (Duff et al. 2017): columns 0 and 1 of the frame around `n`.
+fn tangent_frame(n: vec3f) -> mat2x3f {
+    let sign = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    return mat2x3f(vec3f(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), vec3f(b, sign + n.y * n.y * a, -n.y));
+}
+
+// transfer::jitter_in_disk: a random point of the disk of area `area` around `center` (§4.5).
+fn jitter_in_disk(seed: u32, receiver: u32, node_index: u32, center: vec3f, normal: vec3f, area: f32) -> vec3f {
+    let a = pcg_hash(jitter_hash(seed, receiver, node_index));
+    let b = pcg_hash(a);
+    let u = f32(a >> 8u) / 16777216.0;
+    let v = f32(b >> 8u) / 16777216.0;
+    let r = sqrt(area / TRANSFER_PI) * sqrt(u);
+    let phi = 2.0 * TRANSFER_PI * v;
+    let frame = tangent_frame(normal);
+    return center + frame[0] * (r * cos(phi)) + frame[1] * (r * sin(phi));
 }
