@@ -16,6 +16,12 @@ prepare)
     cp target/release/cssm "$bench" ../shared/tools/gpu-limit/target/release/gpu-limit .carry/
     mv ".carry/$(basename "$bench")" .carry/gpu_queries
     cp -r ../shared/scenes/sibenik .carry/scenes/ 2>/dev/null || echo "no sibenik: its rows will be skipped"
+    # GI scenes (Table 1: 128x128 texels): the Cornell box and the heads baked here; the church
+    # is baked on the device (16 cores), its atlas needing 256.
+    target/release/cssm bake -o .carry/cornell.cssm --atlas 128 --cube 32
+    if target/release/cssm report heads --scenes ../shared/scenes --out .carry/scenes/heads; then
+        target/release/cssm bake .carry/scenes/heads -o .carry/heads.cssm --atlas 128 --cube 32
+    fi
     du -sh .carry
     ;;
 measure)
@@ -32,6 +38,27 @@ measure)
     for size in 640x480 1280x720; do
         .carry/cssm render --size "$size" --timings --out "$out/direct-$size.png" \
             | tee "$out/runtime-direct-$size.txt"
+    done
+    # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
+    # lightmap, 1 and 2 bounces, 640x480.
+    if [ -d .carry/scenes/sibenik ]; then
+        .carry/cssm bake .carry/scenes/sibenik -o /tmp/church.cssm --atlas 256 --cube 32 \
+            | tail -3 | tee "$out/runtime-church-bake.txt"
+    fi
+    for scene in cornell heads church; do
+        case $scene in
+        cornell) dir="" cssm=.carry/cornell.cssm ;;
+        heads) dir=.carry/scenes/heads cssm=.carry/heads.cssm ;;
+        church) dir=.carry/scenes/sibenik cssm=/tmp/church.cssm ;;
+        esac
+        [ -f "$cssm" ] || { echo "no $scene: its GI rows are skipped"; continue; }
+        for method in lightcuts lightmap; do
+            for bounces in 1 2; do
+                name=gi-$scene-$method-$bounces
+                .carry/cssm render $dir --cssm "$cssm" --method $method --bounces $bounces \
+                    --size 640x480 --timings --out "$out/$name.png" | tee "$out/runtime-$name.txt"
+            done
+        done
     done
     ;;
 *)

@@ -546,3 +546,23 @@ fn render_rejects_bad_arguments() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("/nonexistent/scene"), "{}", stderr(&o));
 }
+
+#[test]
+fn heads_scene_needs_the_teapot_and_the_bunny() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("heads");
+    let o = cssm(&[
+        "report",
+        "heads",
+        "--scenes",
+        dir.path().to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("teapot"), "{}", stderr(&o));
+    assert!(
+        !out.exists(),
+        "nothing is written when the inputs are missing"
+    );
+}
