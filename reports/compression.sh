@@ -7,9 +7,8 @@
 #   SHARED_SCENES_DIR defaults to ../shared/scenes (teapot/, bunny/, sibenik/).
 #   e.g. reports/compression.sh ../shared/scenes --scene cornell   # the Cornell box's rows only
 #
-# Run it on a quiet machine: rows are timed. On a 2-core CPU the Cornell box's rows take about
-# 12 minutes, the heads about half an hour, the church about 25 minutes (see the report's
-# "Time per table").
+# Run it on a quiet machine: rows are timed. On a 2-core CPU the whole grid took 45 minutes: the
+# Cornell box's rows about 20, the heads 12, the church 14 (see the report's "Time per table").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scenes=${1:-../shared/scenes}
