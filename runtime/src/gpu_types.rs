@@ -146,9 +146,10 @@ pub struct GpuTraversalParams {
     pub threshold: f32,
     /// Exposure of the tone mapper the oracle uses.
     pub exposure: f32,
-    /// Seed of the sender jitter (§4.5); only used when `jitter` is 1.
+    /// Seed of the sender jitter (§4.5, final gather only); only used when `jitter` is 1.
     pub seed: u32,
-    /// 1: each sender is a random leaf of its node (§4.5); 0: the node's representative.
+    /// 1: each sender is a random point of a random texel of its node (§4.5); 0: the node's
+    /// representative.
     pub jitter: u32,
     /// 1: gather (a bounce); 0: write the direct light only (the start of the iteration).
     pub gather: u32,

@@ -446,7 +446,6 @@ fn radiosity_matches_cpu_twin() {
     let traversal = cpu::Traversal {
         threshold: options.threshold,
         exposure: options.exposure,
-        jitter: None,
     };
     let twin = cpu::radiosity(&query, &direct, &albedo, &traversal, 2);
     let all = vec![true; direct.len()];
@@ -492,7 +491,6 @@ fn radiosity_error(threshold: f32) -> (f64, u64) {
     let traversal = cpu::Traversal {
         threshold,
         exposure: 1.0,
-        jitter: None,
     };
     let work = cpu::radiosity(&query, &vec3s(&gpu_result.direct), &albedo, &traversal, 1).gathered;
     (rmse, work)
@@ -524,7 +522,6 @@ fn radiosity_matches_brute_force() {
     let flat = cpu::Traversal {
         threshold: 0.0,
         exposure: 1.0,
-        jitter: None,
     };
     let all = vec![true; brute.len()];
     let cssm_only = cpu::radiosity(&query, &exact_direct, &albedo, &flat, 2);

@@ -11,7 +11,7 @@ use cssm_formats::{CssmFile, visibility::VisibilityQuery};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::transfer::{irradiance_bound, irradiance_from, jitter_leaf, tone_mapped};
+use super::transfer::{irradiance_bound, irradiance_from, tone_mapped};
 use crate::gpu_types::GpuNode;
 
 const PI: f32 = std::f32::consts::PI;
@@ -35,8 +35,6 @@ pub struct Traversal {
     pub threshold: f32,
     /// Exposure of the oracle's tone mapper.
     pub exposure: f32,
-    /// Jitter seed, when senders are random leaves of their node (§4.5).
-    pub jitter: Option<u32>,
 }
 
 /// `gather.wgsl::gather_texel`: irradiance at texel `receiver` (position `p`, normal `n`,
@@ -45,7 +43,6 @@ pub struct Traversal {
 pub fn gather_texel(
     query: &VisibilityQuery,
     nodes: &[GpuNode],
-    leaf_texels: &[u32],
     radiance: &[Vec3],
     traversal: &Traversal,
     receiver: u32,
@@ -70,12 +67,7 @@ pub fn gather_texel(
             continue;
         }
         cut += 1;
-        let sender = match traversal.jitter {
-            Some(seed) if node.count > 1 => {
-                leaf_texels[jitter_leaf(seed, receiver, s as u32, node) as usize]
-            }
-            _ => node.representative,
-        };
+        let sender = node.representative;
         if sender != receiver && l.cmpgt(Vec3::ZERO).any() {
             let y = &texels[sender as usize];
             let (unoccluded, _) =
@@ -140,7 +132,6 @@ pub fn radiosity(
                 let (e, cut) = gather_texel(
                     query,
                     nodes,
-                    leaf_texels,
                     &radiance,
                     traversal,
                     t,

@@ -37,10 +37,7 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
             continue;
         }
         // Gather from the node, then skip its subtree.
-        var sender = node.representative;
-        if params.jitter != 0u && node.count > 1u {
-            sender = leaves[jitter_leaf(params.seed, receiver, s, node)].x;
-        }
+        let sender = node.representative;
         if sender != receiver && any(radiance > vec3f(0.0)) {
             let y = cssm_texels[sender];
             let unoccluded = irradiance_from(p, n, y.position, node.normal, node.area, radiance);

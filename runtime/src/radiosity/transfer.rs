@@ -6,10 +6,11 @@
 //! - A sender node is a Lambertian emitter of area `A` with the area-weighted mean radiance `L`
 //!   of its texels and their area-weighted mean normal `n_s` (length <= 1: for a cluster whose
 //!   texels all face the receiver, `A * dot(n_s, w)` is exactly the summed projected area).
-//! - It sits at one of its texels: the node's representative, or with jittering (§4.5) a random
-//!   texel of the node, so that visibility is always asked between two surface points. The final
-//!   gather also moves it to a random point of that texel's footprint, taken as a disk of the
-//!   texel's area ([`jitter_in_disk`]), so that even a cut of single texels converges.
+//! - It sits at its representative texel, so that visibility is always asked between two
+//!   surface points. The final gather with jittering (§4.5) takes instead a random texel of the
+//!   node ([`jitter_leaf`]) and a random point of that texel's footprint, a disk of the texel's
+//!   area ([`jitter_in_disk`]), so that even a cut of single texels converges. The radiosity
+//!   iteration does not jitter: its diffuse receivers show no VPL bias.
 //! - Irradiance at `p` (normal `n`): `L * A * cos_r * cos_s / (d² + A / pi)`. The `A / pi` is the
 //!   clamping near the sender (§4.4, §5 "clamping is used"): it is the exact on-axis irradiance
 //!   from a disk of area `A` (`pi L a² / (h² + a²)`), so a close sender gives a finite disk's
