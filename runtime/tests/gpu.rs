@@ -25,19 +25,26 @@ fn gpu() -> &'static Gpu {
     })
 }
 
+/// A built-in scene (`scenes/NAME`) and its bake with `options`.
+fn baked(name: &str, options: BakeOptions) -> (Scene, CssmFile) {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes")
+        .join(name);
+    let scene = Scene::load(&dir).expect("built-in scene loads");
+    let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
+    (scene, baked.file)
+}
+
 fn cornell() -> &'static (Scene, CssmFile) {
     static CORNELL: OnceLock<(Scene, CssmFile)> = OnceLock::new();
     CORNELL.get_or_init(|| {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box");
-        let scene = Scene::load(&dir).expect("built-in Cornell box loads");
         let options = BakeOptions {
             atlas_resolution: 64,
             cube_resolution: 32,
             traversal: Traversal::Spiral,
             ..Default::default()
         };
-        let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
-        (scene, baked.file)
+        baked("cornell-box", options)
     })
 }
 
@@ -409,15 +416,12 @@ fn gather_kernel_matches_cpu() {
 fn cornell32() -> &'static (Scene, CssmFile) {
     static CORNELL: OnceLock<(Scene, CssmFile)> = OnceLock::new();
     CORNELL.get_or_init(|| {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box");
-        let scene = Scene::load(&dir).expect("built-in Cornell box loads");
         let options = BakeOptions {
             atlas_resolution: 32,
             cube_resolution: 64,
             ..Default::default()
         };
-        let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
-        (scene, baked.file)
+        baked("cornell-box", options)
     })
 }
 
@@ -871,15 +875,12 @@ fn final_gather_matches_path_tracer() {
 fn glossy32() -> &'static (Scene, CssmFile) {
     static GLOSSY: OnceLock<(Scene, CssmFile)> = OnceLock::new();
     GLOSSY.get_or_init(|| {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-glossy");
-        let scene = Scene::load(&dir).expect("built-in glossy Cornell box loads");
         let options = BakeOptions {
             atlas_resolution: 32,
             cube_resolution: 64,
             ..Default::default()
         };
-        let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
-        (scene, baked.file)
+        baked("cornell-glossy", options)
     })
 }
 
