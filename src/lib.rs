@@ -22,3 +22,25 @@ pub mod report;
 pub use cssm_bake as bake;
 pub use cssm_formats as formats;
 pub use cssm_runtime as runtime;
+
+/// `bytes` in binary units (B, KiB, MiB, GiB, TiB) with `decimals` digits after the point;
+/// whole bytes below 1 KiB.
+///
+/// ```
+/// assert_eq!(cssm::human_bytes(512, 2), "512 B");
+/// assert_eq!(cssm::human_bytes(3 << 20, 1), "3.0 MiB");
+/// ```
+pub fn human_bytes(bytes: u64, decimals: usize) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = bytes as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{v:.decimals$} {}", UNITS[u])
+    }
+}

@@ -611,18 +611,7 @@ fn check_writable(output: &Path) -> Result<(), String> {
 }
 
 fn human_bytes(b: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut v = b as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{b} B")
-    } else {
-        format!("{v:.2} {}", UNITS[u])
-    }
+    cssm::human_bytes(b, 2)
 }
 
 fn read_file(path: &Path) -> Result<CssmFile, String> {

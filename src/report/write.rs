@@ -29,18 +29,7 @@ pub fn write_all(report: &Report, out: &Path) -> Result<(), String> {
 }
 
 fn bytes(b: u64) -> String {
-    const UNITS: [&str; 4] = ["B", "KiB", "MiB", "GiB"];
-    let mut v = b as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{b} B")
-    } else {
-        format!("{v:.1} {}", UNITS[u])
-    }
+    crate::human_bytes(b, 1)
 }
 
 fn seconds(s: f64) -> String {
