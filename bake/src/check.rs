@@ -6,6 +6,12 @@
 //! from `p_j` lifted off its surface along its normal to `p_i` lifted towards `p_j`'s side of
 //! its own surface must hit nothing. (A CSSM, like any shadow map, only sees out of a surface's
 //! front side; whether `p_i` is seen from its back is the receiver's cosine term, not visibility.)
+//!
+//! Besides all pairs, the agreement is tallied over the pairs that *exchange light*: each point
+//! in front of the other's surface, so both cosines of the transfer are positive. Only those
+//! pairs' visibility reaches an image; a pair facing away from each other carries no light
+//! whatever the visibility says. A bake that widens its intervals past surfaces facing away
+//! ([`crate::cubemap::SecondLayer::Facing`]) is exact on the first set and only there.
 
 use cssm_formats::{
     CssmFile, Scene,
@@ -52,6 +58,14 @@ impl Agreement {
     pub fn false_occluded_rate(&self) -> f64 {
         self.visible_occluded as f64 / (self.visible_visible + self.visible_occluded).max(1) as f64
     }
+    fn count(&mut self, truth: bool, cssm: bool) {
+        match (truth, cssm) {
+            (true, true) => self.visible_visible += 1,
+            (true, false) => self.visible_occluded += 1,
+            (false, true) => self.occluded_visible += 1,
+            (false, false) => self.occluded_occluded += 1,
+        }
+    }
     fn add(self, o: Self) -> Self {
         Self {
             visible_visible: self.visible_visible + o.visible_visible,
@@ -85,6 +99,22 @@ impl std::fmt::Display for Agreement {
             100.0 * self.false_occluded_rate()
         )
     }
+}
+
+/// Agreement over all pairs and over the pairs that exchange light (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Measurement {
+    /// Every pair drawn.
+    pub all: Agreement,
+    /// The pairs where each point lies in front of the other's surface.
+    pub exchanging: Agreement,
+}
+
+/// True when `p_i` and `p_j` each lie more than `eps` in front of the other's surface: both
+/// cosines of their light transfer are positive.
+pub fn exchanges_light(p_j: &SurfacePoint, p_i: &SurfacePoint, eps: f32) -> bool {
+    let d = p_i.position - p_j.position;
+    d.dot(p_j.normal) > eps && -d.dot(p_i.normal) > eps
 }
 
 /// A point on the scene surface.
@@ -177,7 +207,7 @@ pub fn measure(
     pairs: u64,
     seed: u64,
     options: QueryOptions,
-) -> Agreement {
+) -> Measurement {
     let sampler = SurfaceSampler::new(scene);
     let mut rng = SplitMix64(seed);
     let bvh = SceneBvh::new(scene);
@@ -186,7 +216,7 @@ pub fn measure(
     // Pairs are drawn in blocks from one sequential generator (the same pairs for a seed, however
     // many threads), so memory stays bounded whatever `--pairs` asks for.
     const BLOCK: u64 = 1 << 16;
-    let mut total = Agreement::default();
+    let mut total = Measurement::default();
     let mut drawn = 0;
     while drawn < pairs {
         let count = BLOCK.min(pairs - drawn);
@@ -202,30 +232,38 @@ pub fn measure(
         let block = samples
             .par_chunks(1024)
             .map(|chunk| {
-                let mut a = Agreement::default();
+                let mut m = Measurement::default();
                 for (p_j, p_i) in chunk {
+                    let exchanging = exchanges_light(p_j, p_i, eps);
                     let Some(fraction) = query.visibility_from_surface(
                         p_j.triangle,
                         p_j.bary,
                         p_i.position,
                         Some(p_i.normal),
                     ) else {
-                        a.unmapped += 1;
+                        m.all.unmapped += 1;
+                        if exchanging {
+                            m.exchanging.unmapped += 1;
+                        }
                         continue;
                     };
                     let truth = exact_visible(&bvh, p_j, p_i, eps);
                     let cssm = fraction >= 0.5;
-                    match (truth, cssm) {
-                        (true, true) => a.visible_visible += 1,
-                        (true, false) => a.visible_occluded += 1,
-                        (false, true) => a.occluded_visible += 1,
-                        (false, false) => a.occluded_occluded += 1,
+                    m.all.count(truth, cssm);
+                    if exchanging {
+                        m.exchanging.count(truth, cssm);
                     }
                 }
-                a
+                m
             })
-            .reduce(Agreement::default, Agreement::add);
-        total = total.add(block);
+            .reduce(Measurement::default, |a, b| Measurement {
+                all: a.all.add(b.all),
+                exchanging: a.exchanging.add(b.exchanging),
+            });
+        total = Measurement {
+            all: total.all.add(block.all),
+            exchanging: total.exchanging.add(block.exchanging),
+        };
     }
     total
 }

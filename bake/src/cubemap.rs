@@ -13,6 +13,53 @@ use crate::raycast::SceneBvh;
 /// Acceptable code range `[lo, hi]` of one pixel; `[0, DEPTH_MAX]` means "don't care".
 pub type Interval = (u16, u16);
 
+/// Which intersection closes a pixel's interval.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SecondLayer {
+    /// The second intersection, whichever way its surface faces (the paper, §3.2, after
+    /// Weiskopf and Ertl's dual depth layers).
+    #[default]
+    Any,
+    /// Beyond the paper: the nearest intersection beyond the first whose surface *faces* the
+    /// texel. A point on a surface facing away (the far side of a wall, of a column, of a closed
+    /// mesh) has a zero cosine towards the texel, so it exchanges no light with it and its
+    /// visibility never matters; skipping it widens the interval from a wall's thickness to the
+    /// room behind it, and runs grow longer.
+    Facing,
+}
+
+impl SecondLayer {
+    /// Every choice, default first.
+    pub const ALL: [SecondLayer; 2] = [SecondLayer::Any, SecondLayer::Facing];
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            SecondLayer::Any => "any",
+            SecondLayer::Facing => "facing",
+        }
+    }
+}
+
+impl std::fmt::Display for SecondLayer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for SecondLayer {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "any" => Ok(SecondLayer::Any),
+            "facing" => Ok(SecondLayer::Facing),
+            other => Err(format!(
+                "unknown second layer '{other}': expected any or facing"
+            )),
+        }
+    }
+}
+
 /// The don't-care interval.
 pub const DONT_CARE: Interval = (0, DEPTH_MAX);
 
@@ -24,6 +71,7 @@ pub fn render(
     n: u32,
     near: f32,
     quantizer: &DepthQuantizer,
+    second_layer: SecondLayer,
     out: &mut [Interval],
 ) -> u64 {
     let normal = texel.nrm();
@@ -45,7 +93,10 @@ pub fn render(
             *slot = DONT_CARE;
             continue;
         }
-        let hit = bvh.dual_hit(centre, dir, separation);
+        let hit = match second_layer {
+            SecondLayer::Any => bvh.dual_hit(centre, dir, separation),
+            SecondLayer::Facing => bvh.front_dual_hit(centre, dir, separation),
+        };
         *slot = quantizer.interval(hit.first * depth_scale, hit.second * depth_scale);
     }
     rays

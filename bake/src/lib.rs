@@ -70,6 +70,9 @@ pub struct BakeOptions {
     /// Lossy: merge runs of at most this many maps into their neighbours (0: lossless, the
     /// paper's compression; see [`compress::CompressOptions`]).
     pub merge_short_runs: u32,
+    /// Which intersection closes each pixel's interval (beyond the paper; see
+    /// [`cubemap::SecondLayer`]).
+    pub second_layer: cubemap::SecondLayer,
 }
 
 impl Default for BakeOptions {
@@ -84,6 +87,7 @@ impl Default for BakeOptions {
             near: None,
             run_value: compress::RunValue::Middle,
             merge_short_runs: 0,
+            second_layer: cubemap::SecondLayer::Any,
         }
     }
 }
@@ -210,6 +214,7 @@ pub fn bake(
                     n,
                     near,
                     &quantizer,
+                    options.second_layer,
                     out,
                 )
             })

@@ -18,6 +18,9 @@ pub struct SceneBvh {
     bvh: CwBvh,
     /// Triangle corners in BVH primitive order (so no indirection while traversing).
     triangles: Vec<[Vec3; 3]>,
+    /// Geometric normal (not normalised; its winding side is the front) of every triangle, by
+    /// scene index.
+    normals: Vec<Vec3>,
 }
 
 /// First and second intersection along a ray (dual depth layers, §3.2 after Weiskopf and Ertl).
@@ -137,7 +140,17 @@ impl SceneBvh {
                 [t.v0.into(), t.v1.into(), t.v2.into()]
             })
             .collect();
-        Self { bvh, triangles }
+        let normals = (0..scene.triangles.len())
+            .map(|t| {
+                let [a, b, c] = scene.triangle(t);
+                (b - a).cross(c - a)
+            })
+            .collect();
+        Self {
+            bvh,
+            triangles,
+            normals,
+        }
     }
 
     /// Traverses the ray `origin + t * dir`, `t` in `(tmin, tmax)`, calling `on_hit(t, triangle)`
@@ -152,6 +165,9 @@ impl SceneBvh {
         tmax: f32,
         mut on_hit: impl FnMut(f32, u32) -> f32,
     ) {
+        // A negative zero component (`-Vec3::Z`) sends obvhs' traversal into the wrong octant
+        // and every hit is missed; adding zero turns -0.0 into +0.0 and changes nothing else.
+        let dir = dir + Vec3::ZERO;
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
         let mut traverse_ray = ray;
         let mut state = self.bvh.new_traversal(ray.direction);
@@ -216,6 +232,36 @@ impl SceneBvh {
         });
         DualHit { first, second }
     }
+
+    /// Like [`SceneBvh::dual_hit`], but the second hit is the nearest *front-facing* one (its
+    /// triangle's front side towards the ray's origin) beyond the first. Back-facing surfaces
+    /// between the two (the far side of a wall, of a column, of the teapot) are skipped: a
+    /// point on them faces away from the origin, so it can exchange no light with it (its
+    /// cosine is zero) and whether it is visible never matters.
+    pub fn front_dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> DualHit {
+        let (mut first, mut second) = (f32::INFINITY, f32::INFINITY);
+        let mut first_faces = false;
+        self.for_each_hit(origin, dir, 0.0, f32::INFINITY, |t, triangle| {
+            let faces = self.normals[triangle as usize].dot(dir) < 0.0;
+            if t < first {
+                if first_faces && first - t > separation {
+                    second = first;
+                }
+                // Hits within `separation` are one surface: it faces the origin if any does.
+                first_faces = faces || (first_faces && first - t <= separation);
+                first = t;
+                if second - first <= separation {
+                    second = f32::INFINITY;
+                }
+            } else if t - first <= separation {
+                first_faces |= faces;
+            } else if faces && t < second {
+                second = t;
+            }
+            second
+        });
+        DualHit { first, second }
+    }
 }
 
 #[cfg(test)]
@@ -260,5 +306,57 @@ mod tests {
         assert!(h.first.is_infinite() && h.second.is_infinite());
         assert!(!bvh.segment_clear(Vec3::ZERO, Vec3::new(0.0, 0.0, 2.0)));
         assert!(bvh.segment_clear(Vec3::new(0.0, 0.0, 1.5), Vec3::new(0.0, 0.0, 2.5)));
+    }
+
+    /// A slab (front face at z = 1 facing -z, back face at z = 1.2 facing +z) and a wall at
+    /// z = 3 facing -z, all unit quads around the z axis.
+    fn slab_and_wall() -> Scene {
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for (z, faces_minus_z) in [(1.0, true), (1.2, false), (3.0, true)] {
+            let base = positions.len() as u32;
+            for (x, y) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                positions.push(Vec3::new(x, y, z));
+            }
+            // Counter-clockwise seen from +z is a +z normal.
+            if faces_minus_z {
+                triangles.extend([[base, base + 2, base + 1], [base, base + 3, base + 2]]);
+            } else {
+                triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+            }
+        }
+        crate::tests::scene_from(positions, triangles)
+    }
+
+    #[test]
+    fn front_dual_hit_skips_surfaces_facing_away() {
+        let bvh = SceneBvh::new(&slab_and_wall());
+        let near = |a: f32, b: f32| (a - b).abs() < 1e-5;
+        // From below: the slab's front, then its back (facing away), then the wall.
+        let any = bvh.dual_hit(Vec3::new(0.3, 0.2, 0.0), Vec3::Z, 1e-3);
+        assert!(near(any.first, 1.0) && near(any.second, 1.2), "{any:?}");
+        let facing = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 0.0), Vec3::Z, 1e-3);
+        assert!(
+            near(facing.first, 1.0) && near(facing.second, 3.0),
+            "{facing:?}"
+        );
+        // Through the quads' shared diagonal, the same.
+        let facing = bvh.front_dual_hit(Vec3::new(0.25, 0.25, 0.0), Vec3::Z, 1e-3);
+        assert!(
+            near(facing.first, 1.0) && near(facing.second, 3.0),
+            "{facing:?}"
+        );
+        // From above: the wall's back comes first (whatever it faces, the first hit is the
+        // first), then the slab's back face, which faces this origin.
+        let down = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 5.0), -Vec3::Z, 1e-3);
+        assert!(near(down.first, 2.0) && near(down.second, 3.8), "{down:?}");
+        // From inside the slab: only its back face ahead, facing away.
+        let inside = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 1.1), Vec3::Z, 1e-3);
+        assert!(
+            near(inside.first, 0.1) && near(inside.second, 1.9),
+            "{inside:?}"
+        );
+        let out = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 3.5), Vec3::Z, 1e-3);
+        assert!(out.first.is_infinite() && out.second.is_infinite());
     }
 }

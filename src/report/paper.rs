@@ -120,6 +120,3 @@ pub const CHURCH: [Table3Row; 4] = [
     row(256, 64, 39751, "2.1 GB", "173.0 MB", 11.3, "14 min", 840.0),
     row(512, 32, 158969, "2.1 GB", "(91 MB)", 21.4, "73 min", 4380.0),
 ];
-
-/// Faces of the paper's scenes, as Table 3 prints them.
-pub const FACES: [(&str, &str); 3] = [("cornell", "34"), ("heads", "19k"), ("church", "3700")];
