@@ -267,3 +267,34 @@ pub fn measure(
     }
     total
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(position: Vec3, normal: Vec3) -> SurfacePoint {
+        SurfacePoint {
+            triangle: 0,
+            bary: [1.0, 0.0, 0.0],
+            position,
+            normal,
+        }
+    }
+
+    #[test]
+    fn pairs_exchange_light_only_when_each_faces_the_other() {
+        let floor = point(Vec3::ZERO, Vec3::Y);
+        let ceiling = point(Vec3::new(1.0, 2.0, 0.0), -Vec3::Y);
+        let roof = point(Vec3::new(1.0, 2.0, 0.0), Vec3::Y);
+        let beside = point(Vec3::new(3.0, 0.0, 0.0), Vec3::Y);
+        let below = point(Vec3::new(0.0, -1.0, 0.0), Vec3::Y);
+        assert!(exchanges_light(&floor, &ceiling, 1e-4));
+        assert!(exchanges_light(&ceiling, &floor, 1e-4));
+        // The roof's outside faces away from the floor.
+        assert!(!exchanges_light(&floor, &roof, 1e-4));
+        // Coplanar: both cosines are zero.
+        assert!(!exchanges_light(&floor, &beside, 1e-4));
+        // Behind the floor's own surface.
+        assert!(!exchanges_light(&floor, &below, 1e-4));
+    }
+}

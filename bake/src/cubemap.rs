@@ -2,6 +2,8 @@
 //! texel position pushed off the surface by the near distance. Every pixel records the codes of
 //! all depths between its ray's first and second intersection, any of which is a correct
 //! stand-in (dual depth layers); pixels wholly behind the tangent plane are "don't care".
+//! Beyond the paper, [`SecondLayer::Facing`] ends the range at the nearest intersection whose
+//! surface faces the texel instead of at the second one.
 
 use cssm_formats::{
     Texel,

@@ -154,3 +154,121 @@ pub fn simplify_per_material(scene: &Scene, target: usize) -> Result<Simplified,
     }
     Ok((positions, out))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cssm_formats::{Camera, Material};
+
+    /// A `k x k` grid of quads in the plane z = `z`, its vertices split along the middle column
+    /// as an OBJ loader splits them at a texture seam.
+    fn grid(k: u32, z: f32, positions: &mut Vec<Vec3>, triangles: &mut Vec<[u32; 3]>) {
+        let base = positions.len() as u32;
+        for y in 0..=k {
+            for x in 0..=k {
+                positions.push(Vec3::new(x as f32, y as f32, z));
+            }
+        }
+        // The seam: a copy of the middle column's vertices, used by the right half.
+        let seam = positions.len() as u32;
+        for y in 0..=k {
+            positions.push(Vec3::new((k / 2) as f32, y as f32, z));
+        }
+        let v = |x: u32, y: u32| {
+            if x == k / 2 && y <= k {
+                seam + y
+            } else {
+                base + y * (k + 1) + x
+            }
+        };
+        for y in 0..k {
+            for x in 0..k {
+                // Quads right of the seam use its copy; left of it, the original column.
+                let pick = |cx: u32, cy: u32| {
+                    if x >= k / 2 {
+                        v(cx, cy)
+                    } else {
+                        base + cy * (k + 1) + cx
+                    }
+                };
+                triangles.push([pick(x, y), pick(x + 1, y), pick(x + 1, y + 1)]);
+                triangles.push([pick(x, y), pick(x + 1, y + 1), pick(x, y + 1)]);
+            }
+        }
+    }
+
+    fn two_material_scene() -> Scene {
+        let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+        grid(16, 0.0, &mut positions, &mut triangles);
+        let first = triangles.len();
+        grid(8, 5.0, &mut positions, &mut triangles);
+        let mut triangle_materials = vec![0; first];
+        triangle_materials.resize(triangles.len(), 1);
+        let material = |name: &str| Material {
+            name: name.into(),
+            kd: [0.5; 3],
+            ks: [0.0; 3],
+            ns: 1.0,
+            map_kd: None,
+        };
+        Scene {
+            name: "grids".into(),
+            dir: std::path::PathBuf::from("/nonexistent"),
+            positions,
+            texcoords: Vec::new(),
+            triangles,
+            triangle_materials,
+            materials: vec![material("floor"), material("ceiling")],
+            camera: Camera {
+                position: Vec3::new(0.0, 0.0, 20.0),
+                target: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y_deg: 40.0,
+                resolution: [64, 48],
+            },
+            lights: Vec::new(),
+            content_hash: [0; 32],
+            warnings: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn simplification_keeps_each_material_its_share() {
+        let scene = two_material_scene();
+        // 512 + 128 faces down to 64: 52 and 13 by share (rounded up).
+        let (positions, tris) = simplify_per_material(&scene, 64).unwrap();
+        assert_eq!(tris.len(), 2);
+        let (a, b) = (tris[0].len(), tris[1].len());
+        assert!((1..=60).contains(&a) && (1..=15).contains(&b), "{a} {b}");
+        // Flat grids simplify without losing area: each keeps its extent, across the seam.
+        for (m, z, side) in [(0, 0.0, 16.0), (1, 5.0, 8.0)] {
+            let area: f32 = tris[m]
+                .iter()
+                .map(|t| {
+                    let [p, q, r] = t.map(|i| positions[i as usize]);
+                    (q - p).cross(r - p).length() / 2.0
+                })
+                .sum();
+            assert!(
+                (area - side * side).abs() < 1e-3,
+                "material {m}: area {area}"
+            );
+            assert!(
+                tris[m]
+                    .iter()
+                    .flatten()
+                    .all(|&i| (positions[i as usize].z - z).abs() < 1e-6)
+            );
+        }
+        // Every position is used.
+        let mut used = vec![false; positions.len()];
+        tris.iter()
+            .flatten()
+            .flatten()
+            .for_each(|&i| used[i as usize] = true);
+        assert!(used.iter().all(|&u| u));
+        // A target above the face count keeps everything.
+        let (_, all) = simplify_per_material(&scene, 10_000).unwrap();
+        assert_eq!(all[0].len() + all[1].len(), scene.triangles.len());
+    }
+}
