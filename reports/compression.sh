@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # Regenerates reports/compression.md, compression.csv and compression.svg: the paper's Tables 2
-# and 3 (Cornell box, Cornell Heads, Sibenik as the church) and one row per option beyond the
+# and 3 (Cornell box, Cornell Heads, Sibenik as the church, in full and at 3,700 faces) and one row per option beyond the
 # paper, every figure measured by `cssm report compression` (release build).
 #
 # Usage: reports/compression.sh [SHARED_SCENES_DIR] [more flags for `cssm report compression`]
 #   SHARED_SCENES_DIR defaults to ../shared/scenes (teapot/, bunny/, sibenik/).
 #   e.g. reports/compression.sh ../shared/scenes --scene cornell   # the Cornell box's rows only
 #
-# Run it on a quiet machine: rows are timed. On a 2-core CPU the whole grid took 45 minutes: the
-# Cornell box's rows about 20, the heads 12, the church 14 (see the report's "Time per table").
+# Run it on a quiet machine: rows are timed. On a 2-core CPU the whole grid took 55 minutes: the
+# Cornell box's rows 16, the heads 13, the church 15, the church at 3,700 faces 9 (see the
+# report's "Time per table").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scenes=${1:-../shared/scenes}
