@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates reports/compression.md, compression.csv and compression.svg: the paper's Tables 2
-# and 3 (Cornell box, Cornell Heads, Sibenik as the church, in full and at 3,700 faces) and one row per option beyond the
-# paper, every figure measured by `cssm report compression` (release build).
+# and 3 (Cornell box, Cornell Heads, Sibenik as the church, in full and at 3,700 faces) and one
+# row per option beyond the paper, every figure measured by `cssm report compression` (release build).
 #
 # Usage: reports/compression.sh [SHARED_SCENES_DIR] [more flags for `cssm report compression`]
 #   SHARED_SCENES_DIR defaults to ../shared/scenes (teapot/, bunny/, sibenik/).
