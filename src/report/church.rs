@@ -138,8 +138,14 @@ pub fn simplify_per_material(scene: &Scene, target: usize) -> Result<Simplified,
                 s
             }
         };
+        // Collapses can leave zero-area triangles; drop them here by the loader's own test (area
+        // in f64), so the face count printed is the one that bakes.
         let tris = simplified
             .chunks_exact(3)
+            .filter(|t| {
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| welded[i as usize].as_dvec3());
+                (b - a).cross(c - a).length_squared() > 0.0
+            })
             .map(|t| {
                 [t[0], t[1], t[2]].map(|i| {
                     if used[i as usize] == u32::MAX {
