@@ -369,7 +369,6 @@ pub fn texel_albedo(scene: &Scene, file: &CssmFile) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// The indirect-light passes of a frame.
 /// The view-independent part of the indirect light: the direct light into the atlas texels,
 /// then the radiosity iteration over the hierarchy.
 struct AtlasGi {

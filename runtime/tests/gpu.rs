@@ -412,17 +412,19 @@ fn gather_kernel_matches_cpu() {
 
 // ---- Global illumination (§4): radiosity, final gather, lightmap ----
 
-/// The Cornell box at atlas 32 (Hilbert traversal, the default), the size the GI tests run at.
+/// The bake the GI tests run at: atlas 32, cube 64, Hilbert traversal (the default).
+fn gi_options() -> BakeOptions {
+    BakeOptions {
+        atlas_resolution: 32,
+        cube_resolution: 64,
+        ..Default::default()
+    }
+}
+
+/// The Cornell box at the GI tests' size.
 fn cornell32() -> &'static (Scene, CssmFile) {
     static CORNELL: OnceLock<(Scene, CssmFile)> = OnceLock::new();
-    CORNELL.get_or_init(|| {
-        let options = BakeOptions {
-            atlas_resolution: 32,
-            cube_resolution: 64,
-            ..Default::default()
-        };
-        baked("cornell-box", options)
-    })
+    CORNELL.get_or_init(|| baked("cornell-box", gi_options()))
 }
 
 fn vec3s(v: &[[f32; 4]]) -> Vec<glam::Vec3> {
@@ -872,16 +874,10 @@ fn final_gather_matches_path_tracer() {
     assert!(rmse < 0.15, "final gather: relative RMSE {rmse}");
 }
 
+/// The glossy Cornell box at the GI tests' size.
 fn glossy32() -> &'static (Scene, CssmFile) {
     static GLOSSY: OnceLock<(Scene, CssmFile)> = OnceLock::new();
-    GLOSSY.get_or_init(|| {
-        let options = BakeOptions {
-            atlas_resolution: 32,
-            cube_resolution: 64,
-            ..Default::default()
-        };
-        baked("cornell-glossy", options)
-    })
+    GLOSSY.get_or_init(|| baked("cornell-glossy", gi_options()))
 }
 
 /// §4.5, Fig. 12: on a glossy floor the representative texel of every node leaves a biased,
