@@ -110,6 +110,15 @@ pub struct Measurement {
     pub exchanging: Agreement,
 }
 
+impl Measurement {
+    fn add(self, o: Self) -> Self {
+        Self {
+            all: self.all.add(o.all),
+            exchanging: self.exchanging.add(o.exchanging),
+        }
+    }
+}
+
 /// True when `p_i` and `p_j` each lie more than `eps` in front of the other's surface: both
 /// cosines of their light transfer are positive.
 pub fn exchanges_light(p_j: &SurfacePoint, p_i: &SurfacePoint, eps: f32) -> bool {
@@ -256,14 +265,8 @@ pub fn measure(
                 }
                 m
             })
-            .reduce(Measurement::default, |a, b| Measurement {
-                all: a.all.add(b.all),
-                exchanging: a.exchanging.add(b.exchanging),
-            });
-        total = Measurement {
-            all: total.all.add(block.all),
-            exchanging: total.exchanging.add(block.exchanging),
-        };
+            .reduce(Measurement::default, Measurement::add);
+        total = total.add(block);
     }
     total
 }
