@@ -53,6 +53,14 @@ pub enum SceneId {
 }
 
 impl SceneId {
+    /// Every scene, in report order.
+    pub const ALL: [SceneId; 4] = [
+        SceneId::Cornell,
+        SceneId::Heads,
+        SceneId::Church,
+        SceneId::Church3700,
+    ];
+
     /// Short name used in the tables and the CSV.
     pub fn name(self) -> &'static str {
         match self {
@@ -470,12 +478,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
     let mut heads_note = None;
     let mut church_note = None;
     let mut scene_dirs: Vec<(SceneId, Result<PathBuf, String>)> = Vec::new();
-    for scene in [
-        SceneId::Cornell,
-        SceneId::Heads,
-        SceneId::Church,
-        SceneId::Church3700,
-    ] {
+    for scene in SceneId::ALL {
         if !plans.iter().any(|p| p.scene == scene) {
             continue;
         }
