@@ -416,7 +416,23 @@ fn compression_report_small() {
             ratio("table3", v, "64") > ratio("table3", v, "32"),
             "{v}: {csv}"
         );
+        // The Options rows with Table 3's settings take an earlier row's bake: Table 3's, or
+        // at this cube size Table 2's spiral row, which is the paper's method too.
+        let option = rows
+            .iter()
+            .find(|r| r[col("table")] == "options" && r[col("variant")] == v)
+            .unwrap();
+        assert_eq!(
+            option[col("ratio")].parse::<f64>().unwrap(),
+            ratio("table3", v, "64")
+        );
+        let earlier = match v {
+            "paper" => "table2 cornell atlas 64 cube 8 spiral",
+            _ => "table3 cornell atlas 64 cube 8 best",
+        };
+        assert_eq!(option[col("same_bake_as")], earlier, "{option:?}");
     }
+    assert!(md.contains("not baked twice"), "{md}");
 }
 
 #[test]

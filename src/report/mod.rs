@@ -120,6 +120,18 @@ pub struct Variant {
     pub second_layer: SecondLayer,
 }
 
+impl Variant {
+    /// Whether `self` and `other` bake the same file (they differ at most in name and words).
+    pub fn same_bake(&self, other: &Variant) -> bool {
+        let settings = |v: &Variant| Variant {
+            name: "",
+            about: "",
+            ..*v
+        };
+        settings(self) == settings(other)
+    }
+}
+
 /// The paper's method: Spiral traversal, middle codes, lossless runs.
 pub const PAPER: Variant = Variant {
     name: "paper",
@@ -337,8 +349,11 @@ pub struct Row {
     pub plan: Plan,
     /// Its figures, or why it did not run.
     pub outcome: Result<Measured, String>,
-    /// Wall time of the row (bake and check), seconds.
+    /// Wall time of the row (bake and check), seconds; 0 for a row that reuses another's bake.
     pub wall_seconds: f64,
+    /// Index of the earlier row whose bake and check this row reuses (same scene, atlas, cube
+    /// and settings: the Options table's `paper` and `best` rows are Table 3's).
+    pub same_as: Option<usize>,
 }
 
 /// A finished report.
@@ -547,14 +562,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
     let mut rows = Vec::with_capacity(plans.len());
     let mut atlas_failures: Vec<(SceneId, u32, String)> = Vec::new();
     for (k, plan) in plans.into_iter().enumerate() {
-        let label = format!(
-            "{} {} atlas {} cube {} {}",
-            plan.table_name(),
-            plan.scene.name(),
-            plan.atlas,
-            plan.cube,
-            plan.variant.name
-        );
+        let label = plan.label();
         bar.set_message(label.clone());
         let start = Instant::now();
         let dir = scene_dirs
@@ -568,24 +576,44 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
             .iter()
             .find(|(s, a, _)| *s == plan.scene && *a == plan.atlas)
             .map(|(_, _, e)| e.clone());
-        let outcome = dir.and_then(|dir| match known {
-            Some(e) => Err(e),
-            None => bake_and_check(
-                exe,
-                &dir,
-                &plan,
-                &work.path().join(format!("row{k}.cssm")),
-                args.pairs,
-            ),
+        // A row that bakes exactly what an earlier row baked takes that row's figures.
+        let same_as = rows.iter().position(|r: &Row| {
+            r.outcome.is_ok()
+                && r.plan.scene == plan.scene
+                && r.plan.atlas == plan.atlas
+                && r.plan.cube == plan.cube
+                && r.plan.variant.same_bake(&plan.variant)
         });
+        let outcome = match same_as {
+            Some(i) => rows[i].outcome.clone(),
+            None => dir.and_then(|dir| match known {
+                Some(e) => Err(e),
+                None => bake_and_check(
+                    exe,
+                    &dir,
+                    &plan,
+                    &work.path().join(format!("row{k}.cssm")),
+                    args.pairs,
+                ),
+            }),
+        };
         if let Err(e) = &outcome
             && e.contains(": atlas: ")
         {
             atlas_failures.push((plan.scene, plan.atlas, e.clone()));
         }
-        let wall_seconds = start.elapsed().as_secs_f64();
-        let line = match &outcome {
-            Ok(m) => format!(
+        let wall_seconds = if same_as.is_some() {
+            0.0
+        } else {
+            start.elapsed().as_secs_f64()
+        };
+        let line = match (&outcome, same_as) {
+            (Ok(m), Some(i)) => format!(
+                "{label}: the same bake as {}, ratio {:.1}",
+                rows[i].plan.label(),
+                m.ratio()
+            ),
+            (Ok(m), None) => format!(
                 "{label}: {} maps, ratio {:.1} (file {:.1}), agreement {:.2}%, {:.1} s",
                 m.maps,
                 m.ratio(),
@@ -593,7 +621,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
                 100.0 * m.agreement,
                 m.seconds
             ),
-            Err(e) => format!("{label}: {e}"),
+            (Err(e), _) => format!("{label}: {e}"),
         };
         // One line per row on stderr, also when it is a log file (the bar is hidden then).
         if bar.is_hidden() {
@@ -606,6 +634,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
             plan,
             outcome,
             wall_seconds,
+            same_as,
         });
     }
     bar.finish_and_clear();
@@ -625,6 +654,18 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
 }
 
 impl Plan {
+    /// The row in words: table, scene, atlas, cube and variant.
+    pub fn label(&self) -> String {
+        format!(
+            "{} {} atlas {} cube {} {}",
+            self.table_name(),
+            self.scene.name(),
+            self.atlas,
+            self.cube,
+            self.variant.name
+        )
+    }
+
     /// Name of the plan's table.
     pub fn table_name(&self) -> &'static str {
         match self.table {

@@ -32,6 +32,13 @@ fn main() {
 
     build.compile("xatlas");
 
+    // cc prints rerun-if-env-changed lines, which switch off cargo's default of rerunning the
+    // build script when any file of the package changes: name the sources, so that an edit to
+    // the vendored C++ is compiled.
+    for path in ["vendor/xatlas.cpp", "vendor/xatlas.h", "build.rs"] {
+        println!("cargo:rerun-if-changed={path}");
+    }
+
     #[cfg(feature = "generate_bindings")]
     generate_bindings("src/bindings.rs")
 }
