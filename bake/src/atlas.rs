@@ -117,8 +117,8 @@ fn unwrap(
     atlas.parameterize_charts();
     // Every defined texel is a depth map, so the page should hold as much surface as it can:
     // charts are packed by their conservative footprint with no padding (no texel centre can
-    // fall in two charts, and the query never filters across charts), with many placement
-    // attempts, and at the largest scale that fits (found by bisection once a scale fits).
+    // fall in two charts, and the query's sender filter keeps to one chart), with many
+    // placement attempts, and at the largest scale that fits (bisection once a scale fits).
     // On the 3,604-face church at atlas 128 this holds 6,920 depth maps instead of 4,990.
     let pack = |atlas: &mut xatlas_rs::Xatlas, texels_per_unit: f32| {
         atlas.pack_charts(xatlas_rs::PackOptions {
@@ -141,7 +141,7 @@ fn unwrap(
         too_big = Some(texels_per_unit);
         texels_per_unit *= SHRINK;
     }
-    if let (true, Some(mut high)) = (fits, too_big) {
+    if fits && let Some(mut high) = too_big {
         // The scale lies in (texels_per_unit, high): four halvings bring it within 0.5%.
         let mut low = texels_per_unit;
         let mut packed_at_low = true;

@@ -352,7 +352,7 @@ pub struct Row {
     /// Wall time of the row (bake and check), seconds; 0 for a row that reuses another's bake.
     pub wall_seconds: f64,
     /// Index of the earlier row whose bake and check this row reuses (same scene, atlas, cube
-    /// and settings: the Options table's `paper` and `best` rows are Table 3's).
+    /// and settings; in the full report, the Options table's `paper` and `best` rows).
     pub same_as: Option<usize>,
 }
 

@@ -259,20 +259,22 @@ pub fn markdown(r: &Report) -> String {
                 }
             }
         }
-        let reused: Vec<&str> = options
+        let reused: Vec<String> = options
             .iter()
-            .filter(|row| row.same_as.is_some())
-            .map(|row| row.plan.variant.name)
+            .filter_map(|row| {
+                let same = r.rows.get(row.same_as?)?;
+                Some(format!(
+                    "`{}` is {}",
+                    row.plan.variant.name,
+                    same.plan.label()
+                ))
+            })
             .collect();
         if !reused.is_empty() {
             let _ = writeln!(
                 s,
-                "\nThe rows {} are the bakes of Table 3 at the same settings, not baked twice.",
-                reused
-                    .iter()
-                    .map(|n| format!("`{n}`"))
-                    .collect::<Vec<_>>()
-                    .join(" and ")
+                "\nRows with an earlier row's settings take its bake, not baked twice: {}.",
+                reused.join("; ")
             );
         }
         let _ = writeln!(s, "\n{}", winners(&options));
