@@ -201,9 +201,11 @@ struct BakeArgs {
     /// Cube-map face resolution N; each map has 6 x N x N pixels (8 to 128).
     #[arg(long, default_value_t = 32)]
     cube: u32,
-    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3), or hilbert (chart by
+    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3); hilbert (chart by
     /// chart, a Hilbert curve inside each chart; beyond the paper, and the default because it
-    /// gave the best ratio at the same accuracy in reports/compression.md).
+    /// gave the best ratio at the same accuracy in reports/compression.md); or piloted (per chart
+    /// the Hilbert or the Spiral order, whichever a pilot bake of the chart at cube 8 compresses
+    /// better; beyond the paper, about an eighth more rays at cube 32).
     #[arg(long, default_value = "hilbert")]
     traversal: Traversal,
     /// How the chart-by-chart traversals choose the next chart: nearest (§3.2.3: the chart whose
@@ -219,10 +221,12 @@ struct BakeArgs {
     /// (0: lossless, as in the paper). Fewer runs, a few wrong depths; measure with `cssm check`.
     #[arg(long, default_value_t = 0)]
     merge_short_runs: u32,
-    /// Which intersection closes each pixel's depth interval: any (the second intersection, as in
-    /// the paper) or facing (the nearest one beyond the first whose surface faces the texel;
-    /// surfaces facing away exchange no light with it, so their visibility never matters; beyond
-    /// the paper).
+    /// Which intersections bound each pixel's depth interval: any (the first and the second, as in
+    /// the paper); facing (the second is the nearest one beyond the first whose surface faces the
+    /// texel: surfaces facing away exchange no light with it, so their visibility never matters;
+    /// beyond the paper); or exchange (as facing, and a first surface that faces away sets no
+    /// lower bound; a pixel that meets no facing surface, nor do its neighbours, is don't care;
+    /// beyond the paper).
     #[arg(long, default_value = "any")]
     second_layer: bake::cubemap::SecondLayer,
     /// How the file stores the runs: packed (run lengths and depth differences as varints before

@@ -3,7 +3,8 @@
 //! all depths between its ray's first and second intersection, any of which is a correct
 //! stand-in (dual depth layers); pixels wholly behind the tangent plane are "don't care".
 //! Beyond the paper, [`SecondLayer::Facing`] ends the range at the nearest intersection whose
-//! surface faces the texel instead of at the second one.
+//! surface faces the texel instead of at the second one, and [`SecondLayer::Exchange`] also
+//! drops the lower end where the first surface faces away.
 
 use cssm_formats::{
     Texel,
@@ -28,17 +29,28 @@ pub enum SecondLayer {
     /// visibility never matters; skipping it widens the interval from a wall's thickness to the
     /// room behind it, and runs grow longer.
     Facing,
+    /// Beyond the paper: only surfaces that can exchange light with the texel bound the range.
+    /// The top is as in [`SecondLayer::Facing`]; the bottom is the first intersection only when
+    /// its surface faces the texel (that point must stay visible). When the first surface faces
+    /// away (the back of a single-sided panel, the inside of an object the texel lies in), no
+    /// point in front of it exchanges light with the texel, so any code below the top will do.
+    /// A pixel whose ray meets no facing surface at all is "don't care" when its eight
+    /// neighbours meet none either; next to one that does, it keeps the paper's range, since
+    /// the query's pixel footprint (and its 2x2 filter) reaches across the border.
+    Exchange,
 }
 
 impl SecondLayer {
     /// Every choice, default first.
-    pub const ALL: [SecondLayer; 2] = [SecondLayer::Any, SecondLayer::Facing];
+    pub const ALL: [SecondLayer; 3] =
+        [SecondLayer::Any, SecondLayer::Facing, SecondLayer::Exchange];
 
     /// Lower-case name as used on the command line.
     pub fn name(self) -> &'static str {
         match self {
             SecondLayer::Any => "any",
             SecondLayer::Facing => "facing",
+            SecondLayer::Exchange => "exchange",
         }
     }
 }
@@ -55,8 +67,9 @@ impl std::str::FromStr for SecondLayer {
         match s.to_ascii_lowercase().as_str() {
             "any" => Ok(SecondLayer::Any),
             "facing" => Ok(SecondLayer::Facing),
+            "exchange" => Ok(SecondLayer::Exchange),
             other => Err(format!(
-                "unknown second layer '{other}': expected any or facing"
+                "unknown second layer '{other}': expected any, facing or exchange"
             )),
         }
     }
@@ -64,6 +77,17 @@ impl std::str::FromStr for SecondLayer {
 
 /// The don't-care interval.
 pub const DONT_CARE: Interval = (0, DEPTH_MAX);
+
+/// What a pixel's ray saw, for [`SecondLayer::Exchange`]'s second pass.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Seen {
+    /// Wholly behind the tangent plane (or cast along it with no depth): don't care.
+    Behind,
+    /// No surface facing the texel along the ray.
+    NoFacingSurface,
+    /// A surface facing the texel.
+    FacingSurface,
+}
 
 /// Renders one texel's cube map into `out` (`6 * n * n` intervals). Returns the number of rays
 /// cast (pixels that were not don't-care).
@@ -80,26 +104,140 @@ pub fn render(
     let centre = texel.pos() + normal * near;
     // Hits closer together than a tenth of a depth code are the same surface.
     let separation = 0.1 * quantizer.far() / DEPTH_MAX as f32;
+    let exchange = second_layer == SecondLayer::Exchange;
+    let mut seen = if exchange {
+        vec![Seen::Behind; out.len()]
+    } else {
+        Vec::new()
+    };
     let mut rays = 0;
     for (pixel, slot) in out.iter_mut().enumerate() {
-        let pixel = pixel as u32;
-        if cube::pixel_is_dont_care(n, pixel, normal) {
-            *slot = DONT_CARE;
+        *slot = DONT_CARE;
+        if cube::pixel_is_dont_care(n, pixel as u32, normal) {
             continue;
         }
         rays += 1;
         // Straddling pixels whose centre points below the plane are cast along it (see
         // `cube::cast_direction`): otherwise they would only see the texel's own surface.
-        let (dir, depth_scale) = cube::cast_direction(n, pixel, normal);
+        let (dir, depth_scale) = cube::cast_direction(n, pixel as u32, normal);
         if depth_scale < 1e-3 {
-            *slot = DONT_CARE;
             continue;
         }
-        let hit = match second_layer {
-            SecondLayer::Any => bvh.dual_hit(centre, dir, separation),
-            SecondLayer::Facing => bvh.front_dual_hit(centre, dir, separation),
+        let (first, second) = match second_layer {
+            SecondLayer::Any => {
+                let hit = bvh.dual_hit(centre, dir, separation);
+                (hit.first, hit.second)
+            }
+            SecondLayer::Facing => {
+                let hit = bvh.front_dual_hit(centre, dir, separation);
+                (hit.first, hit.second)
+            }
+            SecondLayer::Exchange => {
+                let hit = bvh.front_dual_hit(centre, dir, separation);
+                let second = hit.second * depth_scale;
+                seen[pixel] = if hit.first_faces || second.is_finite() {
+                    Seen::FacingSurface
+                } else {
+                    Seen::NoFacingSurface
+                };
+                if !hit.first_faces && second.is_finite() {
+                    // Nothing to keep visible: every code below the first facing surface.
+                    *slot = (0, quantizer.last_code_before(second));
+                    continue;
+                }
+                (hit.first, hit.second)
+            }
         };
-        *slot = quantizer.interval(hit.first * depth_scale, hit.second * depth_scale);
+        *slot = quantizer.interval(first * depth_scale, second * depth_scale);
+    }
+    if exchange {
+        for (pixel, slot) in out.iter_mut().enumerate() {
+            if seen[pixel] == Seen::NoFacingSurface
+                && cube::neighbours(n, pixel as u32)
+                    .iter()
+                    .all(|&q| seen[q as usize] != Seen::FacingSurface)
+            {
+                *slot = DONT_CARE;
+            }
+        }
     }
     rays
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// Above a texel at the origin facing +z: a single-sided panel at z = 1 that faces away
+    /// from it (+z), wider than the view straight up, and a smaller ceiling at z = 3 that faces
+    /// it (-z), seen only by the middle pixels of the +z face.
+    fn panel_and_ceiling() -> crate::raycast::SceneBvh {
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for (z, half, faces_minus_z) in [(1.0, 1.5, false), (3.0, 0.5, true)] {
+            let base = positions.len() as u32;
+            for (x, y) in [(-half, -half), (half, -half), (half, half), (-half, half)] {
+                positions.push(Vec3::new(x, y, z));
+            }
+            if faces_minus_z {
+                triangles.extend([[base, base + 2, base + 1], [base, base + 3, base + 2]]);
+            } else {
+                triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+            }
+        }
+        crate::raycast::SceneBvh::new(&crate::tests::scene_from(positions, triangles))
+    }
+
+    #[test]
+    fn exchange_keeps_only_the_bounds_of_surfaces_facing_the_texel() {
+        let bvh = panel_and_ceiling();
+        let texel = Texel {
+            position: [0.0; 3],
+            normal: [0.0, 0.0, 1.0],
+            area: 1.0,
+            material: 0,
+            chart: 0,
+            x: 0,
+            y: 0,
+        };
+        let (n, near) = (8, 0.01);
+        let quantizer = DepthQuantizer::new(near, 10.0);
+        let render_with = |layer| {
+            let mut out = vec![DONT_CARE; 6 * (n * n) as usize];
+            render(&bvh, &texel, n, near, &quantizer, layer, &mut out);
+            out
+        };
+        let (facing, exchange) = (
+            render_with(SecondLayer::Facing),
+            render_with(SecondLayer::Exchange),
+        );
+        let pixel = |u: f32, v: f32| cube::pixel_index(n, 4, u, v) as usize;
+        let panel = quantizer.ceil(1.0 - near);
+        let ceiling = quantizer.last_code_before(3.0 - near);
+
+        // Straight up: the panel's back, then the ceiling. Facing keeps the panel as the
+        // bottom; exchange drops it, since no point on the panel's back exchanges light.
+        let up = pixel(0.1, 0.1);
+        assert_eq!(facing[up], (panel, ceiling));
+        assert_eq!(exchange[up], (0, ceiling));
+        // Next to those pixels, only the panel's back: the paper's range stays, since the
+        // query's footprint reaches the ceiling pixels.
+        let beside = pixel(0.4, 0.1);
+        assert_eq!(facing[beside], (panel, DEPTH_MAX));
+        assert_eq!(exchange[beside], facing[beside]);
+        // Far from any facing surface: don't care.
+        let far = pixel(0.9, -0.9);
+        assert_eq!(facing[far], (panel, DEPTH_MAX));
+        assert_eq!(exchange[far], DONT_CARE);
+        // Sideways, past the panel's edge, the ray meets nothing: the paper's "visible" code,
+        // and don't care for exchange.
+        let side = cube::pixel_index(n, 0, 0.0, 0.0) as usize;
+        assert_eq!(facing[side], (DEPTH_MAX, DEPTH_MAX));
+        assert_eq!(exchange[side], DONT_CARE);
+        // Exchange only ever widens the ranges: every code facing accepts, it accepts too.
+        for (f, e) in facing.iter().zip(&exchange) {
+            assert!(e.0 <= f.0 && e.1 >= f.1, "{f:?} -> {e:?}");
+        }
+    }
 }

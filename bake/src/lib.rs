@@ -37,6 +37,12 @@ pub use cssm_formats::cssm::{ATLAS_RESOLUTION_RANGE, CUBE_RESOLUTION_RANGE};
 /// for the near plane").
 pub const DEFAULT_NEAR_FRACTION: f32 = 0.002;
 
+/// Cube resolution of the pilot bakes of [`Traversal::Piloted`] (at most the bake's own): a
+/// sixteenth of the rays of a cube-32 bake, and still fine enough to tell which of two orders of a
+/// chart makes fewer runs (on the church at 3,604 faces, atlas 512, cube 32, it picks orders
+/// that beat both the Hilbert and the Spiral order alone).
+pub const PILOT_CUBE_RESOLUTION: u32 = 8;
+
 /// Errors of the bake.
 #[derive(Debug, thiserror::Error)]
 pub enum BakeError {
@@ -170,20 +176,38 @@ pub fn bake(
         ));
     }
 
+    let t0 = Instant::now();
+    let bvh = raycast::SceneBvh::new(scene);
+    let quantizer = DepthQuantizer::new(near, far);
+    let bvh_time = t0.elapsed();
+
     // 2. Coherent order of the texels (§3.2.3).
     let t0 = Instant::now();
-    let sequence = traverse::traverse_with(
+    let pilot = |_chart: &[u32], orders: &[&[u32]]| {
+        let pilot_options = BakeOptions {
+            cube_resolution: n.min(PILOT_CUBE_RESOLUTION),
+            ..options.clone()
+        };
+        fewest_runs(
+            &bvh,
+            &atlas.texels,
+            orders,
+            near,
+            &quantizer,
+            &pilot_options,
+        )
+    };
+    let sequence = traverse::traverse_piloted(
         &atlas.texels,
         atlas.resolution,
         options.traversal,
         options.chart_order,
+        &pilot,
     );
     stats.traversal_time = t0.elapsed();
 
     // 3. + 4. Depth cube maps, streamed in batches into the compressor (§3.2.1, §3.1).
     let t0 = Instant::now();
-    let bvh = raycast::SceneBvh::new(scene);
-    let quantizer = DepthQuantizer::new(near, far);
     let pixel_count = 6 * n * n;
     let map_count = sequence.len() as u32;
     let mut compressor = compress::Compressor::with_options(
@@ -224,7 +248,7 @@ pub fn bake(
         progress((b * batch_maps + ids.len()) as u64, map_count as u64);
     }
     let runs = compressor.finish();
-    stats.maps_time = t0.elapsed();
+    stats.maps_time = bvh_time + t0.elapsed();
     stats.uncompressed_bytes = runs.uncompressed_bytes();
     stats.gpu_bytes = runs.gpu_bytes();
     stats.runs = runs.runs.len() as u64;
@@ -256,6 +280,52 @@ pub fn bake(
     };
     Ok(Baked { file, stats })
 }
+
+/// The pilot of [`Traversal::Piloted`]: bakes the chart's texels at `options`' cube resolution in
+/// each of `orders`, compresses them with `options`' compressor settings, and returns the index
+/// of the order with the fewest runs (the first of equals). Maps are rendered batch by batch for
+/// each order, so memory stays bounded however large the chart.
+fn fewest_runs(
+    bvh: &raycast::SceneBvh,
+    texels: &[cssm_formats::Texel],
+    orders: &[&[u32]],
+    near: f32,
+    quantizer: &DepthQuantizer,
+    options: &BakeOptions,
+) -> usize {
+    let n = options.cube_resolution;
+    let pixels = (6 * n * n) as usize;
+    let mut batch = vec![cubemap::DONT_CARE; PILOT_BATCH_MAPS * pixels];
+    let mut runs = |order: &[u32]| {
+        let mut compressor = compress::Compressor::with_options(
+            pixels as u32,
+            order.len() as u32,
+            compress::CompressOptions {
+                run_value: options.run_value,
+                merge_short_runs: options.merge_short_runs,
+                // The stored code does not change where runs end.
+                near_codes: 0.0,
+            },
+        );
+        for ids in order.chunks(PILOT_BATCH_MAPS) {
+            let slots = &mut batch[..ids.len() * pixels];
+            slots
+                .par_chunks_mut(pixels)
+                .zip(ids.par_iter())
+                .for_each(|(out, &texel)| {
+                    let texel = &texels[texel as usize];
+                    cubemap::render(bvh, texel, n, near, quantizer, options.second_layer, out);
+                });
+            compressor.push(slots);
+        }
+        compressor.finish().runs.len()
+    };
+    let counts: Vec<usize> = orders.iter().map(|order| runs(order)).collect();
+    (0..counts.len()).min_by_key(|&i| counts[i]).unwrap_or(0)
+}
+
+/// Maps per batch the pilot hands its compressor.
+const PILOT_BATCH_MAPS: usize = 256;
 
 #[cfg(test)]
 pub(crate) mod tests {

@@ -32,6 +32,20 @@ pub struct DualHit {
     pub second: f32,
 }
 
+/// Result of [`SceneBvh::front_dual_hit`]: the first hit, whether it faces the ray's origin, and
+/// the nearest hit beyond it that does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrontHit {
+    /// Ray parameter of the first hit, `INFINITY` if none.
+    pub first: f32,
+    /// Whether the first hit's surface faces the origin (any of the triangles within
+    /// `separation` of it does).
+    pub first_faces: bool,
+    /// Ray parameter of the nearest front-facing hit at least `separation` beyond the first,
+    /// `INFINITY` if none.
+    pub second: f32,
+}
+
 /// Per-ray constants of the watertight ray/triangle test of Woop, Benthin and Wald (JCGT 2013).
 /// Möller–Trumbore (obvhs' `Triangle::intersect`) lets rays through the edge shared by two
 /// triangles escape both, which would punch holes through walls at the quads' diagonals.
@@ -237,8 +251,9 @@ impl SceneBvh {
     /// triangle's front side towards the ray's origin) beyond the first. Back-facing surfaces
     /// between the two (the far side of a wall, of a column, of the teapot) are skipped: a
     /// point on them faces away from the origin, so it can exchange no light with it (its
-    /// cosine is zero) and whether it is visible never matters.
-    pub fn front_dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> DualHit {
+    /// cosine is zero) and whether it is visible never matters. The result also says whether the
+    /// first hit faces the origin.
+    pub fn front_dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> FrontHit {
         let (mut first, mut second) = (f32::INFINITY, f32::INFINITY);
         let mut first_faces = false;
         self.for_each_hit(origin, dir, 0.0, f32::INFINITY, |t, triangle| {
@@ -260,7 +275,11 @@ impl SceneBvh {
             }
             second
         });
-        DualHit { first, second }
+        FrontHit {
+            first,
+            first_faces,
+            second,
+        }
     }
 }
 
@@ -337,7 +356,7 @@ mod tests {
         assert!(near(any.first, 1.0) && near(any.second, 1.2), "{any:?}");
         let facing = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 0.0), Vec3::Z, 1e-3);
         assert!(
-            near(facing.first, 1.0) && near(facing.second, 3.0),
+            near(facing.first, 1.0) && near(facing.second, 3.0) && facing.first_faces,
             "{facing:?}"
         );
         // Through the quads' shared diagonal, the same.
@@ -349,11 +368,14 @@ mod tests {
         // From above: the wall's back comes first (whatever it faces, the first hit is the
         // first), then the slab's back face, which faces this origin.
         let down = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 5.0), -Vec3::Z, 1e-3);
-        assert!(near(down.first, 2.0) && near(down.second, 3.8), "{down:?}");
+        assert!(
+            near(down.first, 2.0) && near(down.second, 3.8) && !down.first_faces,
+            "{down:?}"
+        );
         // From inside the slab: only its back face ahead, facing away.
         let inside = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 1.1), Vec3::Z, 1e-3);
         assert!(
-            near(inside.first, 0.1) && near(inside.second, 1.9),
+            near(inside.first, 0.1) && near(inside.second, 1.9) && !inside.first_faces,
             "{inside:?}"
         );
         let out = bvh.front_dual_hit(Vec3::new(0.3, 0.2, 3.5), Vec3::Z, 1e-3);

@@ -2,7 +2,7 @@
 //! random blob charts grown by flood fill, isolated cells (so some charts are split in the atlas
 //! grid), noisy 3D positions, and texel slices in row-major or shuffled order.
 
-use cssm_bake::traverse::{ChartOrder, traverse, traverse_with};
+use cssm_bake::traverse::{ChartOrder, gilbert_ranks, traverse, traverse_piloted, traverse_with};
 use cssm_formats::{Texel, Traversal};
 use proptest::prelude::*;
 use std::time::Instant;
@@ -318,33 +318,10 @@ fn assert_greedy(texels: &[Texel], order: &[u32]) -> Result<(), TestCaseError> {
     Ok(())
 }
 
-/// Cell of position `d` along the Hilbert curve over a `side x side` grid: the inverse mapping
-/// (Wikipedia's `d2xy`), written independently of the traversal's `xy2d`.
-fn hilbert_cell(side: u32, d: u64) -> (u32, u32) {
-    let (mut x, mut y) = (0u32, 0u32);
-    let mut t = d;
-    let mut s = 1u32;
-    while s < side {
-        let rx = (1 & (t / 2)) as u32;
-        let ry = (1 & (t ^ u64::from(rx))) as u32;
-        if ry == 0 {
-            if rx == 1 {
-                x = s - 1 - x;
-                y = s - 1 - y;
-            }
-            std::mem::swap(&mut x, &mut y);
-        }
-        x += s * rx;
-        y += s * ry;
-        t /= 4;
-        s *= 2;
-    }
-    (x, y)
-}
-
-/// Hilbert inside each block: the block's texels in the order a Hilbert curve over the chart's
-/// bounding box (side rounded up to a power of two) meets them; on a full square chart every step
-/// is a 4-neighbour step.
+/// Hilbert inside each block: the block's texels in the order the generalised Hilbert curve over
+/// the block's bounding rectangle meets them (`gilbert_ranks`, whose own unit test checks that it
+/// visits every cell once in 4-neighbour steps); on a full square chart every step is a
+/// 4-neighbour step.
 fn assert_hilbert_blocks(
     texels: &[Texel],
     order: &[u32],
@@ -356,14 +333,12 @@ fn assert_hilbert_blocks(
         let y0 = block.iter().map(|&i| texels[i as usize].y).min().unwrap();
         let x1 = block.iter().map(|&i| texels[i as usize].x).max().unwrap();
         let y1 = block.iter().map(|&i| texels[i as usize].y).max().unwrap();
-        let side = (u32::from((x1 - x0).max(y1 - y0)) + 1).next_power_of_two();
-        let mut rank = std::collections::HashMap::new();
-        for d in 0..u64::from(side) * u64::from(side) {
-            rank.insert(hilbert_cell(side, d), d);
-        }
+        let width = u32::from(x1 - x0) + 1;
+        let rank = gilbert_ranks(width, u32::from(y1 - y0) + 1);
         let key = |i: u32| {
             let t = &texels[i as usize];
-            (rank[&(u32::from(t.x - x0), u32::from(t.y - y0))], i)
+            let cell = u32::from(t.y - y0) * width + u32::from(t.x - x0);
+            (rank[cell as usize], i)
         };
         for w in block.windows(2) {
             prop_assert!(key(w[0]) < key(w[1]), "block not in Hilbert order");
@@ -432,7 +407,8 @@ proptest! {
                     assert_chart_order(&texels, &order, &blocks, true)?;
                     assert_zigzag_rows(&texels, &order, &blocks)?;
                 }
-                Traversal::Hilbert => {
+                // Without a pilot, Piloted is the Hilbert order.
+                Traversal::Hilbert | Traversal::Piloted => {
                     let blocks = chart_blocks(&texels, &order)?;
                     assert_chart_order(&texels, &order, &blocks, false)?;
                     assert_hilbert_blocks(&texels, &order, &blocks)?;
@@ -504,6 +480,54 @@ proptest! {
                     for end in [wk[0], wk[wk.len() - 1]] {
                         prop_assert!(chosen <= dist2(texels[end as usize].position, last));
                     }
+                }
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// `Traversal::Piloted` takes, chart by chart, the order its pilot picks: a pilot that always
+    /// answers 0 gives the Hilbert traversal, one that always answers 1 the Spiral traversal
+    /// (whichever the chart order), and one that picks by chart gives each chart the walk it
+    /// picked.
+    #[test]
+    fn piloted_takes_the_pilots_choice_per_chart(
+        seed in any::<u64>(),
+        w in 1usize..30,
+        h in 1usize..30,
+        blobs in 0usize..12,
+        isolated in 0usize..20,
+        noise in prop_oneof![Just(0.0f32), 0.0f32..0.9],
+    ) {
+        let texels = random_atlas(seed, w, h, blobs, isolated, noise, false);
+        let res = w.max(h) as u32;
+        for chart_order in [ChartOrder::Nearest, ChartOrder::Ends] {
+            let piloted = |pilot: &cssm_bake::traverse::Pilot| {
+                traverse_piloted(&texels, res, Traversal::Piloted, chart_order, pilot)
+            };
+            let hilbert = traverse_with(&texels, res, Traversal::Hilbert, chart_order);
+            let spiral = traverse_with(&texels, res, Traversal::Spiral, chart_order);
+            prop_assert_eq!(&piloted(&|_, _| 0), &hilbert);
+            prop_assert_eq!(&piloted(&|_, _| 1), &spiral);
+            prop_assert_eq!(&traverse_with(&texels, res, Traversal::Piloted, chart_order), &hilbert);
+            // Odd charts Spiral, even ones Hilbert.
+            let by_chart = |rows: &[u32], _: &[&[u32]]| (texels[rows[0] as usize].chart % 2) as usize;
+            let mixed = piloted(&by_chart);
+            assert_permutation(&texels, &mixed)?;
+            if chart_order == ChartOrder::Nearest && !texels.is_empty() {
+                let own = |order: &[u32]| -> Result<std::collections::HashMap<u32, Vec<u32>>, TestCaseError> {
+                    Ok(chart_blocks(&texels, order)?
+                        .into_iter()
+                        .map(|(c, s, e)| (c, order[s..e].to_vec()))
+                        .collect())
+                };
+                let (h, s) = (own(&hilbert)?, own(&spiral)?);
+                for (c, block) in own(&mixed)? {
+                    let want = if c % 2 == 1 { &s[&c] } else { &h[&c] };
+                    prop_assert_eq!(&block, want, "chart {}", c);
                 }
             }
         }

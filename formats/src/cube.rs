@@ -47,6 +47,32 @@ pub fn pixel_direction(n: u32, pixel: u32) -> Vec3 {
     face_direction(face, u, v)
 }
 
+/// The eight pixels around `pixel` (a pixel on a face's border finds its neighbours across the
+/// edge, on the adjacent face; next to a cube corner two of them may coincide).
+pub fn neighbours(n: u32, pixel: u32) -> [u32; 8] {
+    let (face, row, col) = split_pixel(n, pixel);
+    let step = 2.0 / n as f32;
+    let u = (col as f32 + 0.5) * step - 1.0;
+    let v = (row as f32 + 0.5) * step - 1.0;
+    let mut out = [0; 8];
+    let offsets = [
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+        (-1, 0),
+        (1, 0),
+        (-1, 1),
+        (0, 1),
+        (1, 1),
+    ];
+    for (slot, (du, dv)) in out.iter_mut().zip(offsets) {
+        let d = face_direction(face, u + du as f32 * step, v + dv as f32 * step);
+        let (f, pu, pv, _) = project(d);
+        *slot = pixel_index(n, f, pu, pv);
+    }
+    out
+}
+
 /// `(face, row, col)` of a pixel index.
 #[inline]
 pub fn split_pixel(n: u32, pixel: u32) -> (u32, u32, u32) {
@@ -169,12 +195,17 @@ impl DepthQuantizer {
             return (DEPTH_MAX, DEPTH_MAX);
         }
         let lo = self.ceil(first);
-        let hi = if !second.is_finite() || second >= self.far {
+        (lo, self.last_code_before(second).max(lo))
+    }
+
+    /// Largest code whose depth lies before `depth` (clamped to 0), [`DEPTH_MAX`] when `depth` is
+    /// infinite or beyond the far plane: the top of an interval that `depth` closes.
+    pub fn last_code_before(&self, depth: f32) -> u16 {
+        if !depth.is_finite() || depth >= self.far {
             DEPTH_MAX
         } else {
-            (self.scaled(second).ceil() - 1.0).clamp(0.0, DEPTH_MAX as f32) as u16
-        };
-        (lo, hi.max(lo))
+            (self.scaled(depth).ceil() - 1.0).clamp(0.0, DEPTH_MAX as f32) as u16
+        }
     }
 }
 
@@ -237,6 +268,53 @@ mod tests {
         // The -y face and the lower halves of the four side faces, less the row or column of
         // pixels touching the horizon (a corner on the plane keeps a pixel).
         assert_eq!(count, n * n + 4 * n * (n / 2 - 1));
+    }
+
+    #[test]
+    fn neighbours_are_adjacent_across_faces_too() {
+        let n = 8;
+        // Inside a face: the eight pixels of the 3x3 block around it.
+        let p = pixel_index(n, 3, 0.1, -0.3);
+        let (face, row, col) = split_pixel(n, p);
+        let mut want: Vec<u32> = [
+            (-1i32, -1i32),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ]
+        .iter()
+        .map(|(dc, dr)| face * n * n + (row as i32 + dr) as u32 * n + (col as i32 + dc) as u32)
+        .collect();
+        let mut got = neighbours(n, p).to_vec();
+        want.sort();
+        got.sort();
+        assert_eq!(got, want);
+        // Every pixel's neighbours are distinct from it, lie within a small angle of it, and
+        // count it among their own neighbours (the relation is symmetric, edges included).
+        for p in 0..6 * n * n {
+            let d = pixel_direction(n, p).normalize();
+            for q in neighbours(n, p) {
+                assert_ne!(q, p);
+                let angle = d.angle_between(pixel_direction(n, q).normalize());
+                assert!(angle < 0.6, "pixel {p} neighbour {q}: {angle} rad");
+                let corner = {
+                    let (_, r, c) = split_pixel(n, p);
+                    (r == 0 || r == n - 1) && (c == 0 || c == n - 1)
+                };
+                assert!(corner || neighbours(n, q).contains(&p), "{p} -> {q}");
+            }
+        }
+        // A face-border pixel reaches the adjacent face.
+        let edge = pixel_index(n, 0, 0.99, 0.0);
+        assert!(
+            neighbours(n, edge)
+                .iter()
+                .any(|&q| split_pixel(n, q).0 != 0)
+        );
     }
 
     #[test]

@@ -45,10 +45,14 @@ pub enum Traversal {
     Spiral,
     /// Nearest-first walk over texel positions, no use of the atlas layout.
     Greedy,
-    /// Chart by chart like Zig-Zag and Spiral; inside a chart, the order of a Hilbert curve over
-    /// the chart's bounding box (beyond the paper: §3.2.3 rules the Hilbert pattern of CSMs out
+    /// Chart by chart like Zig-Zag and Spiral; inside a chart, the order of a (generalised)
+    /// Hilbert curve over the chart's bounding rectangle (beyond the paper: §3.2.3 rules the Hilbert pattern of CSMs out
     /// for arbitrary chart shapes; restricted to a chart's texels it still stays local).
     Hilbert,
+    /// Chart by chart; inside each chart, the Hilbert or the Spiral order, whichever a pilot bake
+    /// of that chart's texels at a coarse cube resolution compresses into fewer runs (beyond the
+    /// paper). The bake runs the pilot; without one it is the Hilbert order.
+    Piloted,
 }
 
 impl Traversal {
@@ -56,11 +60,12 @@ impl Traversal {
     pub const PAPER: [Traversal; 3] = [Traversal::Greedy, Traversal::Zigzag, Traversal::Spiral];
 
     /// Every traversal: the paper's, then the ones beyond it.
-    pub const ALL: [Traversal; 4] = [
+    pub const ALL: [Traversal; 5] = [
         Traversal::Greedy,
         Traversal::Zigzag,
         Traversal::Spiral,
         Traversal::Hilbert,
+        Traversal::Piloted,
     ];
 
     /// Lower-case name as used on the command line.
@@ -70,6 +75,7 @@ impl Traversal {
             Traversal::Spiral => "spiral",
             Traversal::Greedy => "greedy",
             Traversal::Hilbert => "hilbert",
+            Traversal::Piloted => "piloted",
         }
     }
 }
@@ -88,8 +94,9 @@ impl std::str::FromStr for Traversal {
             "spiral" => Ok(Traversal::Spiral),
             "greedy" => Ok(Traversal::Greedy),
             "hilbert" => Ok(Traversal::Hilbert),
+            "piloted" => Ok(Traversal::Piloted),
             other => Err(format!(
-                "unknown traversal '{other}': expected zigzag, spiral, greedy or hilbert"
+                "unknown traversal '{other}': expected zigzag, spiral, greedy, hilbert or piloted"
             )),
         }
     }

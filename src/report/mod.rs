@@ -148,17 +148,17 @@ pub const PAPER: Variant = Variant {
 /// each one measured). Lossless: the lossy short-run merge has a row of its own.
 pub const BEST: Variant = Variant {
     name: "best",
-    about: "Hilbert order inside charts, next chart by nearest end, intervals closed by the nearest surface facing the texel (per pixel, the same answer for every pair that exchanges light); file: entropy stage",
-    traversal: Traversal::Hilbert,
+    about: "inside each chart the Hilbert or the Spiral order, whichever a pilot bake at cube 8 compresses better; next chart by nearest end; intervals bounded only by surfaces that face the texel (exchange: per pixel, the same answer for every pair that exchanges light); file: entropy stage",
+    traversal: Traversal::Piloted,
     chart_order: ChartOrder::Ends,
     run_value: RunValue::Middle,
     merge_short_runs: 0,
     file_coding: FileCoding::Packed,
-    second_layer: SecondLayer::Facing,
+    second_layer: SecondLayer::Exchange,
 };
 
 /// Every option beyond the paper, one row each in the Options table (the first is the baseline).
-pub const OPTIONS: [Variant; 12] = [
+pub const OPTIONS: [Variant; 14] = [
     PAPER,
     Variant {
         name: "entropy",
@@ -180,8 +180,14 @@ pub const OPTIONS: [Variant; 12] = [
     },
     Variant {
         name: "hilbert",
-        about: "Hilbert order inside charts",
+        about: "Hilbert order inside charts (the generalised Hilbert curve over each chart's bounding rectangle)",
         traversal: Traversal::Hilbert,
+        ..PAPER
+    },
+    Variant {
+        name: "piloted",
+        about: "inside each chart the Hilbert or the Spiral order, whichever a pilot bake of the chart at cube 8 compresses into fewer runs",
+        traversal: Traversal::Piloted,
         ..PAPER
     },
     Variant {
@@ -207,6 +213,12 @@ pub const OPTIONS: [Variant; 12] = [
         name: "facing",
         about: "second layer: the nearest surface beyond the first that faces the texel (surfaces facing away exchange no light with it)",
         second_layer: SecondLayer::Facing,
+        ..PAPER
+    },
+    Variant {
+        name: "exchange",
+        about: "facing, and a first surface that faces away sets no lower bound (nothing in front of it exchanges light with the texel); a pixel whose ray and neighbours meet no facing surface is don't care",
+        second_layer: SecondLayer::Exchange,
         ..PAPER
     },
     BEST,
