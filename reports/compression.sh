@@ -7,8 +7,8 @@
 #   SHARED_SCENES_DIR defaults to ../shared/scenes (teapot/, bunny/, sibenik/).
 #   e.g. reports/compression.sh ../shared/scenes --scene cornell   # the Cornell box's rows only
 #
-# Run it on a quiet machine: rows are timed. On a 2-core Intel Xeon the whole grid took 52 minutes:
-# the Cornell box's rows 11, the heads 12, the church 16, the church at 3,700 faces 10 (see the
+# Run it on a quiet machine: rows are timed. On a 2-core Intel Xeon the whole grid took 53 minutes:
+# the Cornell box's rows 13, the heads 13, the church 17, the church at 3,700 faces 11 (see the
 # report's "Time per table").
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -51,11 +51,7 @@ pub fn pixel_direction(n: u32, pixel: u32) -> Vec3 {
 /// edge, on the adjacent face; next to a cube corner two of them may coincide).
 pub fn neighbours(n: u32, pixel: u32) -> [u32; 8] {
     let (face, row, col) = split_pixel(n, pixel);
-    let step = 2.0 / n as f32;
-    let u = (col as f32 + 0.5) * step - 1.0;
-    let v = (row as f32 + 0.5) * step - 1.0;
-    let mut out = [0; 8];
-    let offsets = [
+    let offsets: [(i32, i32); 8] = [
         (-1, -1),
         (0, -1),
         (1, -1),
@@ -65,6 +61,14 @@ pub fn neighbours(n: u32, pixel: u32) -> [u32; 8] {
         (0, 1),
         (1, 1),
     ];
+    if row > 0 && col > 0 && row + 1 < n && col + 1 < n {
+        // Inside the face: plain index arithmetic.
+        return offsets.map(|(du, dv)| (pixel as i32 + dv * n as i32 + du) as u32);
+    }
+    let step = 2.0 / n as f32;
+    let u = (col as f32 + 0.5) * step - 1.0;
+    let v = (row as f32 + 0.5) * step - 1.0;
+    let mut out = [0; 8];
     for (slot, (du, dv)) in out.iter_mut().zip(offsets) {
         let d = face_direction(face, u + du as f32 * step, v + dv as f32 * step);
         let (f, pu, pv, _) = project(d);
@@ -293,6 +297,32 @@ mod tests {
         want.sort();
         got.sort();
         assert_eq!(got, want);
+        // Inside a face the index arithmetic agrees with stepping the direction and projecting.
+        for p in 0..6 * n * n {
+            let (face, row, col) = split_pixel(n, p);
+            if row == 0 || col == 0 || row == n - 1 || col == n - 1 {
+                continue;
+            }
+            let step = 2.0 / n as f32;
+            let (u, v) = (
+                (col as f32 + 0.5) * step - 1.0,
+                (row as f32 + 0.5) * step - 1.0,
+            );
+            let mut projected: Vec<u32> = [-1.0f32, 0.0, 1.0]
+                .iter()
+                .flat_map(|&dv| [-1.0f32, 0.0, 1.0].map(|du| (du, dv)))
+                .filter(|&(du, dv)| (du, dv) != (0.0, 0.0))
+                .map(|(du, dv)| {
+                    let (f, pu, pv, _) =
+                        project(face_direction(face, u + du * step, v + dv * step));
+                    pixel_index(n, f, pu, pv)
+                })
+                .collect();
+            let mut got = neighbours(n, p).to_vec();
+            projected.sort();
+            got.sort();
+            assert_eq!(got, projected, "pixel {p}");
+        }
         // Every pixel's neighbours are distinct from it, lie within a small angle of it, and
         // count it among their own neighbours (the relation is symmetric, edges included).
         for p in 0..6 * n * n {
