@@ -357,6 +357,12 @@ fn hilbert_chart(texels: &[Texel], rows: &[u32], out: &mut Vec<u32>) {
         (x0, y0, x1, y1) = (x0.min(t.x), y0.min(t.y), x1.max(t.x), y1.max(t.y));
     }
     let (width, height) = (u32::from(x1 - x0) + 1, u32::from(y1 - y0) + 1);
+    if u64::from(width) * u64::from(height) > MAX_CURVE_CELLS {
+        // Only hand-made texels spread this far (an atlas is at most 1024 x 1024): keep memory
+        // bounded and take them row by row.
+        out.extend_from_slice(rows);
+        return;
+    }
     let rank = gilbert_ranks(width, height);
     let mut keyed: Vec<(u32, u32)> = rows
         .iter()
@@ -369,6 +375,10 @@ fn hilbert_chart(texels: &[Texel], rows: &[u32], out: &mut Vec<u32>) {
     keyed.sort_unstable();
     out.extend(keyed.iter().map(|&(_, i)| i));
 }
+
+/// Largest bounding rectangle, in cells, that [`hilbert_chart`] lays a curve over (64 MiB of
+/// ranks; sixteen times the largest atlas).
+const MAX_CURVE_CELLS: u64 = 1 << 24;
 
 /// Position of every cell of a `width x height` grid (row-major) along the generalised Hilbert
 /// curve over it ("gilbert", J. Červený): the Hilbert curve's recursive quadrant split, adapted to

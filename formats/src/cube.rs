@@ -277,26 +277,6 @@ mod tests {
     #[test]
     fn neighbours_are_adjacent_across_faces_too() {
         let n = 8;
-        // Inside a face: the eight pixels of the 3x3 block around it.
-        let p = pixel_index(n, 3, 0.1, -0.3);
-        let (face, row, col) = split_pixel(n, p);
-        let mut want: Vec<u32> = [
-            (-1i32, -1i32),
-            (0, -1),
-            (1, -1),
-            (-1, 0),
-            (1, 0),
-            (-1, 1),
-            (0, 1),
-            (1, 1),
-        ]
-        .iter()
-        .map(|(dc, dr)| face * n * n + (row as i32 + dr) as u32 * n + (col as i32 + dc) as u32)
-        .collect();
-        let mut got = neighbours(n, p).to_vec();
-        want.sort();
-        got.sort();
-        assert_eq!(got, want);
         // Inside a face the index arithmetic agrees with stepping the direction and projecting.
         for p in 0..6 * n * n {
             let (face, row, col) = split_pixel(n, p);
