@@ -205,7 +205,7 @@ struct BakeArgs {
     /// chart, a Hilbert curve inside each chart; beyond the paper, and the default because it
     /// gave the best ratio at the same accuracy in reports/compression.md); or piloted (per chart
     /// the Hilbert or the Spiral order, whichever a pilot bake of the chart at cube 8 compresses
-    /// better; beyond the paper, about an eighth more rays at cube 32).
+    /// better; beyond the paper, 7-10% more bake time at cube 32).
     #[arg(long, default_value = "hilbert")]
     traversal: Traversal,
     /// How the chart-by-chart traversals choose the next chart: nearest (§3.2.3: the chart whose
@@ -554,6 +554,7 @@ fn run_bake(args: BakeArgs) -> CliResult {
         "ratio_gpu": s.ratio_gpu(),
         "ratio_file": s.uncompressed_bytes as f64 / file_bytes.max(1) as f64,
         "atlas_seconds": s.atlas_time.as_secs_f64(),
+        "traversal_seconds": s.traversal_time.as_secs_f64(),
         "maps_seconds": s.maps_time.as_secs_f64(),
         "hierarchy_seconds": s.hierarchy_time.as_secs_f64(),
         "total_seconds": seconds,
@@ -592,9 +593,10 @@ fn run_bake(args: BakeArgs) -> CliResult {
             s.uncompressed_bytes as f64 / file_bytes.max(1) as f64
         );
         println!(
-            "  time {:.2} s (atlas {:.2} s, depth maps {:.2} s, hierarchy {:.2} s)",
+            "  time {:.2} s (atlas {:.2} s, traversal {:.2} s, depth maps {:.2} s, hierarchy {:.2} s)",
             seconds,
             s.atlas_time.as_secs_f64(),
+            s.traversal_time.as_secs_f64(),
             s.maps_time.as_secs_f64(),
             s.hierarchy_time.as_secs_f64()
         );

@@ -195,6 +195,7 @@ pub fn bake(
             near,
             &quantizer,
             &pilot_options,
+            PILOT_CACHED_MAPS,
         )
     };
     let sequence = traverse::traverse_piloted(
@@ -281,10 +282,12 @@ pub fn bake(
     Ok(Baked { file, stats })
 }
 
-/// The pilot of [`Traversal::Piloted`]: bakes the chart's texels at `options`' cube resolution in
-/// each of `orders`, compresses them with `options`' compressor settings, and returns the index
-/// of the order with the fewest runs (the first of equals). Maps are rendered batch by batch for
-/// each order, so memory stays bounded however large the chart.
+/// The pilot of [`Traversal::Piloted`]: bakes the chart's texels at `options`' cube resolution,
+/// compresses them in each of `orders` (permutations of the same texels) with `options`'
+/// compressor settings, and returns the index of the order with the fewest runs (the first of
+/// equals). A chart of up to `cached_maps` texels ([`PILOT_CACHED_MAPS`] in the bake) is rendered
+/// once and its maps reused for every order; a larger one is rendered again for each order,
+/// batch by batch, so memory stays bounded however large the chart.
 fn fewest_runs(
     bvh: &raycast::SceneBvh,
     texels: &[cssm_formats::Texel],
@@ -292,10 +295,31 @@ fn fewest_runs(
     near: f32,
     quantizer: &DepthQuantizer,
     options: &BakeOptions,
+    cached_maps: usize,
 ) -> usize {
+    let Some(&first) = orders.first() else {
+        return 0;
+    };
     let n = options.cube_resolution;
     let pixels = (6 * n * n) as usize;
-    let mut batch = vec![cubemap::DONT_CARE; PILOT_BATCH_MAPS * pixels];
+    let render = |ids: &[u32], slots: &mut [cubemap::Interval]| {
+        slots
+            .par_chunks_mut(pixels)
+            .zip(ids.par_iter())
+            .for_each(|(out, &texel)| {
+                let texel = &texels[texel as usize];
+                cubemap::render(bvh, texel, n, near, quantizer, options.second_layer, out);
+            });
+    };
+    // Small charts (nearly all of them): every map once, found by texel.
+    let cache = (first.len() <= cached_maps).then(|| {
+        let mut maps = vec![cubemap::DONT_CARE; first.len() * pixels];
+        render(first, &mut maps);
+        let slot: std::collections::HashMap<u32, usize> =
+            first.iter().enumerate().map(|(k, &t)| (t, k)).collect();
+        (slot, maps)
+    });
+    let mut batch = vec![cubemap::DONT_CARE; first.len().min(PILOT_BATCH_MAPS) * pixels];
     let mut runs = |order: &[u32]| {
         let mut compressor = compress::Compressor::with_options(
             pixels as u32,
@@ -309,13 +333,15 @@ fn fewest_runs(
         );
         for ids in order.chunks(PILOT_BATCH_MAPS) {
             let slots = &mut batch[..ids.len() * pixels];
-            slots
-                .par_chunks_mut(pixels)
-                .zip(ids.par_iter())
-                .for_each(|(out, &texel)| {
-                    let texel = &texels[texel as usize];
-                    cubemap::render(bvh, texel, n, near, quantizer, options.second_layer, out);
-                });
+            match &cache {
+                Some((slot, maps)) => {
+                    for (out, texel) in slots.chunks_mut(pixels).zip(ids) {
+                        let k = slot[texel];
+                        out.copy_from_slice(&maps[k * pixels..(k + 1) * pixels]);
+                    }
+                }
+                None => render(ids, slots),
+            }
             compressor.push(slots);
         }
         compressor.finish().runs.len()
@@ -327,10 +353,75 @@ fn fewest_runs(
 /// Maps per batch the pilot hands its compressor.
 const PILOT_BATCH_MAPS: usize = 256;
 
+/// Largest chart whose pilot maps are rendered once for all orders (6 MiB at cube 8).
+const PILOT_CACHED_MAPS: usize = 4096;
+
 #[cfg(test)]
 pub(crate) mod tests {
     use cssm_formats::{Camera, Material, Scene};
     use glam::Vec3;
+
+    /// The pilot keeps the order that compresses into fewer runs, whether it renders the chart
+    /// once or once per order: texels along a line under a ceiling, half of them also under a
+    /// slab, walked in a row or hopping between the two halves.
+    #[test]
+    fn pilot_keeps_the_order_with_fewer_runs() {
+        let scene = scene_from(
+            vec![
+                Vec3::new(-3.0, -1.0, 1.0),
+                Vec3::new(0.0, -1.0, 1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+                Vec3::new(-3.0, 1.0, 1.0),
+                Vec3::new(-3.0, -1.0, 3.0),
+                Vec3::new(3.0, -1.0, 3.0),
+                Vec3::new(3.0, 1.0, 3.0),
+                Vec3::new(-3.0, 1.0, 3.0),
+            ],
+            vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]],
+        );
+        let bvh = super::raycast::SceneBvh::new(&scene);
+        let texels: Vec<cssm_formats::Texel> = (0..40u16)
+            .map(|i| cssm_formats::Texel {
+                position: [-1.5 + 0.075 * f32::from(i), 0.0, 0.0],
+                normal: [0.0, 0.0, 1.0],
+                area: 1.0,
+                material: 0,
+                chart: 0,
+                x: i,
+                y: 0,
+            })
+            .collect();
+        let in_a_row: Vec<u32> = (0..40).collect();
+        let hopping: Vec<u32> = (0..20).flat_map(|i| [i, i + 20]).collect();
+        let options = super::BakeOptions {
+            cube_resolution: 8,
+            ..Default::default()
+        };
+        let quantizer = super::DepthQuantizer::new(0.01, 10.0);
+        for cached_maps in [usize::MAX, 0] {
+            let pick = |orders: &[&[u32]]| {
+                super::fewest_runs(
+                    &bvh,
+                    &texels,
+                    orders,
+                    0.01,
+                    &quantizer,
+                    &options,
+                    cached_maps,
+                )
+            };
+            assert_eq!(
+                pick(&[&hopping, &in_a_row]),
+                1,
+                "cached up to {cached_maps}"
+            );
+            assert_eq!(
+                pick(&[&in_a_row, &hopping]),
+                0,
+                "cached up to {cached_maps}"
+            );
+        }
+    }
 
     /// A bare scene from raw triangles, for unit tests.
     pub fn scene_from(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
