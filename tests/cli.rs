@@ -433,6 +433,27 @@ fn compression_report_small() {
         assert_eq!(option[col("same_bake_as")], earlier, "{option:?}");
     }
     assert!(md.contains("not baked twice"), "{md}");
+    // The 98% accuracy target counts every Cornell box bake once, and a row below it is set
+    // beside the paper's method at the same atlas and cube (at cube 8 every row is below).
+    let baked: Vec<&Vec<&str>> = rows
+        .iter()
+        .filter(|r| r[col("scene")] == "cornell" && r[col("same_bake_as")].is_empty())
+        .collect();
+    let at_least = baked
+        .iter()
+        .filter(|r| r[col("agreement")].parse::<f64>().unwrap() >= 0.98)
+        .count();
+    let line = format!(
+        "- Agreement at least 98% on the Cornell box: {at_least} of {} rows",
+        baked.len()
+    );
+    assert!(md.contains(&line), "{line}\n{md}");
+    if at_least < baked.len() {
+        assert!(
+            md.contains("At atlas 32, cube 8, the paper's own lossless method agrees"),
+            "{md}"
+        );
+    }
 }
 
 #[test]
