@@ -7,9 +7,9 @@
 #   SHARED_SCENES_DIR defaults to ../shared/scenes (teapot/, bunny/, sibenik/).
 #   e.g. reports/compression.sh ../shared/scenes --scene cornell   # the Cornell box's rows only
 #
-# Run it on a quiet machine: rows are timed. On a 2-core Intel Xeon the whole grid took 53 minutes:
-# the Cornell box's rows 13, the heads 13, the church 17, the church at 3,700 faces 11 (see the
-# report's "Time per table").
+# Run it on a quiet machine: rows are timed. On a 2-core Intel Xeon the whole grid took 59 minutes:
+# the Cornell box's rows 14, the heads 13, the church 19, the church at 3,700 faces 12 (see the
+# report's "Time per table"; on this shared machine the same rows' times vary by 10-20% from run to run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scenes=${1:-../shared/scenes}

@@ -143,7 +143,7 @@ enum ReportCommand {
     ///
     /// Every row runs `cssm bake --json` and `cssm check --json` as child processes, so each
     /// row's peak memory is its own. The full grid (atlas up to 512, four scenes) takes about
-    /// 55 minutes on a quiet 2-core machine, the Cornell box's rows about 13 minutes of it;
+    /// an hour on a quiet 2-core machine, the Cornell box's rows about 14 minutes of it;
     /// `reports/compression.sh` runs it. Rows whose scene is missing from
     /// --scenes are listed as not run.
     #[command(after_help = "Examples:\n  \
