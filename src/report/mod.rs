@@ -150,7 +150,8 @@ pub const PAPER: Variant = Variant {
 /// The chart order stays the paper's (next chart by nearest first texel): `chart-ends` gains 0.1%
 /// alone, and with the pilot and `exchange` it cost the Cornell box 0.04 percentage points more
 /// (atlas 128, cube 64: 66.8 : 1 at 99.18% against 66.7 : 1 at 99.22%), taking the combination
-/// to the 0.1-point line of "the same accuracy"; on the church at 3,604 faces it gained about 1%.
+/// to the 0.1-point line of "the same accuracy"; on the church at 3,604 faces it gained at most
+/// 1.1%.
 pub const BEST: Variant = Variant {
     name: "best",
     about: "inside each chart the Hilbert or the Spiral order, whichever a pilot bake at cube 8 compresses better; intervals bounded only by surfaces that face the texel (exchange: per pixel, the same answer for every pair that exchanges light); file: entropy stage",
