@@ -183,7 +183,7 @@ pub fn bake(
 
     // 2. Coherent order of the texels (§3.2.3).
     let t0 = Instant::now();
-    let pilot = |_chart: &[u32], orders: &[&[u32]]| {
+    let pilot = |orders: &[&[u32]]| {
         let pilot_options = BakeOptions {
             cube_resolution: n.min(PILOT_CUBE_RESOLUTION),
             ..options.clone()
@@ -229,22 +229,16 @@ pub fn bake(
     let mut batch = vec![cubemap::DONT_CARE; batch_maps * pixel_count as usize];
     for (b, ids) in sequence.chunks(batch_maps).enumerate() {
         let slots = &mut batch[..ids.len() * pixel_count as usize];
-        let rays: u64 = slots
-            .par_chunks_mut(pixel_count as usize)
-            .zip(ids.par_iter())
-            .map(|(out, &texel)| {
-                cubemap::render(
-                    &bvh,
-                    &atlas.texels[texel as usize],
-                    n,
-                    near,
-                    &quantizer,
-                    options.second_layer,
-                    out,
-                )
-            })
-            .sum();
-        stats.rays += rays;
+        stats.rays += render_maps(
+            &bvh,
+            &atlas.texels,
+            ids,
+            n,
+            near,
+            &quantizer,
+            options.second_layer,
+            slots,
+        );
         compressor.push(slots);
         progress((b * batch_maps + ids.len()) as u64, map_count as u64);
     }
@@ -282,6 +276,29 @@ pub fn bake(
     Ok(Baked { file, stats })
 }
 
+/// Renders the cube maps of texels `ids` into `slots` (`6 * n * n` intervals each), in parallel;
+/// returns the rays cast.
+#[allow(clippy::too_many_arguments)]
+fn render_maps(
+    bvh: &raycast::SceneBvh,
+    texels: &[cssm_formats::Texel],
+    ids: &[u32],
+    n: u32,
+    near: f32,
+    quantizer: &DepthQuantizer,
+    second_layer: cubemap::SecondLayer,
+    slots: &mut [cubemap::Interval],
+) -> u64 {
+    slots
+        .par_chunks_mut((6 * n * n) as usize)
+        .zip(ids.par_iter())
+        .map(|(out, &texel)| {
+            let texel = &texels[texel as usize];
+            cubemap::render(bvh, texel, n, near, quantizer, second_layer, out)
+        })
+        .sum()
+}
+
 /// The pilot of [`Traversal::Piloted`]: bakes the chart's texels at `options`' cube resolution,
 /// compresses them in each of `orders` (permutations of the same texels) with `options`'
 /// compressor settings, and returns the index of the order with the fewest runs (the first of
@@ -303,13 +320,16 @@ fn fewest_runs(
     let n = options.cube_resolution;
     let pixels = (6 * n * n) as usize;
     let render = |ids: &[u32], slots: &mut [cubemap::Interval]| {
-        slots
-            .par_chunks_mut(pixels)
-            .zip(ids.par_iter())
-            .for_each(|(out, &texel)| {
-                let texel = &texels[texel as usize];
-                cubemap::render(bvh, texel, n, near, quantizer, options.second_layer, out);
-            });
+        render_maps(
+            bvh,
+            texels,
+            ids,
+            n,
+            near,
+            quantizer,
+            options.second_layer,
+            slots,
+        );
     };
     // Small charts (nearly all of them): every map once, found by texel.
     let cache = (first.len() <= cached_maps).then(|| {

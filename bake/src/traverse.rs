@@ -103,12 +103,12 @@ pub fn traverse_with(
     traversal: Traversal,
     chart_order: ChartOrder,
 ) -> Vec<u32> {
-    traverse_piloted(texels, atlas_resolution, traversal, chart_order, &|_, _| 0)
+    traverse_piloted(texels, atlas_resolution, traversal, chart_order, &|_| 0)
 }
 
-/// A pilot for [`Traversal::Piloted`]: given one chart's texels (row-major) and candidate orders
-/// of them, the index of the order to keep (out-of-range answers keep the first).
-pub type Pilot<'a> = dyn Fn(&[u32], &[&[u32]]) -> usize + 'a;
+/// A pilot for [`Traversal::Piloted`]: given candidate orders of one chart's texels, the index of
+/// the order to keep (out-of-range answers keep the first).
+pub type Pilot<'a> = dyn Fn(&[&[u32]]) -> usize + 'a;
 
 /// [`traverse_with`], where [`Traversal::Piloted`] asks `pilot` to choose, chart by chart,
 /// between the chart's Hilbert order (candidate 0) and its Spiral walk (candidate 1). Other
@@ -143,7 +143,7 @@ pub fn traverse_piloted(
                 let chosen = if hilbert == spiral {
                     0
                 } else {
-                    pilot(rows, &[&hilbert, &spiral])
+                    pilot(&[&hilbert, &spiral])
                 };
                 out.extend_from_slice(if chosen == 1 { &spiral } else { &hilbert });
             })

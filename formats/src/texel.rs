@@ -46,8 +46,9 @@ pub enum Traversal {
     /// Nearest-first walk over texel positions, no use of the atlas layout.
     Greedy,
     /// Chart by chart like Zig-Zag and Spiral; inside a chart, the order of a (generalised)
-    /// Hilbert curve over the chart's bounding rectangle (beyond the paper: §3.2.3 rules the Hilbert pattern of CSMs out
-    /// for arbitrary chart shapes; restricted to a chart's texels it still stays local).
+    /// Hilbert curve over the chart's bounding rectangle (beyond the paper: §3.2.3 rules the
+    /// Hilbert pattern of CSMs out for arbitrary chart shapes; restricted to a chart's texels it
+    /// still stays local).
     Hilbert,
     /// Chart by chart; inside each chart, the Hilbert or the Spiral order, whichever a pilot bake
     /// of that chart's texels at a coarse cube resolution compresses into fewer runs (beyond the
