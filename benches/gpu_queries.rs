@@ -33,11 +33,11 @@ fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
 
 /// Best GPU milliseconds of `reps` runs of `work` (which records one timed pass).
 fn best_ms(gpu: &Gpu, reps: u32, mut work: impl FnMut(&mut PassTimer)) -> Option<f64> {
-    let mut timer = PassTimer::new(gpu);
+    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
     let mut best: Option<f64> = None;
     for _ in 0..reps {
         work(&mut timer);
-        let t = timer.read(gpu).expect("timestamps");
+        let t = timer.read(&gpu.device, &gpu.queue).expect("timestamps");
         let ms: f64 = t.iter().map(|(_, ms)| ms).sum();
         if !t.is_empty() {
             best = Some(best.map_or(ms, |b: f64| b.min(ms)));

@@ -19,3 +19,17 @@ if ! has_vulkan_icd; then
 fi
 
 cargo test --workspace --release "$@"
+
+# The examples are a user's own packages outside the workspace, depending on cssm-bake and
+# cssm-runtime by path: they must build and run as such (the target directory is shared, so
+# their dependencies are the workspace's builds).
+examples_out="$(mktemp -d)"
+trap 'rm -rf "$examples_out"' EXIT
+for example in bake-library embed-runtime; do
+    CARGO_TARGET_DIR="$PWD/target" cargo build --release --locked \
+        --manifest-path "examples/$example/Cargo.toml"
+done
+target/release/bake-library scenes/cornell-box "$examples_out/cornell-box.cssm"
+target/release/embed-runtime scenes/cornell-box "$examples_out/cornell-box.cssm" \
+    "$examples_out/embedded.png"
+test -s "$examples_out/embedded.png"

@@ -3,6 +3,7 @@
 //!
 //! This facade re-exports the libraries that do the work:
 //! - [`formats`]: scenes, the `.cssm` container, the CPU reference visibility query;
+//! - [`raycast`]: exact CPU ray casts, surface sampling and the seeded generator (the reference);
 //! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check;
 //! - [`runtime`]: the GPU runtime on wgpu (loaders, visibility queries in WGSL, rendering).
 //! - [`report`]: the compression report (`cssm report compression`), measured against the paper.
@@ -21,6 +22,7 @@ pub mod report;
 
 pub use cssm_bake as bake;
 pub use cssm_formats as formats;
+pub use cssm_raycast as raycast;
 pub use cssm_runtime as runtime;
 
 /// `bytes` in binary units (B, KiB, MiB, GiB, TiB) with `decimals` digits after the point;

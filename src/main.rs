@@ -1,4 +1,5 @@
-//! The `cssm` command line: a thin layer over the `cssm-formats` and `cssm-bake` libraries.
+//! The `cssm` command line: a thin layer over the `cssm-formats`, `cssm-bake` and
+//! `cssm-runtime` libraries.
 //! Exit codes: 0 success, 1 a check ran and failed its threshold, 2 an error.
 
 use std::{
@@ -7,8 +8,10 @@ use std::{
     time::Instant,
 };
 
+mod render;
+
 use clap::{Parser, Subcommand};
-use cssm::{bake, builtin, formats, runtime};
+use cssm::{bake, builtin, formats};
 use formats::{CssmFile, Scene, Traversal, visibility::QueryOptions};
 
 #[derive(Parser)]
@@ -50,89 +53,14 @@ enum Command {
     /// Render a scene on the GPU to a PNG (tone-mapped) and optionally an EXR (linear radiance).
     #[command(
         long_about = "Render a scene on the GPU (Vulkan; Mesa's lavapipe where there is no GPU) \
-                      to a tone-mapped PNG and, with --exr, linear radiance in OpenEXR.",
-        after_help = "Methods:\n  \
-        direct     direct light from spot lights, PCF shadow maps (no indirect light)\n  \
-        hrc        GPU hierarchical radiosity over the atlas, each pixel showing its texel (§4.1-4.3)\n  \
-        lightcuts  hierarchical radiosity, then a final gather per pixel, glossy last bounce (§4.4)\n  \
-        lightmap   hierarchical radiosity looked up per pixel with a bicubic filter (§5)\n  \
-        reference  CPU path tracer with exact ray casts: ground truth (--samples paths per pixel)\n\n\
-        Every method but direct needs the scene's .cssm: --cssm FILE, else one is baked first \
-        (atlas 64, cube 32; a few seconds for the Cornell box).\n\n\
-        Examples:\n  cssm render --out cornell.png\n  \
-        cssm bake -o cornell-box.cssm && cssm render --cssm cornell-box.cssm --method lightcuts --bounces 2 --out gi.png\n  \
-        cssm render scenes/cornell-glossy --method lightcuts --frames 16 --out glossy.png\n  \
-        cssm render --method lightmap --component indirect --exr indirect.exr\n  \
-        cssm render --method reference --bounces 3 --samples 1024 --exr truth.exr\n  \
-        cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings"
+                      to a tone-mapped PNG and, with --exr, linear radiance in OpenEXR. The \
+                      method `reference` path traces on the CPU instead: the ground truth.",
+        after_help = render::after_help()
     )]
-    Render(RenderArgs),
+    Render(render::RenderArgs),
     /// Measure the toolchain against the paper and write a report.
     #[command(subcommand)]
     Report(ReportCommand),
-}
-
-#[derive(clap::Args)]
-struct RenderArgs {
-    /// Scene directory. Default: the built-in Cornell box.
-    scene: Option<PathBuf>,
-    /// Rendering method (see the list below).
-    #[arg(long, default_value = "direct")]
-    method: runtime::frame::Method,
-    /// Output PNG (tone-mapped sRGB).
-    #[arg(long, default_value = "render.png")]
-    out: PathBuf,
-    /// Also write linear radiance to this OpenEXR file.
-    #[arg(long)]
-    exr: Option<PathBuf>,
-    /// Image size WIDTHxHEIGHT. Default: the scene camera's resolution.
-    #[arg(long, value_parser = parse_size)]
-    size: Option<(u32, u32)>,
-    /// Exposure in stops (radiance is scaled by 2^EV before tone mapping).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    exposure: f32,
-    /// Shadow-map resolution in texels per side.
-    #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
-    shadow_resolution: u32,
-    /// Print GPU milliseconds per pass (timestamp queries; one more frame is rendered first to
-    /// warm up, and the last is timed).
-    #[arg(long)]
-    timings: bool,
-    /// The scene's baked CSSM (`cssm bake`), for every method but direct. Default: bake one
-    /// in memory at atlas 64, cube 32.
-    #[arg(long)]
-    cssm: Option<PathBuf>,
-    /// Indirect bounces, 1 to 8 (lightcuts: the final gather is the last of them).
-    #[arg(long, default_value_t = 1)]
-    bounces: u32,
-    /// Oracle threshold (§4.3): a sender is refined while the tone-mapped upper bound of what
-    /// it sends is above this; smaller is slower and closer to the full solution.
-    #[arg(long, default_value_t = runtime::radiosity::DEFAULT_THRESHOLD)]
-    threshold: f32,
-    /// Frames to render and average (lightcuts: every frame jitters its senders over their
-    /// nodes' surfaces, §4.5, so the average converges for glossy scenes).
-    #[arg(long, default_value_t = 1)]
-    frames: u32,
-    /// Which light the image holds: direct, indirect or full.
-    #[arg(long, default_value = "full")]
-    component: runtime::frame::Component,
-    /// Paths per pixel of `--method reference`.
-    #[arg(long, default_value_t = 256)]
-    samples: u32,
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (for example 640x480)"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|&n| (1..=runtime::frame::MAX_SIDE).contains(&n))
-            .ok_or_else(|| format!("'{s}': each side must be 1 to {}", runtime::frame::MAX_SIDE))
-    };
-    Ok((parse(w)?, parse(h)?))
 }
 
 #[derive(Subcommand)]
@@ -284,7 +212,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => run_bake(args),
         Command::Inspect { file, json } => run_inspect(&file, json),
         Command::Check(args) => run_check(args),
-        Command::Render(args) => run_render(args),
+        Command::Render(args) => render::run_render(args),
         Command::Report(ReportCommand::Compression(args)) => run_report(args),
         Command::Report(ReportCommand::Heads(args)) => run_heads(args),
         Command::Report(ReportCommand::Church(args)) => run_church(args),
@@ -311,7 +239,7 @@ fn load_scene(dir: &Path) -> Result<Scene, String> {
 /// Mesa's Vulkan drivers print "error: XDG_RUNTIME_DIR is invalid or not set" on machines
 /// without a desktop session although a headless render never needs it; point it at a private
 /// directory of ours so users are not alarmed by an error that is not one.
-fn quiet_mesa_wsi() {
+pub(crate) fn quiet_mesa_wsi() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
         return;
     }
@@ -325,158 +253,6 @@ fn quiet_mesa_wsi() {
     }
     // SAFETY: called from the main thread before the GPU instance or any worker thread exists.
     unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
-}
-
-fn run_render(args: RenderArgs) -> CliResult {
-    let dir = match &args.scene {
-        Some(dir) => dir.clone(),
-        None => builtin::cornell_box()
-            .map_err(|e| format!("cannot prepare the built-in Cornell box: {e}"))?,
-    };
-    if !(16..=16384).contains(&args.shadow_resolution) {
-        return Err(format!(
-            "--shadow-resolution {} is out of range 16..=16384",
-            args.shadow_resolution
-        ));
-    }
-    check_writable(&args.out)?;
-    if let Some(exr) = &args.exr {
-        check_writable(exr)?;
-    }
-    let scene = load_scene(&dir)?;
-    quiet_mesa_wsi();
-    let (width, height) = args
-        .size
-        .unwrap_or((scene.camera.resolution[0], scene.camera.resolution[1]));
-    if !(1..=runtime::frame::MAX_BOUNCES).contains(&args.bounces) {
-        return Err(format!(
-            "--bounces {} is out of range 1..={}",
-            args.bounces,
-            runtime::frame::MAX_BOUNCES
-        ));
-    }
-    if !(args.threshold.is_finite() && args.threshold >= 0.0) {
-        return Err(format!(
-            "--threshold {} must be a number >= 0",
-            args.threshold
-        ));
-    }
-    if !(1..=4096).contains(&args.frames) {
-        return Err(format!("--frames {} is out of range 1..=4096", args.frames));
-    }
-    if !(1..=1 << 20).contains(&args.samples) {
-        return Err(format!(
-            "--samples {} is out of range 1..=1048576",
-            args.samples
-        ));
-    }
-    let options = runtime::frame::RenderOptions {
-        width,
-        height,
-        exposure: args.exposure.exp2(),
-        shadow_resolution: args.shadow_resolution,
-        frames: args.frames + u32::from(args.timings),
-        bounces: args.bounces,
-        threshold: args.threshold,
-        jitter: args.frames > 1,
-        component: args.component,
-        samples: args.samples,
-    };
-    if args.method == runtime::frame::Method::Reference {
-        return render_reference(&args, &scene, &options);
-    }
-    let file = if args.method.needs_cssm() {
-        Some(render_cssm(&args, &scene)?)
-    } else {
-        None
-    };
-    let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
-    let frame = runtime::frame::render(&gpu, &scene, file.as_ref(), args.method, &options)
-        .map_err(|e| format!("{}: {e}", dir.display()))?;
-    frame.save_png(&args.out).map_err(|e| e.to_string())?;
-    if let Some(exr) = &args.exr {
-        frame.save_exr(exr).map_err(|e| e.to_string())?;
-    }
-    eprintln!(
-        "rendered {} with {} at {width}x{height} on {}: {}{}",
-        scene.name,
-        args.method,
-        gpu.describe(),
-        args.out.display(),
-        args.exr
-            .as_ref()
-            .map(|p| format!(", {}", p.display()))
-            .unwrap_or_default()
-    );
-    if args.timings {
-        if frame.timings.is_empty() {
-            println!("GPU timings: not supported by this adapter (no timestamp queries)");
-        } else {
-            println!("GPU time per pass ({}):", gpu.describe());
-            let mut total = 0.0;
-            for (pass, ms) in &frame.timings {
-                println!("  {pass:<24} {ms:8.3} ms");
-                total += ms;
-            }
-            println!("  {:<24} {total:8.3} ms", "total");
-        }
-    }
-    Ok(ExitCode::SUCCESS)
-}
-
-/// `cssm render --method reference`: the CPU path tracer, with a progress bar.
-fn render_reference(
-    args: &RenderArgs,
-    scene: &Scene,
-    options: &runtime::frame::RenderOptions,
-) -> CliResult {
-    let bar = indicatif::ProgressBar::new(options.height as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} path tracing {msg} [{bar:32}] {pos}/{len} rows, eta {eta}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    bar.set_message(format!("{} spp", options.samples));
-    let frame = runtime::frame::render_reference(scene, options, &|done, _| {
-        bar.set_position(done / options.width.max(1) as u64)
-    })
-    .map_err(|e| format!("{}: {e}", scene.dir.display()))?;
-    bar.finish_and_clear();
-    frame.save_png(&args.out).map_err(|e| e.to_string())?;
-    if let Some(exr) = &args.exr {
-        frame.save_exr(exr).map_err(|e| e.to_string())?;
-    }
-    eprintln!(
-        "path traced {} at {}x{}, {} paths per pixel, {} bounces: {}",
-        scene.name,
-        options.width,
-        options.height,
-        options.samples,
-        options.bounces,
-        args.out.display()
-    );
-    Ok(ExitCode::SUCCESS)
-}
-
-/// The CSSM `cssm render` uses: `--cssm`, checked against the scene, else a small one baked in
-/// memory.
-fn render_cssm(args: &RenderArgs, scene: &Scene) -> Result<formats::CssmFile, String> {
-    if let Some(path) = &args.cssm {
-        return runtime::load::read_cssm(path, scene).map_err(|e| e.to_string());
-    }
-    eprintln!(
-        "no --cssm given: baking {} at atlas 64, cube 32 first (bake once with `cssm bake` and \
-         pass --cssm to skip this)",
-        scene.name
-    );
-    let options = bake::BakeOptions {
-        atlas_resolution: 64,
-        cube_resolution: 32,
-        ..Default::default()
-    };
-    Ok(bake_with_progress(scene, &options)?.file)
 }
 
 /// Bakes `scene` with a progress bar of depth maps on stderr; errors name the scene directory.

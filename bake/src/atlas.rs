@@ -218,10 +218,7 @@ fn weld(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
     (out, remap)
 }
 
-/// World-space area of a triangle.
-pub fn triangle_area([a, b, c]: [Vec3; 3]) -> f32 {
-    0.5 * (b - a).cross(c - a).length()
-}
+pub use cssm_raycast::triangle_area;
 
 /// Barycentric coordinates of `p` in the 2D triangle `abc`, or `None` for a degenerate one.
 fn barycentric(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> Option<Vec3> {

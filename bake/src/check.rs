@@ -17,10 +17,11 @@ use cssm_formats::{
     CssmFile, Scene,
     visibility::{QueryOptions, VisibilityQuery},
 };
-use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::raycast::SceneBvh;
+/// The sampler and generator of the pairs, shared with the runtime's tests and benchmarks.
+pub use cssm_raycast::{SplitMix64, SurfacePoint, SurfaceSampler};
 
 /// Confusion matrix of CSSM answers against exact ray casts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -126,76 +127,6 @@ pub fn exchanges_light(p_j: &SurfacePoint, p_i: &SurfacePoint, eps: f32) -> bool
     d.dot(p_j.normal) > eps && -d.dot(p_i.normal) > eps
 }
 
-/// A point on the scene surface.
-#[derive(Clone, Copy, Debug)]
-pub struct SurfacePoint {
-    /// Triangle index.
-    pub triangle: usize,
-    /// Barycentric coordinates.
-    pub bary: [f32; 3],
-    /// Position.
-    pub position: Vec3,
-    /// Unit geometric normal.
-    pub normal: Vec3,
-}
-
-/// Area-uniform sampler of surface points, with a small deterministic generator of its own so
-/// the same seed gives the same pairs on every platform and crate version.
-pub struct SurfaceSampler<'a> {
-    scene: &'a Scene,
-    cdf: Vec<f64>,
-}
-
-impl<'a> SurfaceSampler<'a> {
-    /// Sampler over all triangles of `scene`.
-    pub fn new(scene: &'a Scene) -> Self {
-        let mut acc = 0.0;
-        let cdf = (0..scene.triangles.len())
-            .map(|t| {
-                acc += crate::atlas::triangle_area(scene.triangle(t)) as f64;
-                acc
-            })
-            .collect();
-        Self { scene, cdf }
-    }
-
-    /// The surface point for three uniform numbers in `[0, 1)`.
-    pub fn point(&self, r: [f64; 3]) -> SurfacePoint {
-        let total = *self.cdf.last().unwrap_or(&0.0);
-        let t = self
-            .cdf
-            .partition_point(|&c| c <= r[0] * total)
-            .min(self.cdf.len() - 1);
-        let su = r[1].sqrt() as f32;
-        let bary = [1.0 - su, su * (1.0 - r[2] as f32), su * r[2] as f32];
-        let [a, b, c] = self.scene.triangle(t);
-        SurfacePoint {
-            triangle: t,
-            bary,
-            position: a * bary[0] + b * bary[1] + c * bary[2],
-            normal: (b - a).cross(c - a).normalize_or_zero(),
-        }
-    }
-}
-
-/// SplitMix64: tiny, fast, and fixed forever, so sample sets are reproducible.
-pub struct SplitMix64(pub u64);
-
-impl SplitMix64 {
-    /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in `[0, 1)`.
-    pub fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// Exact front-side visibility of `p_i` from `p_j` by ray casting (see the module docs).
 pub fn exact_visible(bvh: &SceneBvh, p_j: &SurfacePoint, p_i: &SurfacePoint, eps: f32) -> bool {
     let from = p_j.position + p_j.normal * eps;
@@ -274,6 +205,7 @@ pub fn measure(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn point(position: Vec3, normal: Vec3) -> SurfacePoint {
         SurfacePoint {

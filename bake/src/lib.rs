@@ -19,8 +19,10 @@ pub mod atlas;
 pub mod check;
 pub mod compress;
 pub mod cubemap;
-pub mod raycast;
 pub mod traverse;
+
+/// Exact ray casting (obvhs), shared with the runtime: [`cssm_raycast`].
+pub use cssm_raycast as raycast;
 
 use std::time::{Duration, Instant};
 

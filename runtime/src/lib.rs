@@ -15,9 +15,18 @@
 //!   twin and a brute-force CPU reference.
 //! - [`lightcuts`]: the final gather per pixel (§4.4, §4.5); [`lightmap`]: the atlas looked up
 //!   per pixel (§5).
-//! - [`reference`]: the CPU path tracer, ground truth of the global-illumination methods.
-//! - [`frame`]: the passes of a frame in order, and [`frame::Method`], what `cssm render
-//!   --method` picks from.
+//! - [`reference`](mod@reference): the CPU path tracer, ground truth of the global-illumination methods.
+//! - [`Renderer`]: a scene and a method on your device, rendering frame after frame into your
+//!   target; [`frame`]: its passes in order and the [`frame::FrameContext`] they share;
+//!   [`method`]: the [`method::GiMethod`] seam and [`method::METHODS`], the one table of
+//!   methods.
+//!
+//! # Example: render global illumination into your own texture
+//! `examples/embed-runtime/src/main.rs`, a program of its own outside this workspace (it
+//! depends on this crate by path; CI builds and runs it on lavapipe after
+//! `examples/bake-library` baked the `.cssm` it loads):
+//!
+#![doc = concat!("```no_run\n", include_str!("../../examples/embed-runtime/src/main.rs"), "```")]
 //!
 //! # Example: query visibility on your own device
 //! ```no_run
@@ -42,19 +51,36 @@
 
 pub mod common;
 mod device;
-pub mod direct;
 mod error;
 pub mod frame;
 pub mod gpu_types;
-pub mod lightcuts;
-pub mod lightmap;
 pub mod load;
+pub mod method;
 pub mod radiosity;
-pub mod reference;
+mod renderer;
 pub mod visibility;
+
+/// Declares each method's module (its folder under `runtime/src/`) and lists its entries in
+/// [`METHODS`], in order: adding a method is its folder and one line here.
+macro_rules! method_table {
+    ($($module:ident => [$($entry:ident),+ $(,)?]),+ $(,)?) => {
+        $(pub mod $module;)+
+
+        /// Every method, in the order `--help` lists them (see [`method`] for the seam).
+        pub const METHODS: &[method::MethodEntry] = &[$($($module::$entry,)+)+];
+    };
+}
+
+method_table! {
+    direct => [METHOD],
+    lightmap => [HRC, LIGHTMAP],
+    lightcuts => [METHOD],
+    reference => [METHOD],
+}
 
 pub use device::Gpu;
 pub use error::RuntimeError;
+pub use renderer::{Renderer, RendererSettings};
 
 #[cfg(test)]
 pub(crate) mod tests {

@@ -1,7 +1,7 @@
 //! The CPU path tracer: ground truth for the global-illumination methods.
 //!
 //! [`render_reference`] renders the scene's light transport by Monte Carlo path tracing on the
-//! CPU, with exact ray casts (`cssm_bake::raycast::SceneBvh`) for every visibility, so the
+//! CPU, with exact ray casts (`cssm_raycast::SceneBvh`) for every visibility, so the
 //! images of the GPU methods (direct light, and the CSSM-based indirect bounces of the paper,
 //! Ritschel et al. 2008, §4) can be compared with it pixel by pixel.
 //!
@@ -46,17 +46,64 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use cssm_bake::{check::SplitMix64, raycast::SceneBvh};
 use cssm_formats::Scene;
+use cssm_raycast::{SceneBvh, SplitMix64};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::{
+    RuntimeError,
     common::camera::View,
     direct::cpu::{albedo_at, brdf, direct_radiance, facing_normal, ray_epsilon},
     gpu_types::GpuMaterial,
     load::AlbedoTexture,
+    method::{self, Backend, CpuSetup, MethodEntry, OptionKind, OptionSpec},
 };
+
+/// `--method reference`: this path tracer, on the CPU, the ground truth of every other method.
+pub const METHOD: MethodEntry = MethodEntry {
+    name: "reference",
+    summary: "CPU path tracer with exact ray casts (obvhs, rayon): ground truth",
+    needs_cssm: false,
+    options: &[
+        method::BOUNCES,
+        OptionSpec {
+            name: "samples",
+            help: "paths per pixel",
+            kind: OptionKind::Count {
+                default: 256,
+                min: 1,
+                max: 1 << 20,
+            },
+        },
+    ],
+    passes: &[],
+    backend: Backend::Cpu(render_method),
+};
+
+/// [`METHOD`]'s entry point: the scene's materials and textures as the GPU sees them, a BVH,
+/// then [`render_reference`].
+fn render_method(setup: &CpuSetup) -> Result<Vec<[f32; 4]>, RuntimeError> {
+    crate::frame::check_size(setup.view.width, setup.view.height)?;
+    let (materials, textures) = crate::load::cpu_materials(setup.scene)?;
+    let bvh = SceneBvh::new(setup.scene);
+    let options = ReferenceOptions {
+        samples_per_pixel: setup.options.count("samples"),
+        bounces: setup.options.count("bounces"),
+        component: setup.component,
+        ..Default::default()
+    };
+    let image = render_reference(
+        setup.scene,
+        setup.view,
+        &materials,
+        &textures,
+        &bvh,
+        &options,
+        setup.progress,
+    );
+    Ok(image.iter().map(|c| [c.x, c.y, c.z, 1.0]).collect())
+}
 
 pub use crate::common::compose::Component;
 

@@ -1,7 +1,7 @@
 //! The scene camera as matrices, and the primary ray through a pixel centre that the CPU
 //! references trace (the rasteriser samples the same centres).
 
-use cssm_formats::Scene;
+use cssm_formats::{Camera, Scene};
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::gpu_types::GpuView;
@@ -23,10 +23,14 @@ impl View {
     /// The scene's camera at `width` x `height` (the aspect follows the image). Near and far
     /// planes bracket the scene's bounds.
     pub fn of_scene(scene: &Scene, width: u32, height: u32) -> Self {
-        let c = &scene.camera;
-        let (lo, hi) = scene.bounds();
-        let reach = (0.5 * (lo + hi) - c.position).length() + scene.diameter();
-        let near = (scene.diameter() * 1e-3).max(reach * 1e-5);
+        Self::new(&scene.camera, scene.bounds(), width, height)
+    }
+
+    /// `camera` looking at a scene whose bounds are `lo`..`hi`, at `width` x `height`.
+    pub fn new(c: &Camera, (lo, hi): (Vec3, Vec3), width: u32, height: u32) -> Self {
+        let diameter = (hi - lo).length();
+        let reach = (0.5 * (lo + hi) - c.position).length() + diameter;
+        let near = (diameter * 1e-3).max(reach * 1e-5);
         let view = glam::camera::rh::view::look_at_mat4(c.position, c.target, c.up);
         let proj = glam::camera::rh::proj::directx::perspective(
             c.fov_y_deg.to_radians(),

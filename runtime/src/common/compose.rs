@@ -5,7 +5,11 @@ use std::{fmt, str::FromStr};
 
 use wgpu::util::DeviceExt;
 
-use crate::{common::layout, common::timestamps::PassTimer, gpu_types::TYPES_WGSL};
+use crate::{
+    common::layout,
+    frame::{FrameContext, FrameEncoder},
+    gpu_types::TYPES_WGSL,
+};
 
 /// Which light paths an image holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -77,36 +81,27 @@ struct ComposeParams {
     _pad: [u32; 3],
 }
 
-/// The compose pass into [`Self::radiance`] (`Rgba32Float`).
+/// The compose pass: per pixel direct + indirect (or either alone) into [`Self::radiance`].
 pub struct Compose {
-    /// The frame's linear radiance.
+    /// Linear radiance per pixel (`Rgba32Float`).
     pub radiance: wgpu::Texture,
+    params: wgpu::Buffer,
     pipeline: wgpu::ComputePipeline,
+    bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
     size: (u32, u32),
 }
 
 impl Compose {
-    /// Composes `direct` (texture) and `indirect` (`vec4f` per pixel) as `component`.
+    /// The pass adding `direct` (texture) and `indirect` (`vec4f` per pixel), keeping
+    /// `component`.
     pub fn new(
-        device: &wgpu::Device,
-        view: &wgpu::Buffer,
+        ctx: &FrameContext,
         direct: &wgpu::Texture,
         indirect: &wgpu::Buffer,
         component: Component,
     ) -> Self {
-        let radiance = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("radiance"),
-            size: direct.size(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let device = &ctx.device;
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("compose params"),
             contents: bytemuck::bytes_of(&ComposeParams {
@@ -133,34 +128,63 @@ impl Compose {
             ],
         );
         let pipeline = layout::compute_pipeline(device, "compose", &module, &[&bind_layout]);
-        let direct_view = direct.create_view(&Default::default());
-        let out_view = radiance.create_view(&Default::default());
-        let bind_group = layout::bind_group(
-            device,
-            "compose",
-            &bind_layout,
-            &[
-                params.as_entire_binding(),
-                view.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&direct_view),
-                indirect.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&out_view),
-            ],
-        );
+        let (radiance, bind_group) = Self::bind(ctx, &bind_layout, &params, direct, indirect);
         Self {
             radiance,
+            params,
             pipeline,
+            bind_layout,
             bind_group,
             size: (direct.width(), direct.height()),
         }
     }
 
-    /// Records the pass.
-    pub fn run(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut PassTimer) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("compose"),
-            timestamp_writes: timer.compute("compose"),
+    fn bind(
+        ctx: &FrameContext,
+        bind_layout: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+        direct: &wgpu::Texture,
+        indirect: &wgpu::Buffer,
+    ) -> (wgpu::Texture, wgpu::BindGroup) {
+        let radiance = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("radiance"),
+            size: direct.size(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
         });
+        let direct_view = direct.create_view(&Default::default());
+        let out_view = radiance.create_view(&Default::default());
+        let bind_group = layout::bind_group(
+            &ctx.device,
+            "compose",
+            bind_layout,
+            &[
+                params.as_entire_binding(),
+                ctx.view.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&direct_view),
+                indirect.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&out_view),
+            ],
+        );
+        (radiance, bind_group)
+    }
+
+    /// Reads new inputs of a new size.
+    pub fn resize(&mut self, ctx: &FrameContext, direct: &wgpu::Texture, indirect: &wgpu::Buffer) {
+        (self.radiance, self.bind_group) =
+            Self::bind(ctx, &self.bind_layout, &self.params, direct, indirect);
+        self.size = (direct.width(), direct.height());
+    }
+
+    /// Records the pass.
+    pub fn run(&self, frame: &mut FrameEncoder) {
+        let mut pass = frame.compute_pass("compose");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);

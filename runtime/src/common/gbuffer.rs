@@ -2,7 +2,7 @@
 //! towards the eye, the material, the albedo, the triangle and the atlas coordinates. Every
 //! screen-space pass of every technique reads these.
 
-use crate::{common::layout, gpu_types::TYPES_WGSL, load::SceneGpu};
+use crate::{common::layout, frame::FrameEncoder, gpu_types::TYPES_WGSL, load::SceneGpu};
 
 /// Format of the colour targets (exact positions and normals for the queries that follow).
 pub const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -45,6 +45,23 @@ fn target(
             | wgpu::TextureUsages::COPY_SRC,
         view_formats: &[],
     })
+}
+
+/// The four colour targets and the depth buffer of `width` x `height`.
+fn targets(device: &wgpu::Device, width: u32, height: u32) -> [wgpu::Texture; 5] {
+    [
+        target(device, "gbuffer position", width, height, TARGET_FORMAT),
+        target(device, "gbuffer normal", width, height, TARGET_FORMAT),
+        target(device, "gbuffer albedo", width, height, TARGET_FORMAT),
+        target(device, "gbuffer atlas", width, height, TARGET_FORMAT),
+        target(
+            device,
+            "gbuffer depth",
+            width,
+            height,
+            wgpu::TextureFormat::Depth32Float,
+        ),
+    ]
 }
 
 impl GBuffer {
@@ -122,30 +139,36 @@ impl GBuffer {
             multiview_mask: None,
             cache: None,
         });
+        let [position, normal, albedo, atlas, depth] = targets(device, width, height);
         Self {
-            position: target(device, "gbuffer position", width, height, TARGET_FORMAT),
-            normal: target(device, "gbuffer normal", width, height, TARGET_FORMAT),
-            albedo: target(device, "gbuffer albedo", width, height, TARGET_FORMAT),
-            atlas: target(device, "gbuffer atlas", width, height, TARGET_FORMAT),
-            depth: target(
-                device,
-                "gbuffer depth",
-                width,
-                height,
-                wgpu::TextureFormat::Depth32Float,
-            ),
+            position,
+            normal,
+            albedo,
+            atlas,
+            depth,
             pipeline,
             bind_group,
         }
     }
 
+    /// New targets of `width` x `height`; the pipeline stays.
+    pub fn resize(&mut self, device: &wgpu::Device, width: u32, height: u32) {
+        [
+            self.position,
+            self.normal,
+            self.albedo,
+            self.atlas,
+            self.depth,
+        ] = targets(device, width, height);
+    }
+
+    /// Image width and height.
+    pub fn size(&self) -> (u32, u32) {
+        (self.position.width(), self.position.height())
+    }
+
     /// Records the raster pass.
-    pub fn render(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        scene: &SceneGpu,
-        timer: &mut crate::common::timestamps::PassTimer,
-    ) {
+    pub fn render(&self, frame: &mut FrameEncoder, scene: &SceneGpu) {
         let views: Vec<wgpu::TextureView> =
             [&self.position, &self.normal, &self.albedo, &self.atlas]
                 .iter()
@@ -166,21 +189,23 @@ impl GBuffer {
                 })
             })
             .collect();
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("gbuffer"),
-            color_attachments: &attachments,
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
+        let mut pass = frame
+            .encoder
+            .begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("gbuffer"),
+                color_attachments: &attachments,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
                 }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: timer.render("gbuffer"),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+                timestamp_writes: frame.timer.render("gbuffer"),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));

@@ -1,32 +1,39 @@
 //! Copies GPU buffers and textures back to the CPU (tests, image output, timings).
 
-use crate::{Gpu, RuntimeError};
+use crate::RuntimeError;
 
 /// Reads `size` bytes of `buffer` from `offset` (the buffer needs `COPY_SRC`).
 pub fn read_buffer(
-    gpu: &Gpu,
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
     buffer: &wgpu::Buffer,
     offset: u64,
     size: u64,
 ) -> Result<Vec<u8>, RuntimeError> {
-    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback"),
         size,
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let mut encoder = device.create_command_encoder(&Default::default());
     encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
-    gpu.queue.submit([encoder.finish()]);
-    map_and_copy(gpu, &staging, size)
+    queue.submit([encoder.finish()]);
+    map_and_copy(device, &staging, size)
 }
 
-fn map_and_copy(gpu: &Gpu, staging: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, RuntimeError> {
+fn map_and_copy(
+    device: &wgpu::Device,
+    staging: &wgpu::Buffer,
+    size: u64,
+) -> Result<Vec<u8>, RuntimeError> {
     let (tx, rx) = std::sync::mpsc::channel();
     staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
         let _ = tx.send(r);
     });
-    gpu.wait()?;
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RuntimeError::Gpu(e.to_string()))?;
     rx.recv()
         .map_err(|e| RuntimeError::Gpu(e.to_string()))?
         .map_err(|e| RuntimeError::Gpu(e.to_string()))?;
@@ -40,7 +47,8 @@ fn map_and_copy(gpu: &Gpu, staging: &wgpu::Buffer, size: u64) -> Result<Vec<u8>,
 
 /// Reads a 2D texture (one layer, mip 0) as tightly packed rows of `bytes_per_pixel`.
 pub fn read_texture(
-    gpu: &Gpu,
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
     texture: &wgpu::Texture,
     bytes_per_pixel: u32,
 ) -> Result<Vec<u8>, RuntimeError> {
@@ -49,13 +57,13 @@ pub fn read_texture(
     let padded =
         row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
     let size = padded as u64 * h as u64;
-    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback texture"),
         size,
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let mut encoder = device.create_command_encoder(&Default::default());
     encoder.copy_texture_to_buffer(
         texture.as_image_copy(),
         wgpu::TexelCopyBufferInfo {
@@ -68,12 +76,89 @@ pub fn read_texture(
         },
         texture.size(),
     );
-    gpu.queue.submit([encoder.finish()]);
-    let data = map_and_copy(gpu, &staging, size)?;
+    queue.submit([encoder.finish()]);
+    let data = map_and_copy(device, &staging, size)?;
     let mut out = Vec::with_capacity((row * h) as usize);
     for y in 0..h as usize {
         let start = y * padded as usize;
         out.extend_from_slice(&data[start..start + row as usize]);
     }
     Ok(out)
+}
+
+/// A rendered image, read back.
+#[derive(Clone, Debug)]
+pub struct Image {
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// Linear radiance, RGBA, row-major, row 0 at the top.
+    pub radiance: Vec<[f32; 4]>,
+    /// Tone-mapped sRGB, RGBA8.
+    pub display: Vec<u8>,
+    /// GPU milliseconds per pass of the first frame, which also ran the view-independent
+    /// passes; empty without timestamp queries.
+    pub first_timings: Vec<(&'static str, f64)>,
+    /// GPU milliseconds per pass of the last frame; empty without timestamp queries.
+    pub timings: Vec<(&'static str, f64)>,
+}
+
+/// Renders `frames` (at least one) frames of `renderer` into an offscreen target and reads the
+/// last back: the offscreen loop of the command line, the tests and the benchmarks. The
+/// renderer must draw into `Rgba8Unorm` (the default of [`crate::RendererSettings`]).
+///
+/// # Errors
+/// Another target format, GPU errors while rendering, a failed read-back.
+pub fn render_image(renderer: &mut crate::Renderer, frames: u32) -> Result<Image, RuntimeError> {
+    if renderer.target_format() != wgpu::TextureFormat::Rgba8Unorm {
+        return Err(RuntimeError::Unsupported(format!(
+            "offscreen images are Rgba8Unorm; this renderer draws into {:?}",
+            renderer.target_format()
+        )));
+    }
+    let (device, queue) = {
+        let ctx = renderer.context();
+        (ctx.device.clone(), ctx.queue.clone())
+    };
+    let (width, height) = renderer.context().size();
+    let target = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("offscreen target"),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let view = target.create_view(&Default::default());
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let (mut first_timings, mut timings) = (Vec::new(), Vec::new());
+    for frame in 0..frames.max(1) {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        renderer.render(&mut encoder, &view);
+        queue.submit([encoder.finish()]);
+        timings = renderer.read_timings()?;
+        if frame == 0 {
+            first_timings = timings.clone();
+        }
+    }
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(RuntimeError::Gpu(e.to_string()));
+    }
+    let radiance = read_texture(&device, &queue, renderer.radiance(), 16)?;
+    let display = read_texture(&device, &queue, &target, 4)?;
+    Ok(Image {
+        width,
+        height,
+        radiance: bytemuck::cast_slice(&radiance).to_vec(),
+        display,
+        first_timings,
+        timings,
+    })
 }

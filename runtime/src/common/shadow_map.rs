@@ -4,7 +4,7 @@
 use cssm_formats::{Scene, scene::SpotLight};
 use glam::{Mat4, Vec3};
 
-use crate::{RuntimeError, gpu_types::GpuSpotLight, load::SceneGpu};
+use crate::{RuntimeError, frame::FrameEncoder, gpu_types::GpuSpotLight, load::SceneGpu};
 
 /// Default shadow-map resolution (texels per side).
 pub const DEFAULT_RESOLUTION: u32 = 2048;
@@ -32,33 +32,65 @@ pub fn light_view_proj(light: &SpotLight, lo: Vec3, hi: Vec3) -> Mat4 {
 /// # Errors
 /// [`RuntimeError::Unsupported`] for a cone wider than [`MAX_CUTOFF_DEG`].
 pub fn gpu_lights(scene: &Scene, resolution: u32) -> Result<Vec<GpuSpotLight>, RuntimeError> {
-    let (lo, hi) = scene.bounds();
+    let bounds = scene.bounds();
     scene
         .lights
         .iter()
-        .map(|l| {
-            if !(l.cutoff_deg > 0.0 && l.cutoff_deg <= MAX_CUTOFF_DEG) {
-                return Err(RuntimeError::Unsupported(format!(
-                    "scene '{}': spot light cone half-angle {} degrees; the shadow map covers \
-                     0 to {MAX_CUTOFF_DEG}",
-                    scene.name, l.cutoff_deg
-                )));
-            }
-            let fov = 2.0 * (l.cutoff_deg + 1.0).to_radians();
-            // One shadow-map texel spans this much per unit of distance; lifting the lookup by
-            // 1.5 of them along the normal keeps lit surfaces from shadowing themselves.
-            let texel = 2.0 * (0.5 * fov).tan() / resolution as f32;
-            Ok(GpuSpotLight {
-                position: l.position.to_array(),
-                cos_cutoff: l.cutoff_deg.to_radians().cos(),
-                direction: l.direction.normalize().to_array(),
-                normal_offset: 1.5 * texel,
-                intensity: l.intensity,
-                shadow_resolution: resolution as f32,
-                view_proj: light_view_proj(l, lo, hi).to_cols_array_2d(),
-            })
-        })
+        .map(|l| gpu_light(&scene.name, l, bounds, resolution))
         .collect()
+}
+
+/// The GPU form of `light` in the scene `scene_name` whose bounds are `lo`..`hi`.
+///
+/// # Errors
+/// [`RuntimeError::Unsupported`] for a cone wider than [`MAX_CUTOFF_DEG`] or a light that is not
+/// finite.
+pub fn gpu_light(
+    scene_name: &str,
+    l: &SpotLight,
+    (lo, hi): (Vec3, Vec3),
+    resolution: u32,
+) -> Result<GpuSpotLight, RuntimeError> {
+    if !(l.cutoff_deg > 0.0 && l.cutoff_deg <= MAX_CUTOFF_DEG) {
+        return Err(RuntimeError::Unsupported(format!(
+            "scene '{scene_name}': spot light cone half-angle {} degrees; the shadow map covers \
+             0 to {MAX_CUTOFF_DEG}",
+            l.cutoff_deg
+        )));
+    }
+    let finite = l.position.is_finite()
+        && l.direction.is_finite()
+        && l.direction.length_squared() > 0.0
+        && l.intensity.iter().all(|c| c.is_finite());
+    if !finite {
+        return Err(RuntimeError::Unsupported(format!(
+            "scene '{scene_name}': a spot light needs a finite position, intensity and a \
+             non-zero direction"
+        )));
+    }
+    let fov = 2.0 * (l.cutoff_deg + 1.0).to_radians();
+    // One shadow-map texel spans this much per unit of distance; lifting the lookup by 1.5 of
+    // them along the normal keeps lit surfaces from shadowing themselves.
+    let texel = 2.0 * (0.5 * fov).tan() / resolution as f32;
+    Ok(GpuSpotLight {
+        position: l.position.to_array(),
+        cos_cutoff: l.cutoff_deg.to_radians().cos(),
+        direction: l.direction.normalize().to_array(),
+        normal_offset: 1.5 * texel,
+        intensity: l.intensity,
+        shadow_resolution: resolution as f32,
+        view_proj: light_view_proj(l, lo, hi).to_cols_array_2d(),
+    })
+}
+
+/// One 256-byte-aligned matrix per light, bound with a dynamic offset.
+fn transform_bytes(lights: &[GpuSpotLight], stride: u64) -> Vec<u8> {
+    let mut bytes = vec![0u8; stride as usize * lights.len()];
+    for (i, l) in lights.iter().enumerate() {
+        let m = bytemuck::bytes_of(&l.view_proj);
+        bytes[i * stride as usize..i * stride as usize + 64].copy_from_slice(m);
+    }
+    bytes
 }
 
 /// Shadow maps of every light, and what shading passes bind to read them.
@@ -117,19 +149,14 @@ impl ShadowMaps {
         let light_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("spot lights"),
             contents: bytemuck::cast_slice(&padded),
-            usage: wgpu::BufferUsages::STORAGE,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         });
         // One 256-byte-aligned matrix per light, bound with a dynamic offset.
         let stride = device.limits().min_uniform_buffer_offset_alignment.max(64) as u64;
-        let mut bytes = vec![0u8; stride as usize * layers as usize];
-        for (i, l) in padded.iter().enumerate() {
-            let m = bytemuck::bytes_of(&l.view_proj);
-            bytes[i * stride as usize..i * stride as usize + 64].copy_from_slice(m);
-        }
         let transforms = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("light transforms"),
-            contents: &bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
+            contents: &transform_bytes(&padded, stride),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow map"),
@@ -204,14 +231,26 @@ impl ShadowMaps {
         }
     }
 
+    /// Writes moved or changed lights (as many as at creation); the maps are rendered again
+    /// by the next [`Self::render`].
+    ///
+    /// # Panics
+    /// When the number of lights differs from the one at creation.
+    pub fn update(&self, queue: &wgpu::Queue, lights: &[GpuSpotLight]) {
+        assert_eq!(
+            lights.len() as u32,
+            self.light_count,
+            "light count is fixed"
+        );
+        if lights.is_empty() {
+            return;
+        }
+        queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(lights));
+        queue.write_buffer(&self.transforms, 0, &transform_bytes(lights, self.stride));
+    }
+
     /// Records one depth pass per light.
-    pub fn render(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        scene: &SceneGpu,
-        timer: &mut crate::common::timestamps::PassTimer,
-    ) {
-        let _ = &self.transforms;
+    pub fn render(&self, frame: &mut FrameEncoder, scene: &SceneGpu) {
         for layer in 0..self.light_count {
             let view = self.texture.create_view(&wgpu::TextureViewDescriptor {
                 dimension: Some(wgpu::TextureViewDimension::D2),
@@ -219,22 +258,24 @@ impl ShadowMaps {
                 array_layer_count: Some(1),
                 ..Default::default()
             });
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("shadow map"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
+            let mut pass = frame
+                .encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("shadow map"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
                     }),
-                    stencil_ops: None,
-                }),
-                // Every light's pass is timed under one name; `PassTimer::read` sums them.
-                timestamp_writes: timer.render("shadow maps"),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+                    // Every light's pass is timed under one name; `PassTimer::read` sums them.
+                    timestamp_writes: frame.timer.render("shadow maps"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[(layer as u64 * self.stride) as u32]);
             pass.set_vertex_buffer(0, scene.vertices.slice(..));

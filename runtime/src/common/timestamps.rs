@@ -1,6 +1,6 @@
 //! GPU time per pass from timestamp queries, where the adapter has them.
 
-use crate::{Gpu, RuntimeError, common::readback};
+use crate::{RuntimeError, common::readback};
 
 /// Up to [`PassTimer::MAX_PASSES`] named passes, each bracketed by two timestamps.
 pub struct PassTimer {
@@ -15,16 +15,17 @@ impl PassTimer {
     pub const MAX_PASSES: u32 = 32;
 
     /// A timer; inert (every pass untimed) when the device has no timestamp queries.
-    pub fn new(gpu: &Gpu) -> Self {
-        let (queries, resolve) = if gpu.has_timestamps() {
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Self {
+        let has = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let (queries, resolve) = if has {
             let count = 2 * Self::MAX_PASSES;
             (
-                Some(gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                Some(device.create_query_set(&wgpu::QuerySetDescriptor {
                     label: Some("pass timestamps"),
                     ty: wgpu::QueryType::Timestamp,
                     count,
                 })),
-                Some(gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                Some(device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("pass timestamps resolve"),
                     size: 8 * count as u64,
                     usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
@@ -38,7 +39,7 @@ impl PassTimer {
             queries,
             resolve,
             names: Vec::new(),
-            period_ns: gpu.queue.get_timestamp_period(),
+            period_ns: queue.get_timestamp_period(),
         }
     }
 
@@ -77,6 +78,12 @@ impl PassTimer {
             })
     }
 
+    /// Forgets the passes recorded since the last [`Self::read`] (a frame whose timings nobody
+    /// read), so the slots do not run out.
+    pub fn begin_frame(&mut self) {
+        self.names.clear();
+    }
+
     /// Records the resolve of every timestamp written so far; call before submitting.
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
         if let (Some(q), Some(b)) = (&self.queries, &self.resolve)
@@ -88,14 +95,18 @@ impl PassTimer {
 
     /// Milliseconds of every timed pass, in the order they were recorded, passes of the same
     /// name summed; empty when timestamps are not supported. Call after the work was submitted.
-    pub fn read(&mut self, gpu: &Gpu) -> Result<Vec<(&'static str, f64)>, RuntimeError> {
+    pub fn read(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<Vec<(&'static str, f64)>, RuntimeError> {
         let Some(resolve) = &self.resolve else {
             return Ok(Vec::new());
         };
         if self.names.is_empty() {
             return Ok(Vec::new());
         }
-        let bytes = readback::read_buffer(gpu, resolve, 0, 16 * self.names.len() as u64)?;
+        let bytes = readback::read_buffer(device, queue, resolve, 0, 16 * self.names.len() as u64)?;
         let ticks: &[u64] = bytemuck::cast_slice(&bytes);
         let mut out: Vec<(&'static str, f64)> = Vec::new();
         for (i, &name) in self.names.iter().enumerate() {

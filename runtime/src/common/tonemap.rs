@@ -1,7 +1,11 @@
 //! Tone mapping (`tonemap.wgsl`): linear radiance to display sRGB, exposure then the ACES
 //! filmic curve. [`tonemap`] is the CPU twin.
 
-use crate::{common::layout, gpu_types::TYPES_WGSL};
+use crate::{
+    common::layout,
+    frame::{FrameContext, FrameEncoder},
+    gpu_types::TYPES_WGSL,
+};
 
 /// ACES filmic curve (Narkowicz 2015 fit) of one channel.
 pub fn aces(x: f32) -> f32 {
@@ -22,74 +26,125 @@ pub fn tonemap(radiance: [f32; 3], exposure: f32) -> [u8; 3] {
     radiance.map(|c| (srgb_encode(aces(c.max(0.0) * exposure)) * 255.0).round() as u8)
 }
 
-/// The tone-mapping pass: `hdr` (an `Rgba32Float` texture) into an `Rgba8Unorm` image.
+/// The tone-mapping pass: `hdr` (an `Rgba32Float` texture) drawn into the caller's target, a
+/// swapchain texture or an offscreen one, of the format given at creation. Into an `*Srgb`
+/// target the shader leaves the sRGB encoding to the hardware; into any other it encodes itself,
+/// so an `Rgba8Unorm` target holds the bytes [`tonemap`] computes.
 pub struct Tonemap {
-    /// The output image.
-    pub ldr: wgpu::Texture,
-    pipeline: wgpu::ComputePipeline,
+    pipeline: wgpu::RenderPipeline,
+    bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
-    size: (u32, u32),
+    format: wgpu::TextureFormat,
 }
 
 impl Tonemap {
-    /// The pass reading `hdr` with the view constants `view`.
-    pub fn new(device: &wgpu::Device, view: &wgpu::Buffer, hdr: &wgpu::Texture) -> Self {
-        let (w, h) = (hdr.width(), hdr.height());
-        let ldr = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("tone-mapped"),
-            size: hdr.size(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8Unorm,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+    /// The pass from `hdr` into targets of `format`.
+    pub fn new(ctx: &FrameContext, hdr: &wgpu::Texture, format: wgpu::TextureFormat) -> Self {
+        let device = &ctx.device;
         let source = format!("{TYPES_WGSL}\n{}", include_str!("tonemap.wgsl"));
         let module = layout::shader(device, "tonemap", source);
-        let stages = wgpu::ShaderStages::COMPUTE;
+        let stages = wgpu::ShaderStages::FRAGMENT;
         let bind_layout = layout::bind_group_layout(
             device,
             "tonemap",
             &[
                 layout::uniform(0, stages),
                 layout::texture(1, wgpu::TextureViewDimension::D2, stages),
-                layout::storage_texture(2, wgpu::TextureFormat::Rgba8Unorm, stages),
             ],
         );
-        let pipeline = layout::compute_pipeline(device, "tonemap", &module, &[&bind_layout]);
-        let hdr_view = hdr.create_view(&Default::default());
-        let ldr_view = ldr.create_view(&Default::default());
-        let bind_group = layout::bind_group(
-            device,
-            "tonemap",
-            &bind_layout,
-            &[
-                view.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&hdr_view),
-                wgpu::BindingResource::TextureView(&ldr_view),
-            ],
-        );
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("tonemap"),
+            bind_group_layouts: &[Some(&bind_layout)],
+            immediate_size: 0,
+        });
+        let encode = if format.is_srgb() { 0.0 } else { 1.0 };
+        let constants = [("ENCODE_SRGB", encode)];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("tonemap"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let bind_group = Self::bind(ctx, &bind_layout, hdr);
         Self {
-            ldr,
             pipeline,
+            bind_layout,
             bind_group,
-            size: (w, h),
+            format,
         }
     }
 
-    /// Records the pass.
-    pub fn run(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut crate::common::timestamps::PassTimer,
-    ) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("tonemap"),
-            timestamp_writes: timer.compute("tonemap"),
-        });
+    fn bind(
+        ctx: &FrameContext,
+        bind_layout: &wgpu::BindGroupLayout,
+        hdr: &wgpu::Texture,
+    ) -> wgpu::BindGroup {
+        let hdr_view = hdr.create_view(&Default::default());
+        layout::bind_group(
+            &ctx.device,
+            "tonemap",
+            bind_layout,
+            &[
+                ctx.view.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&hdr_view),
+            ],
+        )
+    }
+
+    /// Reads a new `hdr` texture (after a resize).
+    pub fn resize(&mut self, ctx: &FrameContext, hdr: &wgpu::Texture) {
+        self.bind_group = Self::bind(ctx, &self.bind_layout, hdr);
+    }
+
+    /// The target format the pass was created for.
+    pub fn format(&self) -> wgpu::TextureFormat {
+        self.format
+    }
+
+    /// Records the pass into `target` (the image size, of [`Self::format`]).
+    pub fn run(&self, frame: &mut FrameEncoder, target: &wgpu::TextureView) {
+        let mut pass = frame
+            .encoder
+            .begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("tonemap"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: frame.timer.render("tonemap"),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+        pass.draw(0..3, 0..1);
     }
 }

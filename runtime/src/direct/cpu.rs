@@ -1,12 +1,12 @@
 //! CPU reference of the direct light: the shading of `light.wgsl` with exact shadows, ray cast
-//! with obvhs (`cssm_bake::raycast::SceneBvh`) through the same pixel centres the rasteriser
+//! with obvhs (`cssm_raycast::SceneBvh`) through the same pixel centres the rasteriser
 //! samples.
 //!
 //! Its shading pieces (light, BRDF, albedo, facing normal) are shared with the path tracer,
 //! [`crate::reference`], so the two see the same scene.
 
-use cssm_bake::raycast::SceneBvh;
 use cssm_formats::{CssmFile, Scene};
+use cssm_raycast::SceneBvh;
 use glam::Vec3;
 use rayon::prelude::*;
 

@@ -14,10 +14,39 @@
 pub mod cpu;
 
 use crate::{
-    common::{gbuffer::GBuffer, layout, shadow_map::ShadowMaps, timestamps::PassTimer},
+    RuntimeError,
+    common::{layout, shadow_map::ShadowMaps},
+    frame::{FrameContext, FrameEncoder},
     gpu_types::TYPES_WGSL,
     load::{CssmGpu, SceneGpu},
+    method::{Backend, GiMethod, MethodEntry, MethodSetup},
 };
+
+/// `--method direct`: the shared passes alone (shadow maps, G-buffer, direct light); no
+/// indirect light.
+pub const METHOD: MethodEntry = MethodEntry {
+    name: "direct",
+    summary: "direct light from spot lights, PCF shadow maps (§4.7; no indirect light)",
+    needs_cssm: false,
+    options: &[],
+    passes: &[],
+    backend: Backend::Gpu(|_: &MethodSetup| Ok(Box::new(DirectOnly))),
+};
+
+/// The `direct` method: nothing beyond the shared passes.
+struct DirectOnly;
+
+impl GiMethod for DirectOnly {
+    fn encode(&mut self, _: &FrameContext, _: &mut FrameEncoder) {}
+
+    fn indirect(&self) -> Option<&wgpu::Buffer> {
+        None
+    }
+
+    fn resize(&mut self, _: &FrameContext) -> Result<(), RuntimeError> {
+        Ok(())
+    }
+}
 
 /// WGSL of the shared light model, after the types and the shadow lookup.
 fn light_wgsl() -> String {
@@ -59,32 +88,15 @@ pub struct ScreenDirect {
     /// Linear radiance per pixel.
     pub radiance: wgpu::Texture,
     pipeline: wgpu::ComputePipeline,
+    bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
     size: (u32, u32),
 }
 
 impl ScreenDirect {
-    /// The pass shading `gbuffer`.
-    pub fn new(
-        device: &wgpu::Device,
-        view: &wgpu::Buffer,
-        scene: &SceneGpu,
-        shadows: &ShadowMaps,
-        gbuffer: &GBuffer,
-    ) -> Self {
-        let (w, h) = (gbuffer.position.width(), gbuffer.position.height());
-        let radiance = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("direct radiance"),
-            size: gbuffer.position.size(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+    /// The pass shading the context's G-buffer.
+    pub fn new(ctx: &FrameContext) -> Self {
+        let device = &ctx.device;
         let module = layout::shader(
             device,
             "direct screen",
@@ -101,6 +113,34 @@ impl ScreenDirect {
         ]);
         let bind_layout = layout::bind_group_layout(device, "direct screen", &entries);
         let pipeline = layout::compute_pipeline(device, "direct screen", &module, &[&bind_layout]);
+        let (radiance, bind_group) = Self::bind(ctx, &bind_layout);
+        Self {
+            radiance,
+            pipeline,
+            bind_layout,
+            bind_group,
+            size: ctx.size(),
+        }
+    }
+
+    /// The radiance texture of the G-buffer's size and the bind group reading that G-buffer.
+    fn bind(
+        ctx: &FrameContext,
+        bind_layout: &wgpu::BindGroupLayout,
+    ) -> (wgpu::Texture, wgpu::BindGroup) {
+        let gbuffer = &ctx.gbuffer;
+        let radiance = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("direct radiance"),
+            size: gbuffer.position.size(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
         let views = [
             &gbuffer.position,
             &gbuffer.normal,
@@ -108,23 +148,21 @@ impl ScreenDirect {
             &radiance,
         ]
         .map(|t| t.create_view(&Default::default()));
-        let mut resources = light_resources(view, scene, shadows).to_vec();
+        let mut resources = light_resources(&ctx.view, &ctx.scene, &ctx.shadows).to_vec();
         resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        let bind_group = layout::bind_group(device, "direct screen", &bind_layout, &resources);
-        Self {
-            radiance,
-            pipeline,
-            bind_group,
-            size: (w, h),
-        }
+        let bind_group = layout::bind_group(&ctx.device, "direct screen", bind_layout, &resources);
+        (radiance, bind_group)
+    }
+
+    /// Follows the context's new G-buffer size.
+    pub fn resize(&mut self, ctx: &FrameContext) {
+        (self.radiance, self.bind_group) = Self::bind(ctx, &self.bind_layout);
+        self.size = ctx.size();
     }
 
     /// Records the pass.
-    pub fn run(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut PassTimer) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("direct screen"),
-            timestamp_writes: timer.compute("direct light"),
-        });
+    pub fn run(&self, frame: &mut FrameEncoder) {
+        let mut pass = frame.compute_pass("direct light");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
@@ -143,14 +181,9 @@ pub struct AtlasDirect {
 }
 
 impl AtlasDirect {
-    /// The pass over the texels of `cssm`.
-    pub fn new(
-        device: &wgpu::Device,
-        view: &wgpu::Buffer,
-        scene: &SceneGpu,
-        shadows: &ShadowMaps,
-        cssm: &CssmGpu,
-    ) -> Self {
+    /// The pass over the texels of `cssm`, lit by the context's lights.
+    pub fn new(ctx: &FrameContext, cssm: &CssmGpu) -> Self {
+        let (device, view, scene, shadows) = (&ctx.device, &ctx.view, &ctx.scene, &ctx.shadows);
         let texel_count = cssm.params.map_count;
         let texel_radiance = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("texel radiance"),
@@ -183,11 +216,8 @@ impl AtlasDirect {
     }
 
     /// Records the pass.
-    pub fn run(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut PassTimer) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("direct atlas"),
-            timestamp_writes: timer.compute("direct light into atlas"),
-        });
+    pub fn run(&self, frame: &mut FrameEncoder) {
+        let mut pass = frame.compute_pass("direct light into atlas");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.dispatch_workgroups(self.texel_count.max(1).div_ceil(64), 1, 1);

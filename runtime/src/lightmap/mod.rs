@@ -12,8 +12,12 @@ use glam::{Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
 use crate::{
-    common::{gbuffer::GBuffer, layout, timestamps::PassTimer},
+    RuntimeError,
+    common::layout,
+    frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     load::CssmGpu,
+    method::{self, Backend, GiMethod, MethodEntry, MethodSetup, Resolved},
+    radiosity::{self, AtlasGi, RadiosityOptions},
     visibility::library_wgsl,
 };
 
@@ -84,28 +88,22 @@ struct LookupParams {
 pub struct AtlasLookup {
     /// Per pixel `vec4f`: rgb indirect radiance towards the eye.
     pub indirect: wgpu::Buffer,
+    params: wgpu::Buffer,
     pipeline: wgpu::ComputePipeline,
+    bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
     size: (u32, u32),
 }
 
 impl AtlasLookup {
-    /// The pass over `gbuffer` reading `texel_irradiance` (`vec4f` per texel).
+    /// The pass over the context's G-buffer reading `texel_irradiance` (`vec4f` per texel).
     pub fn new(
-        device: &wgpu::Device,
-        view: &wgpu::Buffer,
-        gbuffer: &GBuffer,
+        ctx: &FrameContext,
         cssm: &CssmGpu,
         texel_irradiance: &wgpu::Buffer,
         filter: Filter,
     ) -> Self {
-        let (w, h) = (gbuffer.position.width(), gbuffer.position.height());
-        let indirect = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("atlas lookup"),
-            size: 16 * (w * h) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let device = &ctx.device;
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("atlas lookup params"),
             contents: bytemuck::bytes_of(&LookupParams {
@@ -137,34 +135,162 @@ impl AtlasLookup {
             &module,
             &[&bind_layout, &cssm.bind_group_layout],
         );
+        let (indirect, bind_group) = Self::bind(ctx, &bind_layout, &params, texel_irradiance);
+        Self {
+            indirect,
+            params,
+            pipeline,
+            bind_layout,
+            bind_group,
+            size: ctx.size(),
+        }
+    }
+
+    /// The output of the G-buffer's size and the bind group reading that G-buffer.
+    fn bind(
+        ctx: &FrameContext,
+        bind_layout: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+        texel_irradiance: &wgpu::Buffer,
+    ) -> (wgpu::Buffer, wgpu::BindGroup) {
+        let (w, h) = ctx.size();
+        let indirect = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("atlas lookup"),
+            size: 16 * (w * h) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let gbuffer = &ctx.gbuffer;
         let views = [&gbuffer.position, &gbuffer.albedo, &gbuffer.atlas]
             .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![
             params.as_entire_binding(),
-            view.as_entire_binding(),
+            ctx.view.as_entire_binding(),
             texel_irradiance.as_entire_binding(),
         ];
         resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
         resources.push(indirect.as_entire_binding());
-        let bind_group = layout::bind_group(device, "atlas lookup", &bind_layout, &resources);
-        Self {
-            indirect,
-            pipeline,
-            bind_group,
-            size: (w, h),
-        }
+        let bind_group = layout::bind_group(&ctx.device, "atlas lookup", bind_layout, &resources);
+        (indirect, bind_group)
+    }
+
+    /// Follows the context's new G-buffer size.
+    pub fn resize(&mut self, ctx: &FrameContext, texel_irradiance: &wgpu::Buffer) {
+        (self.indirect, self.bind_group) =
+            Self::bind(ctx, &self.bind_layout, &self.params, texel_irradiance);
+        self.size = ctx.size();
     }
 
     /// Records the pass.
-    pub fn run(&self, encoder: &mut wgpu::CommandEncoder, cssm: &CssmGpu, timer: &mut PassTimer) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("atlas lookup"),
-            timestamp_writes: timer.compute("atlas lookup"),
-        });
+    pub fn run(&self, frame: &mut FrameEncoder, cssm: &CssmGpu) {
+        let mut pass = frame.compute_pass("atlas lookup");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_bind_group(1, &cssm.bind_group, &[]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+    }
+}
+
+/// The passes of `hrc` and `lightmap`.
+const PASSES: &[PassInfo] = &[
+    radiosity::PREPARE_PASSES[0],
+    radiosity::PREPARE_PASSES[1],
+    PassInfo {
+        name: "atlas lookup",
+        stage: Stage::Frame,
+        reads: &[Slot::Cssm, Slot::GBuffer, Slot::TexelIrradiance, Slot::View],
+        writes: &[Slot::Indirect],
+    },
+];
+
+/// `--method hrc`: hierarchical radiosity shown directly, each pixel its texel's indirect light.
+pub const HRC: MethodEntry = MethodEntry {
+    name: "hrc",
+    summary: "GPU hierarchical radiosity over the atlas, each pixel showing its texel (§4.1-4.3)",
+    needs_cssm: true,
+    options: &[method::BOUNCES, method::THRESHOLD],
+    passes: PASSES,
+    backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Nearest)),
+};
+
+/// `--method lightmap`: hierarchical radiosity looked up per pixel with a bicubic B-spline.
+pub const LIGHTMAP: MethodEntry = MethodEntry {
+    name: "lightmap",
+    summary: "hierarchical radiosity looked up per pixel with a bicubic filter (§5, Fig. 17)",
+    needs_cssm: true,
+    options: &[method::BOUNCES, method::THRESHOLD],
+    passes: PASSES,
+    backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Bicubic)),
+};
+
+/// The options of `hrc` and `lightmap`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LookupOptions {
+    /// Radiosity iterations (indirect bounces).
+    pub bounces: u32,
+    /// Oracle threshold (§4.3).
+    pub threshold: f32,
+}
+
+impl LookupOptions {
+    /// The typed form of checked options.
+    pub fn from_resolved(options: &Resolved) -> Self {
+        Self {
+            bounces: options.count("bounces"),
+            threshold: options.number("threshold"),
+        }
+    }
+}
+
+/// `hrc` and `lightmap`: the radiosity solution once per light change, looked up every frame.
+struct AtlasGiLookup {
+    gi: AtlasGi,
+    lookup: AtlasLookup,
+    bounces: u32,
+}
+
+impl AtlasGiLookup {
+    fn build(setup: &MethodSetup, filter: Filter) -> Result<Box<dyn GiMethod>, RuntimeError> {
+        let ctx = setup.ctx;
+        let options = LookupOptions::from_resolved(setup.options);
+        let file = setup.cssm_file()?;
+        let radiosity_options = RadiosityOptions {
+            threshold: options.threshold,
+            exposure: ctx.settings.exposure,
+        };
+        let gi = AtlasGi::new(ctx, setup.scene, file, radiosity_options)?;
+        let lookup = AtlasLookup::new(
+            ctx,
+            &ctx.cssm()?.query,
+            &gi.radiosity.texel_irradiance,
+            filter,
+        );
+        Ok(Box::new(Self {
+            gi,
+            lookup,
+            bounces: options.bounces,
+        }))
+    }
+}
+
+impl GiMethod for AtlasGiLookup {
+    fn prepare(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
+        self.gi.run(ctx, frame, self.bounces);
+    }
+
+    fn encode(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
+        if let Some(cssm) = &ctx.cssm {
+            self.lookup.run(frame, &cssm.query);
+        }
+    }
+
+    fn indirect(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.lookup.indirect)
+    }
+
+    fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
+        self.lookup.resize(ctx, &self.gi.radiosity.texel_irradiance);
+        Ok(())
     }
 }
 

@@ -6,8 +6,8 @@
 //!   from every other) and exact ray-cast visibility: the ground truth the hierarchy and the
 //!   CSSM approximate.
 
-use cssm_bake::raycast::SceneBvh;
 use cssm_formats::{CssmFile, visibility::VisibilityQuery};
+use cssm_raycast::SceneBvh;
 use glam::Vec3;
 use rayon::prelude::*;
 

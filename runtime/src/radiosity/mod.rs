@@ -24,9 +24,13 @@ pub mod transfer;
 use cssm_formats::hierarchy::Hierarchy;
 use wgpu::util::DeviceExt;
 
+use cssm_formats::{CssmFile, Scene};
+
 use crate::{
     RuntimeError,
-    common::{layout, timestamps::PassTimer},
+    common::{layout, readback, timestamps::PassTimer},
+    direct::AtlasDirect,
+    frame::{FrameContext, FrameEncoder, FrameSettings, PassInfo, Slot, Stage},
     gpu_types::{GpuNode, GpuTraversalParams, TYPES_WGSL},
     load::{CssmGpu, limit_check, storage_buffer},
     visibility::library_wgsl,
@@ -313,24 +317,15 @@ impl Radiosity {
     }
 
     /// Records the start (direct light into the leaves, pulled) and `iterations` bounces.
-    pub fn run(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        cssm: &CssmGpu,
-        timer: &mut PassTimer,
-        iterations: u32,
-    ) {
+    pub fn run(&self, frame: &mut FrameEncoder, cssm: &CssmGpu, iterations: u32) {
         for k in 0..=iterations {
             let written = (k % 2) as usize;
             let gather = usize::from(k > 0);
             {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("radiosity gather"),
-                    timestamp_writes: timer.compute(if k == 0 {
-                        "radiosity: direct into leaves"
-                    } else {
-                        "radiosity: gather"
-                    }),
+                let mut pass = frame.compute_pass(if k == 0 {
+                    "radiosity: direct into leaves"
+                } else {
+                    "radiosity: gather"
                 });
                 pass.set_pipeline(&self.gather_pipeline);
                 pass.set_bind_group(0, &self.gather_groups[gather][written], &[]);
@@ -338,10 +333,7 @@ impl Radiosity {
                 pass.dispatch_workgroups(self.leaf_count.max(1).div_ceil(64), 1, 1);
             }
             // wgpu orders the dispatches of one pass: each level reads what the one before wrote.
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("radiosity pull"),
-                timestamp_writes: timer.compute("radiosity: pull"),
-            });
+            let mut pass = frame.compute_pass("radiosity: pull");
             pass.set_pipeline(&self.pull_pipeline);
             for (groups, &size) in self.pull_groups.iter().zip(&self.level_sizes) {
                 pass.set_bind_group(0, &groups[written], &[]);
@@ -349,6 +341,156 @@ impl Radiosity {
             }
         }
     }
+}
+
+/// The passes of [`AtlasGi`], the view-independent part of the hierarchical-radiosity methods.
+pub const PREPARE_PASSES: [PassInfo; 2] = [
+    PassInfo {
+        name: "direct light into atlas",
+        stage: Stage::Prepare,
+        reads: &[Slot::Cssm, Slot::Lights, Slot::ShadowMaps],
+        writes: &[Slot::TexelRadiance],
+    },
+    PassInfo {
+        name: "radiosity: gather + pull",
+        stage: Stage::Prepare,
+        reads: &[Slot::Cssm, Slot::TexelRadiance],
+        writes: &[Slot::NodeRadiance, Slot::TexelIrradiance],
+    },
+];
+
+/// Diffuse albedo of every texel of `file` (Kd of its material; textures are not sampled in
+/// the atlas), as the radiosity iteration takes it.
+pub fn texel_albedo(scene: &Scene, file: &CssmFile) -> Vec<[f32; 4]> {
+    file.texels
+        .iter()
+        .map(|t| {
+            let kd = scene.materials[t.material as usize].kd;
+            [kd[0], kd[1], kd[2], 0.0]
+        })
+        .collect()
+}
+
+/// The view-independent part of the indirect light: the direct light into the atlas texels,
+/// then the radiosity iteration over the hierarchy. Shared by `hrc`, `lightmap` and
+/// `lightcuts`.
+pub struct AtlasGi {
+    /// Direct light into the texels.
+    pub atlas: AtlasDirect,
+    /// The bounces.
+    pub radiosity: Radiosity,
+}
+
+impl AtlasGi {
+    /// The passes over the context's `.cssm`, whose file `file` was baked from `scene`.
+    ///
+    /// # Errors
+    /// No `.cssm` in the context, or buffers beyond the device's limits.
+    pub fn new(
+        ctx: &FrameContext,
+        scene: &Scene,
+        file: &CssmFile,
+        options: RadiosityOptions,
+    ) -> Result<Self, RuntimeError> {
+        let cssm = ctx.cssm()?;
+        let atlas = AtlasDirect::new(ctx, &cssm.query);
+        let radiosity = Radiosity::new(
+            &ctx.device,
+            &cssm.query,
+            &cssm.hierarchy,
+            &atlas.texel_radiance,
+            &texel_albedo(scene, file),
+            options,
+        )?;
+        Ok(Self { atlas, radiosity })
+    }
+
+    /// Records the direct light into the atlas and `iterations` bounces.
+    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder, iterations: u32) {
+        let Some(cssm) = &ctx.cssm else { return };
+        self.atlas.run(frame);
+        self.radiosity.run(frame, &cssm.query, iterations);
+    }
+}
+
+/// Direct light in the atlas texels of `file` (baked from `scene`): diffuse radiance leaving
+/// each texel, in texel order.
+///
+/// # Errors
+/// As [`atlas_radiosity`].
+pub fn render_atlas_direct(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    scene: &Scene,
+    file: &CssmFile,
+    shadow_resolution: u32,
+) -> Result<Vec<[f32; 4]>, RuntimeError> {
+    let options = RadiosityOptions::default();
+    let solved = atlas_radiosity(device, queue, scene, file, shadow_resolution, 0, options)?;
+    Ok(solved.direct)
+}
+
+/// The radiosity solution in the atlas, read back (what the view-independent part of a frame
+/// computes).
+#[derive(Clone, Debug)]
+pub struct AtlasRadiosity {
+    /// Direct radiance leaving every texel (texel order, rgb).
+    pub direct: Vec<[f32; 4]>,
+    /// Indirect irradiance of every texel after the iterations (texel order, rgb).
+    pub irradiance: Vec<[f32; 4]>,
+    /// Mean radiance of every hierarchy node after the iterations (rgb).
+    pub node_radiance: Vec<[f32; 4]>,
+    /// GPU milliseconds per pass, empty without timestamps.
+    pub timings: Vec<(&'static str, f64)>,
+}
+
+/// Runs the direct light into the atlas and `iterations` radiosity bounces (§4.1-§4.3) on
+/// `file` (baked from `scene`), and reads the solution back.
+///
+/// # Errors
+/// Unsupported lights, buffers beyond the device's limits, GPU errors.
+pub fn atlas_radiosity(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    scene: &Scene,
+    file: &CssmFile,
+    shadow_resolution: u32,
+    iterations: u32,
+    options: RadiosityOptions,
+) -> Result<AtlasRadiosity, RuntimeError> {
+    let settings = FrameSettings {
+        width: 1,
+        height: 1,
+        exposure: 1.0,
+        shadow_resolution,
+    };
+    let ctx = FrameContext::new(device, queue, scene, Some(file), settings)?;
+    let gi = AtlasGi::new(&ctx, scene, file, options)?;
+    let mut timer = PassTimer::new(device, queue);
+    let mut encoder = device.create_command_encoder(&Default::default());
+    let mut frame = FrameEncoder {
+        encoder: &mut encoder,
+        timer: &mut timer,
+        index: 0,
+    };
+    ctx.shadows.render(&mut frame, &ctx.scene);
+    gi.run(&ctx, &mut frame, iterations);
+    timer.resolve(&mut encoder);
+    queue.submit([encoder.finish()]);
+    let timings = timer.read(device, queue)?;
+    let (atlas, radiosity) = (&gi.atlas, &gi.radiosity);
+    let texels = 16 * atlas.texel_count as u64;
+    let read = |buffer: &wgpu::Buffer, bytes: u64| -> Result<Vec<[f32; 4]>, RuntimeError> {
+        let raw = readback::read_buffer(device, queue, buffer, 0, bytes)?;
+        Ok(bytemuck::cast_slice(&raw).to_vec())
+    };
+    let node_count = ctx.cssm()?.hierarchy.node_count as u64;
+    Ok(AtlasRadiosity {
+        direct: read(&atlas.texel_radiance, texels)?,
+        irradiance: read(&radiosity.texel_irradiance, texels)?,
+        node_radiance: read(radiosity.radiance(iterations), 16 * node_count)?,
+        timings,
+    })
 }
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
 //! The baseline the CSSM query competes with: exact segment visibility by traversing obvhs'
 //! binary BVH in a compute shader (`bvh.wgsl`; the H100 has no hardware ray queries). Held
-//! against the CPU ray casts of `cssm_bake::raycast::SceneBvh` by the test
+//! against the CPU ray casts of `cssm_raycast::SceneBvh` by the test
 //! `bvh_kernel_matches_cpu_ray_casts`.
 
 use std::time::Duration;
@@ -58,7 +58,7 @@ impl BvhKernel {
     /// [`RuntimeError::Unsupported`] for a BVH deeper than [`MAX_DEPTH`].
     pub fn new(gpu: &Gpu, scene: &Scene) -> Result<Self, RuntimeError> {
         let device = &gpu.device;
-        let tris = cssm_bake::raycast::scene_triangles(scene);
+        let tris = cssm_raycast::scene_triangles(scene);
         let bvh = build_bvh2_from_tris(
             &tris,
             BvhBuildParams::medium_build(),

@@ -1,6 +1,6 @@
 //! Visibility queries on the GPU (§3.2.2): the WGSL library `cssm.wgsl`, which any shader can
 //! include to call `cssm_visible` / `cssm_visibility` / `cssm_visibility_texel` against a
-//! [`CssmGpu`](crate::load::CssmGpu) bind group, and [`QueryKernel`], a compute pass that answers
+//! [`CssmGpu`] bind group, and [`QueryKernel`], a compute pass that answers
 //! a batch of queries (for tests against the CPU reference and for benchmarks).
 //!
 //! The library computes exactly what `cssm_formats::visibility::VisibilityQuery` computes; the
@@ -65,14 +65,14 @@ impl QueryPair {
 
 /// `count` random sender/receiver pairs on the surface of `scene`, area-uniform, seeded (the
 /// sampler and generator of `cssm check`): the CSSM queries, and the segments an exact ray cast
-/// of the same pairs tests (those of `cssm_bake::check::exact_visible`).
+/// of the same pairs tests (those of `cssm_raycast::exact_visible`).
 pub fn random_pairs(
     scene: &cssm_formats::Scene,
     count: usize,
     seed: u64,
 ) -> (Vec<QueryPair>, Vec<bvh::Segment>) {
-    let sampler = cssm_bake::check::SurfaceSampler::new(scene);
-    let mut rng = cssm_bake::check::SplitMix64(seed);
+    let sampler = cssm_raycast::SurfaceSampler::new(scene);
+    let mut rng = cssm_raycast::SplitMix64(seed);
     let eps = 1e-4 * scene.diameter();
     (0..count)
         .map(|_| {
@@ -223,7 +223,7 @@ pub(crate) fn dispatch_and_read(
         t.resolve(&mut encoder);
     }
     gpu.queue.submit([encoder.finish()]);
-    readback::read_buffer(gpu, answers, 0, 4 * items as u64)
+    readback::read_buffer(&gpu.device, &gpu.queue, answers, 0, 4 * items as u64)
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
 //! Exact ray casting against the scene with obvhs: the reference for every visibility answer,
-//! and the tool that renders the depth cube maps (§3.2.1).
+//! and the tool the bake renders the depth cube maps with (§3.2.1).
 
 use std::time::Duration;
 
@@ -299,7 +299,7 @@ mod tests {
             Vec3::new(1.0, 1.0, 3.0),
             Vec3::new(-1.0, 1.0, 3.0),
         ];
-        crate::tests::scene_from(positions, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+        crate::test_scene(positions, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
     }
 
     #[test]
@@ -344,7 +344,7 @@ mod tests {
                 triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
             }
         }
-        crate::tests::scene_from(positions, triangles)
+        crate::test_scene(positions, triangles)
     }
 
     #[test]

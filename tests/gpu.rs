@@ -4,13 +4,20 @@
 
 use std::sync::OnceLock;
 
-use cssm_bake::{BakeOptions, check::SplitMix64, check::SurfaceSampler};
+use cssm_bake::BakeOptions;
 use cssm_formats::{
     CssmFile, Scene, Traversal, visibility::QueryOptions, visibility::VisibilityQuery,
 };
+use cssm_raycast::{SplitMix64, SurfaceSampler};
 use cssm_runtime::{
-    Gpu,
+    Gpu, Renderer, RendererSettings,
+    common::{
+        compose::Component,
+        readback::{Image, render_image},
+    },
+    frame::FrameSettings,
     load::CssmGpu,
+    method::{self, Backend, CpuSetup, MethodEntry, OptionValue, OptionValues},
     visibility::{QueryKernel, QueryPair},
 };
 
@@ -28,7 +35,7 @@ fn gpu() -> &'static Gpu {
 /// A built-in scene (`scenes/NAME`) and its bake with `options`.
 fn baked(name: &str, options: BakeOptions) -> (Scene, CssmFile) {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes")
+        .join("scenes")
         .join(name);
     let scene = Scene::load(&dir).expect("built-in scene loads");
     let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
@@ -46,6 +53,131 @@ fn cornell() -> &'static (Scene, CssmFile) {
         };
         baked("cornell-box", options)
     })
+}
+
+/// What the tests ask of a frame: the options of the one-shot `render` the tests were written
+/// against, mapped onto the [`Renderer`] and its method table by [`render`].
+#[derive(Clone, Debug)]
+struct RenderOptions {
+    width: u32,
+    height: u32,
+    exposure: f32,
+    shadow_resolution: u32,
+    frames: u32,
+    bounces: u32,
+    threshold: f32,
+    jitter: bool,
+    component: Component,
+    samples: u32,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            width: 640,
+            height: 480,
+            exposure: 1.0,
+            shadow_resolution: cssm_runtime::common::shadow_map::DEFAULT_RESOLUTION,
+            frames: 1,
+            bounces: 1,
+            threshold: cssm_runtime::radiosity::DEFAULT_THRESHOLD,
+            jitter: false,
+            component: Component::Full,
+            samples: 256,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// The options `method` declares, from these.
+    fn values(&self, method: &MethodEntry) -> OptionValues {
+        let mut values = OptionValues::default();
+        for spec in method.options {
+            let value = match spec.name {
+                "bounces" => OptionValue::Count(self.bounces),
+                "threshold" => OptionValue::Number(self.threshold),
+                "jitter" => OptionValue::Switch(self.jitter),
+                "samples" => OptionValue::Count(self.samples),
+                other => panic!("no test value for option {other}"),
+            };
+            values.set(spec.name, value);
+        }
+        values
+    }
+
+    fn settings(&self) -> RendererSettings {
+        RendererSettings {
+            frame: FrameSettings {
+                width: self.width,
+                height: self.height,
+                exposure: self.exposure,
+                shadow_resolution: self.shadow_resolution,
+            },
+            component: self.component,
+            ..Default::default()
+        }
+    }
+}
+
+/// `options.frames` frames of `method` through the persistent renderer, read back.
+fn render(
+    gpu: &Gpu,
+    scene: &Scene,
+    file: Option<&CssmFile>,
+    method: &str,
+    options: &RenderOptions,
+) -> Result<Image, cssm_runtime::RuntimeError> {
+    let method = method::find(method)?;
+    let values = options.values(method);
+    let mut renderer = Renderer::new(
+        &gpu.device,
+        &gpu.queue,
+        scene,
+        file,
+        method,
+        &values,
+        &options.settings(),
+    )?;
+    let image = render_image(&mut renderer, options.frames)?;
+    gpu.wait()?;
+    Ok(image)
+}
+
+/// The reference path tracer through its table entry.
+fn render_reference(
+    scene: &Scene,
+    options: &RenderOptions,
+) -> Result<Image, cssm_runtime::RuntimeError> {
+    let method = cssm_runtime::reference::METHOD;
+    let resolved = method.resolve(&options.values(&method))?;
+    let Backend::Cpu(run) = method.backend else {
+        panic!("the reference runs on the CPU")
+    };
+    let view = cssm_runtime::common::camera::View::of_scene(scene, options.width, options.height);
+    let radiance = run(&CpuSetup {
+        scene,
+        view: &view,
+        component: options.component,
+        options: &resolved,
+        progress: &|_, _| {},
+    })?;
+    Ok(Image {
+        width: options.width,
+        height: options.height,
+        radiance,
+        display: Vec::new(),
+        first_timings: Vec::new(),
+        timings: Vec::new(),
+    })
+}
+
+/// Writes the tone-mapped image to `path` (to look at after a failure).
+fn save_png(image: &Image, path: &std::path::Path) {
+    if let Some(png) =
+        ::image::RgbaImage::from_raw(image.width, image.height, image.display.clone())
+    {
+        let _ = png.save(path);
+    }
 }
 
 fn random_pairs(scene: &Scene, count: usize, seed: u64) -> Vec<QueryPair> {
@@ -123,12 +255,7 @@ fn relative_rmse(gpu: &[glam::Vec3], cpu: &[glam::Vec3], keep: &[bool]) -> f64 {
 
 #[test]
 fn direct_light_matches_cpu_reference() {
-    use cssm_runtime::{
-        common::camera::View,
-        direct::cpu,
-        frame::{self, Method, RenderOptions},
-        load::load_albedo_textures,
-    };
+    use cssm_runtime::{common::camera::View, direct::cpu, load::load_albedo_textures};
     let gpu = gpu();
     let (scene, _) = cornell();
     let (w, h) = (160u32, 120u32);
@@ -137,7 +264,7 @@ fn direct_light_matches_cpu_reference() {
         height: h,
         ..Default::default()
     };
-    let frame = frame::render(gpu, scene, None, Method::Direct, &options).expect("render");
+    let frame = render(gpu, scene, None, "direct", &options).expect("render");
     let (textures, index) = load_albedo_textures(scene).expect("textures");
     let materials: Vec<_> = scene
         .materials
@@ -150,7 +277,7 @@ fn direct_light_matches_cpu_reference() {
             texture,
         })
         .collect();
-    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+    let bvh = cssm_raycast::SceneBvh::new(scene);
     let view = View::of_scene(scene, w, h);
     let reference = cpu::render_screen(scene, &view, &materials, &textures, &bvh);
     // Away from edges: no shadow or cone edge within 2 pixels, no silhouette or crease within 1.
@@ -210,7 +337,7 @@ fn direct_light_matches_cpu_reference() {
     );
     if rmse >= 0.05 {
         let out = std::env::temp_dir().join("cssm-direct-actual.png");
-        let _ = frame.save_png(&out);
+        save_png(&frame, &out);
         eprintln!("GPU image written to {}", out.display());
     }
     assert!(kept as u32 > w * h / 2, "too few pixels compared: {kept}");
@@ -239,8 +366,9 @@ fn atlas_direct_light_matches_cpu_reference() {
     let gpu = gpu();
     let (scene, file) = cornell();
     let gpu_texels =
-        cssm_runtime::frame::render_atlas_direct(gpu, scene, file, 2048).expect("atlas pass");
-    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+        cssm_runtime::radiosity::render_atlas_direct(&gpu.device, &gpu.queue, scene, file, 2048)
+            .expect("atlas pass");
+    let bvh = cssm_raycast::SceneBvh::new(scene);
     let cpu_texels = cssm_runtime::direct::cpu::render_atlas(scene, file, &bvh);
     assert_eq!(gpu_texels.len(), cpu_texels.len());
     // Away from shadow and cone edges: texels whose atlas neighbours in the same chart agree
@@ -312,8 +440,7 @@ fn corrupt_or_mismatched_files_give_errors() {
         Err(RuntimeError::Cssm(_))
     ));
     // Another scene: the glossy Cornell box has the same triangles but other files.
-    let glossy_dir =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-glossy");
+    let glossy_dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-glossy");
     let glossy = Scene::load(&glossy_dir).unwrap();
     let err = read_cssm(&path, &glossy).unwrap_err();
     assert!(matches!(err, RuntimeError::SceneMismatch { .. }), "{err}");
@@ -350,7 +477,7 @@ fn bvh_kernel_matches_cpu_ray_casts() {
     let (_, segments) = cssm_runtime::visibility::random_pairs(scene, 50_000, 5);
     let kernel = BvhKernel::new(gpu, scene).expect("bvh");
     let gpu_clear = kernel.run(gpu, &segments, None).expect("GPU traversal");
-    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+    let bvh = cssm_raycast::SceneBvh::new(scene);
     let differ = segments
         .iter()
         .zip(&gpu_clear)
@@ -438,16 +565,21 @@ const GI_SHADOW: u32 = 1024;
 
 #[test]
 fn radiosity_matches_cpu_twin() {
-    use cssm_runtime::{
-        frame,
-        radiosity::{RadiosityOptions, cpu},
-    };
+    use cssm_runtime::radiosity::{RadiosityOptions, cpu};
     let (scene, file) = cornell32();
     let options = RadiosityOptions::default();
-    let gpu_result =
-        frame::atlas_radiosity(gpu(), scene, file, GI_SHADOW, 2, options).expect("radiosity");
+    let gpu_result = cssm_runtime::radiosity::atlas_radiosity(
+        &gpu().device,
+        &gpu().queue,
+        scene,
+        file,
+        GI_SHADOW,
+        2,
+        options,
+    )
+    .expect("radiosity");
     let direct = vec3s(&gpu_result.direct);
-    let albedo = vec3s(&frame::texel_albedo(scene, file));
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     let query = VisibilityQuery::new(file, QueryOptions::default());
     let traversal = cpu::Traversal {
         threshold: options.threshold,
@@ -474,14 +606,11 @@ fn radiosity_matches_cpu_twin() {
 /// Relative RMSE of the GPU radiosity (2 bounces) against brute-force radiosity over the same
 /// texels with exact visibility, and the work of the CPU twin at `threshold`.
 fn radiosity_error(threshold: f32) -> (f64, u64) {
-    use cssm_runtime::{
-        frame,
-        radiosity::{RadiosityOptions, cpu},
-    };
+    use cssm_runtime::radiosity::{RadiosityOptions, cpu};
     let (scene, file) = cornell32();
-    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+    let bvh = cssm_raycast::SceneBvh::new(scene);
     let exact_direct = cssm_runtime::direct::cpu::render_atlas(scene, file, &bvh);
-    let albedo = vec3s(&frame::texel_albedo(scene, file));
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     static BRUTE: OnceLock<Vec<glam::Vec3>> = OnceLock::new();
     let brute = BRUTE
         .get_or_init(|| cpu::brute_force(file, &bvh, scene.diameter(), &exact_direct, &albedo, 2));
@@ -489,8 +618,16 @@ fn radiosity_error(threshold: f32) -> (f64, u64) {
         threshold,
         exposure: 1.0,
     };
-    let gpu_result =
-        frame::atlas_radiosity(gpu(), scene, file, GI_SHADOW, 2, options).expect("radiosity");
+    let gpu_result = cssm_runtime::radiosity::atlas_radiosity(
+        &gpu().device,
+        &gpu().queue,
+        scene,
+        file,
+        GI_SHADOW,
+        2,
+        options,
+    )
+    .expect("radiosity");
     let all = vec![true; brute.len()];
     let rmse = relative_rmse(&vec3s(&gpu_result.irradiance), brute, &all);
     let query = VisibilityQuery::new(file, QueryOptions::default());
@@ -520,9 +657,9 @@ fn radiosity_matches_brute_force() {
     // (threshold 0: every node refined down to its texels) isolates the CSSM's visibility,
     // once from the exact direct light and once from the GPU's shadow-mapped one.
     let (scene, file) = cornell32();
-    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+    let bvh = cssm_raycast::SceneBvh::new(scene);
     let exact_direct = cssm_runtime::direct::cpu::render_atlas(scene, file, &bvh);
-    let albedo = vec3s(&cssm_runtime::frame::texel_albedo(scene, file));
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     let brute = cpu::brute_force(file, &bvh, scene.diameter(), &exact_direct, &albedo, 2);
     let query = VisibilityQuery::new(file, QueryOptions::default());
     let flat = cpu::Traversal {
@@ -531,9 +668,16 @@ fn radiosity_matches_brute_force() {
     };
     let all = vec![true; brute.len()];
     let cssm_only = cpu::radiosity(&query, &exact_direct, &albedo, &flat, 2);
-    let gpu_direct =
-        cssm_runtime::frame::atlas_radiosity(gpu(), scene, file, GI_SHADOW, 0, Default::default())
-            .expect("direct");
+    let gpu_direct = cssm_runtime::radiosity::atlas_radiosity(
+        &gpu().device,
+        &gpu().queue,
+        scene,
+        file,
+        GI_SHADOW,
+        0,
+        Default::default(),
+    )
+    .expect("direct");
     let with_gpu_direct = cpu::radiosity(&query, &vec3s(&gpu_direct.direct), &albedo, &flat, 2);
     eprintln!(
         "  of which: CSSM visibility instead of ray casts {:.2}%, plus the shadow-mapped direct \
@@ -579,7 +723,7 @@ fn cpu_receivers(
     h: u32,
 ) -> Vec<Option<(cssm_runtime::lightcuts::cpu::Receiver, u32)>> {
     use cssm_runtime::common::camera::View;
-    let bvh = cssm_bake::raycast::SceneBvh::new(scene);
+    let bvh = cssm_raycast::SceneBvh::new(scene);
     let view = View::of_scene(scene, w, h);
     (0..w * h)
         .map(|i| {
@@ -652,10 +796,7 @@ fn final_gather_vs_twin(
     threshold: f32,
     jitter: bool,
 ) -> f64 {
-    use cssm_runtime::{
-        frame::{self, Component, Method, RenderOptions},
-        radiosity::RadiosityOptions,
-    };
+    use cssm_runtime::{common::compose::Component, radiosity::RadiosityOptions};
     let options = RenderOptions {
         width: w,
         height: h,
@@ -666,12 +807,12 @@ fn final_gather_vs_twin(
         jitter,
         ..Default::default()
     };
-    let image =
-        frame::render(gpu(), scene, Some(file), Method::Lightcuts, &options).expect("render");
+    let image = render(gpu(), scene, Some(file), "lightcuts", &options).expect("render");
     // One frame: frame 0's seed, and the receiver's id is its pixel index.
     let seed = cssm_runtime::lightcuts::frame_seed(0);
-    let atlas = frame::atlas_radiosity(
-        gpu(),
+    let atlas = cssm_runtime::radiosity::atlas_radiosity(
+        &gpu().device,
+        &gpu().queue,
         scene,
         file,
         GI_SHADOW,
@@ -763,15 +904,16 @@ fn final_gather_long_cuts_match_cpu_twin() {
 #[test]
 fn lightmap_lookup_matches_cpu_twin() {
     use cssm_runtime::{
-        frame::{self, Component, Method, RenderOptions},
+        common::compose::Component,
         lightmap::{Filter, lookup},
         radiosity::RadiosityOptions,
     };
     let (scene, file) = cornell32();
     let (w, h) = (64u32, 48u32);
     let query = VisibilityQuery::new(file, QueryOptions::default());
-    let atlas = frame::atlas_radiosity(
-        gpu(),
+    let atlas = cssm_runtime::radiosity::atlas_radiosity(
+        &gpu().device,
+        &gpu().queue,
         scene,
         file,
         GI_SHADOW,
@@ -782,10 +924,7 @@ fn lightmap_lookup_matches_cpu_twin() {
     let irradiance = vec3s(&atlas.irradiance);
     let seen = cpu_receivers(scene, file, w, h);
     let keep = interior(scene, &seen, w, h);
-    for (method, filter) in [
-        (Method::Hrc, Filter::Nearest),
-        (Method::Lightmap, Filter::Bicubic),
-    ] {
+    for (method, filter) in [("hrc", Filter::Nearest), ("lightmap", Filter::Bicubic)] {
         let options = RenderOptions {
             width: w,
             height: h,
@@ -794,7 +933,7 @@ fn lightmap_lookup_matches_cpu_twin() {
             component: Component::Indirect,
             ..Default::default()
         };
-        let image = frame::render(gpu(), scene, Some(file), method, &options).expect("render");
+        let image = render(gpu(), scene, Some(file), method, &options).expect("render");
         let twin: Vec<glam::Vec3> = seen
             .iter()
             .map(|s| match s {
@@ -830,7 +969,7 @@ fn lightmap_lookup_matches_cpu_twin() {
 
 #[test]
 fn final_gather_matches_path_tracer() {
-    use cssm_runtime::frame::{self, Component, Method, RenderOptions};
+    use cssm_runtime::common::compose::Component;
     let (scene, file) = cornell32();
     let (w, h) = (64u32, 48u32);
     let mut options = RenderOptions {
@@ -842,20 +981,18 @@ fn final_gather_matches_path_tracer() {
         samples: 2048,
         ..Default::default()
     };
-    let gathered =
-        frame::render(gpu(), scene, Some(file), Method::Lightcuts, &options).expect("render");
-    let truth = frame::render_reference(scene, &options, &|_, _| {}).expect("path tracer");
+    let gathered = render(gpu(), scene, Some(file), "lightcuts", &options).expect("render");
+    let truth = render_reference(scene, &options).expect("path tracer");
     let seen = cpu_receivers(scene, file, w, h);
     let keep = interior(scene, &seen, w, h);
     let rmse = relative_rmse(&vec3s(&gathered.radiance), &vec3s(&truth.radiance), &keep);
     // The same receivers with the atlas looked up (no final gather) for comparison.
-    let lightmap =
-        frame::render(gpu(), scene, Some(file), Method::Lightmap, &options).expect("render");
+    let lightmap = render(gpu(), scene, Some(file), "lightmap", &options).expect("render");
     let lightmap_rmse = relative_rmse(&vec3s(&lightmap.radiance), &vec3s(&truth.radiance), &keep);
     options.samples = 512;
     let noise = relative_rmse(
         &vec3s(
-            &frame::render_reference(scene, &options, &|_, _| {})
+            &render_reference(scene, &options)
                 .expect("path tracer")
                 .radiance,
         ),
@@ -885,7 +1022,7 @@ fn glossy32() -> &'static (Scene, CssmFile) {
 /// converges towards the path tracer.
 #[test]
 fn jittered_frames_converge_on_a_glossy_floor() {
-    use cssm_runtime::frame::{self, Component, Method, RenderOptions};
+    use cssm_runtime::common::compose::Component;
     let (scene, file) = glossy32();
     let (w, h) = (64u32, 48u32);
     let options = RenderOptions {
@@ -898,7 +1035,7 @@ fn jittered_frames_converge_on_a_glossy_floor() {
         ..Default::default()
     };
     let truth = vec3s(
-        &frame::render_reference(scene, &options, &|_, _| {})
+        &render_reference(scene, &options)
             .expect("path tracer")
             .radiance,
     );
@@ -919,8 +1056,7 @@ fn jittered_frames_converge_on_a_glossy_floor() {
             jitter,
             ..options.clone()
         };
-        let image =
-            frame::render(gpu(), scene, Some(file), Method::Lightcuts, &options).expect("render");
+        let image = render(gpu(), scene, Some(file), "lightcuts", &options).expect("render");
         relative_rmse(&vec3s(&image.radiance), &truth, &floor)
     };
     let fixed = error(1, false);

@@ -1,0 +1,163 @@
+//! Frame time of the persistent renderer (issue: the renderer seam, "Speed"): the second and
+//! later frames of one [`Renderer`] against a one-shot render that builds every pipeline,
+//! buffer and bind group and runs the view-independent passes before its one frame (what
+//! `frame::render` did before the renderer existed), for `direct`, `lightmap` and `lightcuts`
+//! on the Cornell box, measured in the same run on the same device.
+//!
+//! ```text
+//! cargo bench --bench frame_time -- [--size 640x480] [--frames 5] [--one-shots 3]
+//!     [--methods direct,lightmap,lightcuts] [--atlas 64] [--cube 32] [--out FILE.md]
+//! ```
+//!
+//! Wall-clock milliseconds per frame from submit to the GPU's idle (median), and GPU
+//! milliseconds per pass from timestamp queries where the adapter has them. On lavapipe the
+//! ratio says what the persistent renderer saves on the CPU side; absolute GPU times count only
+//! from a real GPU (`reports/runtime.sh`).
+
+use std::{path::PathBuf, time::Instant};
+
+use cssm::{bake, formats, runtime};
+use runtime::{Gpu, Renderer, RendererSettings, frame::FrameSettings, method};
+
+fn arg(args: &[String], name: &str) -> Option<String> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .cloned()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Records one frame into `target`, submits it and waits for the GPU.
+fn frame(gpu: &Gpu, renderer: &mut Renderer, target: &wgpu::TextureView) {
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    renderer.render(&mut encoder, target);
+    gpu.queue.submit([encoder.finish()]);
+    gpu.wait().expect("frame");
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let (width, height) = arg(&args, "--size")
+        .and_then(|s| {
+            let (w, h) = s.split_once('x')?;
+            Some((w.parse().ok()?, h.parse().ok()?))
+        })
+        .unwrap_or((640u32, 480u32));
+    let frames: usize = arg(&args, "--frames")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    let one_shots: usize = arg(&args, "--one-shots")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3);
+    let atlas: u32 = arg(&args, "--atlas")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(64);
+    let cube: u32 = arg(&args, "--cube")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(32);
+    let methods = arg(&args, "--methods").unwrap_or_else(|| "direct,lightmap,lightcuts".into());
+    let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
+
+    let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
+    let dir = cssm::builtin::cornell_box().expect("built-in scene");
+    let scene = formats::Scene::load(&dir).expect("scene loads");
+    let options = bake::BakeOptions {
+        atlas_resolution: atlas,
+        cube_resolution: cube,
+        ..Default::default()
+    };
+    let file = bake::bake(&scene, &options, &mut |_, _| {})
+        .expect("bake")
+        .file;
+    let settings = RendererSettings {
+        frame: FrameSettings {
+            width,
+            height,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("bench target"),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: settings.target_format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let view = target.create_view(&Default::default());
+    let mut report = format!(
+        "Cornell box (atlas {atlas}, cube {cube}), {width}x{height}, on {}; median of {one_shots} \
+         one-shot renders and of {frames} persistent frames after the first.\n\n\
+         | method | one-shot ms | persistent frame ms | ratio | GPU ms per pass, persistent frame |\n\
+         | --- | --- | --- | --- | --- |\n",
+        gpu.describe()
+    );
+    for name in methods.split(',') {
+        let entry = method::find(name.trim()).unwrap_or_else(|e| panic!("{e}"));
+        let cssm = entry.needs_cssm.then_some(&file);
+        let build = || {
+            Renderer::new(
+                &gpu.device,
+                &gpu.queue,
+                &scene,
+                cssm,
+                entry,
+                &Default::default(),
+                &settings,
+            )
+            .expect("renderer")
+        };
+        // Warm the driver's shader caches once, outside both measurements.
+        frame(&gpu, &mut build(), &view);
+        let one_shot: Vec<f64> = (0..one_shots.max(1))
+            .map(|_| {
+                let start = Instant::now();
+                frame(&gpu, &mut build(), &view);
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        let mut renderer = build();
+        frame(&gpu, &mut renderer, &view);
+        let mut passes = Vec::new();
+        let persistent: Vec<f64> = (0..frames.max(1))
+            .map(|_| {
+                let start = Instant::now();
+                frame(&gpu, &mut renderer, &view);
+                let ms = start.elapsed().as_secs_f64() * 1e3;
+                passes = renderer.read_timings().expect("timings");
+                ms
+            })
+            .collect();
+        let (a, b) = (median(one_shot), median(persistent));
+        let passes: Vec<String> = passes
+            .iter()
+            .map(|(n, ms)| format!("{n} {ms:.2}"))
+            .collect();
+        let row = format!(
+            "| {name} | {a:.1} | {b:.1} | {:.1}x | {} |\n",
+            a / b,
+            if passes.is_empty() {
+                "no timestamps".into()
+            } else {
+                passes.join(", ")
+            }
+        );
+        print!("{row}");
+        report += &row;
+    }
+    if let Some(out) = out {
+        std::fs::write(&out, &report).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
+        println!("wrote {}", out.display());
+    }
+}
