@@ -1,0 +1,374 @@
+//! OBJ/MTL loading via tobj: one OBJ file (triangulated, with its MTL libraries read, bounded and
+//! hashed here) is checked triangle by triangle (indices, NaN/infinite vertices, degenerate and
+//! empty meshes) and appended to the scene's [`Builder`].
+
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
+
+use glam::{Mat3, Vec3};
+
+use super::{Builder, Hasher, Material, SceneError, read_bounded};
+
+/// An MTL library the OBJ asked for: its path and its bytes (or why they could not be read).
+type MtlRead = (PathBuf, Result<Vec<u8>, SceneError>);
+
+impl Builder {
+    /// Loads one OBJ file (with its MTL libraries), transforms it by `transform` and appends it.
+    pub(super) fn add_obj(
+        &mut self,
+        path: &Path,
+        transform: Option<(Mat3, Vec3)>,
+        hasher: &mut Hasher,
+    ) -> Result<(), SceneError> {
+        let bytes = read_bounded(path)?;
+        hasher.add(path, &bytes);
+        let obj_dir = path.parent().unwrap_or(Path::new("."));
+
+        // MTL libraries: read them ourselves to bound their size and hash them.
+        let mtl_files: RefCell<Vec<MtlRead>> = RefCell::default();
+        let mtl_errors: RefCell<Vec<SceneError>> = RefCell::default();
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ..Default::default()
+        };
+        // tobj has a few panicking paths on malformed input: turn a panic into a parse error.
+        let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            tobj::load_obj_buf(&mut &bytes[..], &options, |mtl: &Path| {
+                let mtl_path = obj_dir.join(mtl);
+                match read_bounded(&mtl_path) {
+                    Ok(mtl_bytes) => {
+                        let parsed = normalise_mtl(&mtl_bytes).and_then(|text| {
+                            tobj::load_mtl_buf(&mut text.as_bytes()).map_err(|e| e.to_string())
+                        });
+                        let parsed = match parsed {
+                            Ok(p) => Ok(p),
+                            Err(message) => {
+                                mtl_errors.borrow_mut().push(SceneError::Mtl {
+                                    path: mtl_path.clone(),
+                                    message,
+                                });
+                                Err(tobj::LoadError::MaterialParseError)
+                            }
+                        };
+                        mtl_files.borrow_mut().push((mtl_path, Ok(mtl_bytes)));
+                        parsed
+                    }
+                    Err(e) => {
+                        mtl_files.borrow_mut().push((mtl_path, Err(e)));
+                        Err(tobj::LoadError::OpenFileFailed)
+                    }
+                }
+            })
+        }))
+        .map_err(|_| SceneError::ObjParse {
+            path: path.to_path_buf(),
+            message: "the OBJ/MTL parser failed on malformed input".into(),
+        })?;
+        if let Some(e) = mtl_errors.borrow_mut().drain(..).next() {
+            return Err(e);
+        }
+        let (models, materials) = loaded.map_err(|e| SceneError::ObjParse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        for (mtl_path, result) in mtl_files.into_inner() {
+            match result {
+                Ok(mtl_bytes) => hasher.add(&mtl_path, &mtl_bytes),
+                Err(SceneError::Io { error, .. })
+                    if error.kind() == std::io::ErrorKind::NotFound =>
+                {
+                    self.warnings.push(format!(
+                        "{}: material library {} not found; its materials become the grey \
+                         Lambertian `default` (Kd 0.5)",
+                        path.display(),
+                        mtl_path.display()
+                    ));
+                }
+                Err(e) => return Err(e),
+            }
+        }
+
+        // Materials of this file.
+        let materials = materials.unwrap_or_default();
+        let material_base = self.materials.len() as u32;
+        for m in &materials {
+            let kd = m.diffuse.unwrap_or([0.5; 3]);
+            let ks = m.specular.unwrap_or([0.0; 3]);
+            let ns = m.shininess.unwrap_or(1.0);
+            if !kd
+                .iter()
+                .chain(&ks)
+                .chain([&ns])
+                .all(|v| v.is_finite() && *v >= 0.0)
+            {
+                return Err(SceneError::Mtl {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "material `{}` has a negative or non-finite Kd, Ks or Ns",
+                        m.name
+                    ),
+                });
+            }
+            let map_kd = m.diffuse_texture.as_ref().map(|t| obj_dir.join(t));
+            if let Some(t) = &map_kd
+                && !t.is_file()
+            {
+                self.warnings.push(format!(
+                    "{}: material `{}`: texture {} not found",
+                    path.display(),
+                    m.name,
+                    t.display()
+                ));
+            }
+            self.materials.push(Material {
+                name: m.name.clone(),
+                kd,
+                ks,
+                ns,
+                map_kd,
+            });
+        }
+
+        // Geometry.
+        let vertex_base = self.positions.len();
+        let mut positions: Vec<Vec3> = Vec::new();
+        let mut texcoords: Vec<[f32; 2]> = Vec::new();
+        let mut triangles: Vec<[u32; 3]> = Vec::new();
+        let mut tri_materials: Vec<u32> = Vec::new();
+        let mut without_material: Vec<String> = Vec::new();
+        let mut file_triangle = 0usize;
+        let mut degenerate = 0usize;
+        let mut total = 0usize;
+        for model in &models {
+            let mesh = &model.mesh;
+            let n = mesh.positions.len() / 3;
+            let has_uv = mesh.texcoords.len() == 2 * n && n > 0;
+            if !has_uv && !mesh.indices.is_empty() {
+                self.all_have_texcoords = false;
+            }
+            let material = match mesh.material_id {
+                Some(id) if id < materials.len() => material_base + id as u32,
+                _ => {
+                    if !mesh.indices.is_empty() {
+                        without_material.push(model.name.clone());
+                    }
+                    u32::MAX // resolved below
+                }
+            };
+            // Vertices of this model are compacted: only those used by kept triangles survive.
+            let mut remap = vec![u32::MAX; n];
+            for tri in mesh.indices.chunks(3) {
+                let t = file_triangle;
+                file_triangle += 1;
+                if tri.len() < 3 {
+                    // tobj triangulates, so this cannot happen; refuse rather than guess.
+                    return Err(SceneError::ObjParse {
+                        path: path.to_path_buf(),
+                        message: format!("face {t} has fewer than 3 vertices"),
+                    });
+                }
+                total += 1;
+                let mut corners = [Vec3::ZERO; 3];
+                for (c, &i) in corners.iter_mut().zip(tri) {
+                    if i as usize >= n {
+                        return Err(SceneError::IndexOutOfRange {
+                            path: path.to_path_buf(),
+                            triangle: t,
+                            index: i,
+                            vertex_count: n,
+                        });
+                    }
+                    let i = i as usize;
+                    let p = Vec3::new(
+                        mesh.positions[3 * i],
+                        mesh.positions[3 * i + 1],
+                        mesh.positions[3 * i + 2],
+                    );
+                    let p = match transform {
+                        Some((m, t)) => m * p + t,
+                        None => p,
+                    };
+                    if !p.is_finite() {
+                        return Err(SceneError::NonFiniteVertex {
+                            path: path.to_path_buf(),
+                            triangle: t,
+                        });
+                    }
+                    *c = p;
+                }
+                // Area test in f64, so that tiny but valid triangles are not lost to underflow.
+                let [a, b, c] = corners.map(|v| v.as_dvec3());
+                let cross = (b - a).cross(c - a).length_squared();
+                if cross.is_nan() || cross <= 0.0 {
+                    degenerate += 1;
+                    continue;
+                }
+                let mut out = [0u32; 3];
+                for ((o, &i), p) in out.iter_mut().zip(tri).zip(corners) {
+                    let i = i as usize;
+                    if remap[i] == u32::MAX {
+                        let global = vertex_base + positions.len();
+                        if global >= u32::MAX as usize {
+                            return Err(SceneError::Invalid {
+                                path: path.to_path_buf(),
+                                message: "scene has more than 2^32 - 1 vertices".into(),
+                            });
+                        }
+                        remap[i] = global as u32;
+                        positions.push(p);
+                        texcoords.push(if has_uv {
+                            [mesh.texcoords[2 * i], mesh.texcoords[2 * i + 1]]
+                        } else {
+                            [0.0; 2]
+                        });
+                    }
+                    *o = remap[i];
+                }
+                triangles.push(out);
+                tri_materials.push(material);
+            }
+        }
+        if total == 0 {
+            return Err(SceneError::NoTriangles {
+                path: path.to_path_buf(),
+            });
+        }
+        if triangles.is_empty() {
+            return Err(SceneError::AllDegenerate {
+                path: path.to_path_buf(),
+                count: total,
+            });
+        }
+        if degenerate > 0 {
+            self.warnings.push(format!(
+                "{}: dropped {degenerate} degenerate (zero-area) triangle(s) of {total}",
+                path.display()
+            ));
+        }
+        if tri_materials.contains(&u32::MAX) {
+            let default = self.default_material();
+            for m in &mut tri_materials {
+                if *m == u32::MAX {
+                    *m = default;
+                }
+            }
+            let names: Vec<String> = without_material
+                .iter()
+                .map(|n| {
+                    if n.is_empty() {
+                        "(unnamed)".into()
+                    } else {
+                        format!("`{n}`")
+                    }
+                })
+                .collect();
+            self.warnings.push(format!(
+                "{}: object(s) {} have no material; using the grey Lambertian `default` (Kd 0.5)",
+                path.display(),
+                names.join(", ")
+            ));
+        }
+        self.positions.extend(positions);
+        self.texcoords.extend(texcoords);
+        self.triangles.extend(triangles);
+        self.triangle_materials.extend(tri_materials);
+        Ok(())
+    }
+}
+
+/// Makes an MTL acceptable to tobj: a colour statement (`Ka`, `Kd`, `Ks`, `Ke`) with a single
+/// value means grey (MTL spec) but panics tobj, so it is expanded to three values; one with two
+/// values is an error naming the line.
+fn normalise_mtl(bytes: &[u8]) -> Result<String, String> {
+    let text = std::str::from_utf8(bytes).map_err(|_| "not valid UTF-8".to_string())?;
+    let mut out = String::with_capacity(text.len() + 64);
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let key = words.next();
+        let values: Vec<&str> = words.collect();
+        match key {
+            Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")) if values.len() < 3 => match values[..] {
+                [v] => out.push_str(&format!("{k} {v} {v} {v}")),
+                _ => {
+                    return Err(format!(
+                        "line {}: `{k}` needs 1 or 3 values, got {}",
+                        i + 1,
+                        values.len()
+                    ));
+                }
+            },
+            _ => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::tests::{QUAD_OBJ, err, scene};
+    use crate::scene::{Scene, SceneError};
+
+    #[test]
+    fn nan_vertex_is_an_error() {
+        let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 nan\nf 1 2 3\nf 1 2 4\n";
+        let dir = scene(&[("bad.obj", obj)]);
+        let e = Scene::load(dir.path()).unwrap_err();
+        assert!(
+            matches!(e, SceneError::NonFiniteVertex { triangle: 1, .. }),
+            "{e:?}"
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("bad.obj") && msg.contains("triangle 1"),
+            "{msg}"
+        );
+        // An unused infinite vertex is harmless and dropped.
+        let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv inf 0 0\nf 1 2 3\n";
+        let dir = scene(&[("ok.obj", obj)]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.positions.len(), 3);
+        assert!(s.bounds().1.is_finite());
+    }
+
+    #[test]
+    fn empty_and_degenerate_objs() {
+        let e = err(&[("empty.obj", "# nothing\nv 0 0 0\n")]);
+        assert!(e.contains("empty.obj") && e.contains("no triangles"), "{e}");
+
+        let obj = "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n";
+        let e = err(&[("flat.obj", obj)]);
+        assert!(e.contains("flat.obj") && e.contains("degenerate"), "{e}");
+
+        // Some degenerate: dropped with a warning.
+        let obj = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n";
+        let dir = scene(&[("some.obj", obj)]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.triangles.len(), 1);
+        assert_eq!(s.positions.len(), 3);
+        let w = s.warnings.join("\n");
+        assert!(w.contains("dropped 1 degenerate"), "{w}");
+    }
+
+    #[test]
+    fn parse_errors_name_the_file() {
+        let e = err(&[("broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")]);
+        assert!(e.contains("broken.obj"), "{e}");
+        let e = err(&[("broken.obj", "v 0 zero 0\n")]);
+        assert!(e.contains("broken.obj") && e.contains("parse error"), "{e}");
+        // A malformed MTL colour that would panic tobj.
+        let e = err(&[
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", "newmtl white\nKd 0.5 0.5\n"),
+        ]);
+        assert!(e.contains("quad.mtl") && e.contains("line 2"), "{e}");
+        // A single-value colour is grey (MTL spec).
+        let dir = scene(&[
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", "newmtl white\nKd 0.25\n"),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.materials[0].kd, [0.25; 3]);
+    }
+}
