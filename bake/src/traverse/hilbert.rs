@@ -9,7 +9,7 @@ use cssm_formats::Texel;
 /// visits one half or quadrant of the rectangle before the next, so consecutive texels stay
 /// close in both atlas directions, which shortens the depth drift inside a run compared with
 /// long Zig-Zag rows; unlike a power-of-two Hilbert curve over the bounding square it fits long
-/// thin charts without wandering outside them (Cornell box, atlas 128, cube 32: 3% fewer runs).
+/// thin charts without wandering outside them.
 pub(super) fn hilbert_chart(texels: &[Texel], rows: &[u32], out: &mut Vec<u32>) {
     let Some(&first) = rows.first() else {
         return;

@@ -68,8 +68,8 @@ impl RunData {
 /// last (varints; the first run starts at 0); `depths` every run's depth as the 16-bit wrapping
 /// difference (little-endian) to the depth that the *previous slot* (the neighbouring pixel)
 /// holds at the run's start, since neighbouring pixels see nearly the same depths. Separate
-/// streams keep similar numbers together for zstd. On the Cornell box (atlas 128, cube 32) the
-/// file shrinks by about a quarter against zstd of the plain layout.
+/// streams keep similar numbers together for zstd, so the file comes out smaller than zstd of the
+/// plain layout.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PackedRuns {
     /// Runs per slot.
