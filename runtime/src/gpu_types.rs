@@ -165,27 +165,8 @@ mod tests {
     #[test]
     fn wgsl_layouts_match_rust() {
         let module = naga::front::wgsl::parse_str(TYPES_WGSL).expect("types.wgsl parses");
-        let mut layouter = naga::proc::Layouter::default();
-        layouter
-            .update(module.to_ctx())
-            .expect("types.wgsl lays out");
         let check = |name: &str, size: usize, offsets: &[(&str, usize)]| {
-            let (handle, ty) = module
-                .types
-                .iter()
-                .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("{name} missing from types.wgsl"));
-            assert_eq!(layouter[handle].size as usize, size, "size of {name}");
-            let naga::TypeInner::Struct { members, .. } = &ty.inner else {
-                panic!("{name} is not a struct")
-            };
-            for (member, offset) in offsets {
-                let m = members
-                    .iter()
-                    .find(|m| m.name.as_deref() == Some(*member))
-                    .unwrap_or_else(|| panic!("{name}.{member} missing"));
-                assert_eq!(m.offset as usize, *offset, "offset of {name}.{member}");
-            }
+            crate::shaders::tests::check_struct(&module, name, size, offsets)
         };
         use std::mem::{offset_of, size_of};
         check(
@@ -294,5 +275,24 @@ mod tests {
                 ("triangle_count", offset_of!(GpuCssmParams, triangle_count)),
             ],
         );
+    }
+
+    /// The vertex buffer layout the raster passes declare packs the attributes at the offsets of
+    /// [`GpuVertex`]'s fields.
+    #[test]
+    fn vertex_layout_matches_rust() {
+        use std::mem::{offset_of, size_of};
+        let layout = crate::load::SceneGpu::VERTEX_LAYOUT;
+        assert_eq!(layout.array_stride as usize, size_of::<GpuVertex>());
+        let offsets: Vec<u64> = layout.attributes.iter().map(|a| a.offset).collect();
+        let fields = [
+            offset_of!(GpuVertex, position),
+            offset_of!(GpuVertex, normal),
+            offset_of!(GpuVertex, uv),
+            offset_of!(GpuVertex, atlas_uv),
+            offset_of!(GpuVertex, material),
+            offset_of!(GpuVertex, triangle),
+        ];
+        assert_eq!(offsets, fields.map(|f| f as u64));
     }
 }

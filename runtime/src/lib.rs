@@ -58,6 +58,7 @@ pub mod load;
 pub mod method;
 pub mod radiosity;
 mod renderer;
+pub mod shaders;
 pub mod visibility;
 
 /// Declares each method's module (its folder under `runtime/src/`) and lists its entries in
@@ -81,19 +82,3 @@ method_table! {
 pub use device::Gpu;
 pub use error::RuntimeError;
 pub use renderer::{Renderer, RendererSettings};
-
-#[cfg(test)]
-pub(crate) mod tests {
-    /// Parses and validates a WGSL source with naga, so shader errors fail `cargo test` even
-    /// without a GPU.
-    pub fn validate_wgsl(name: &str, source: &str) {
-        let module = naga::front::wgsl::parse_str(source)
-            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
-    }
-}

@@ -8,7 +8,7 @@ use wgpu::util::DeviceExt;
 use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder},
-    gpu_types::TYPES_WGSL,
+    shaders::{self, Shader},
 };
 
 /// Which light paths an image holds.
@@ -111,11 +111,7 @@ impl Compose {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let c = wgpu::ShaderStages::COMPUTE;
-        let module = layout::shader(
-            device,
-            "compose",
-            format!("{TYPES_WGSL}\n{}", include_str!("compose.wgsl")),
-        );
+        let module = Shader::Compose.create(device);
         let bind_layout = layout::bind_group_layout(
             device,
             "compose",
@@ -187,21 +183,22 @@ impl Compose {
         let mut pass = frame.compute_pass("compose");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+        let (x, y) = shaders::groups_2d(self.size);
+        pass.dispatch_workgroups(x, y, 1);
     }
 }
 
 #[cfg(test)]
 mod tests {
     #[test]
-    fn shader_validates_with_naga() {
-        crate::tests::validate_wgsl(
-            "common/compose",
-            &format!(
-                "{}\n{}",
-                crate::gpu_types::TYPES_WGSL,
-                include_str!("compose.wgsl")
-            ),
+    fn compose_params_layout_matches_wgsl() {
+        use std::mem::{offset_of, size_of};
+        let module = crate::shaders::tests::module(crate::shaders::Shader::Compose);
+        crate::shaders::tests::check_struct(
+            &module,
+            "ComposeParams",
+            size_of::<super::ComposeParams>(),
+            &[("component", offset_of!(super::ComposeParams, component))],
         );
     }
 }

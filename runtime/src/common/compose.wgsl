@@ -15,7 +15,7 @@ struct ComposeParams {
 @group(0) @binding(3) var<storage, read> indirect: array<vec4f>;
 @group(0) @binding(4) var radiance: texture_storage_2d<rgba32float, write>;
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
 fn main(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= view.size.x || id.y >= view.size.y {
         return;

@@ -2,7 +2,7 @@
 //! towards the eye, the material, the albedo, the triangle and the atlas coordinates. Every
 //! screen-space pass of every technique reads these.
 
-use crate::{common::layout, frame::FrameEncoder, gpu_types::TYPES_WGSL, load::SceneGpu};
+use crate::{common::layout, frame::FrameEncoder, load::SceneGpu, shaders::Shader};
 
 /// Format of the colour targets (exact positions and normals for the queries that follow).
 pub const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -73,12 +73,7 @@ impl GBuffer {
         width: u32,
         height: u32,
     ) -> Self {
-        let source = format!(
-            "{TYPES_WGSL}\n{}\n{}",
-            include_str!("albedo.wgsl"),
-            include_str!("gbuffer.wgsl")
-        );
-        let module = layout::shader(device, "gbuffer", source);
+        let module = Shader::GBuffer.create(device);
         let fragment = wgpu::ShaderStages::FRAGMENT;
         let bind_layout = layout::bind_group_layout(
             device,

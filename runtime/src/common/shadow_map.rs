@@ -183,7 +183,7 @@ impl ShadowMaps {
                 }),
             }],
         });
-        let module = device.create_shader_module(wgpu::include_wgsl!("shadow_map.wgsl"));
+        let module = crate::shaders::Shader::ShadowMap.create(device);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("shadow map"),
             bind_group_layouts: &[Some(&layout)],

@@ -4,7 +4,7 @@
 use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder},
-    gpu_types::TYPES_WGSL,
+    shaders::Shader,
 };
 
 /// ACES filmic curve (Narkowicz 2015 fit) of one channel.
@@ -41,8 +41,7 @@ impl Tonemap {
     /// The pass from `hdr` into targets of `format`.
     pub fn new(ctx: &FrameContext, hdr: &wgpu::Texture, format: wgpu::TextureFormat) -> Self {
         let device = &ctx.device;
-        let source = format!("{TYPES_WGSL}\n{}", include_str!("tonemap.wgsl"));
-        let module = layout::shader(device, "tonemap", source);
+        let module = Shader::Tonemap.create(device);
         let stages = wgpu::ShaderStages::FRAGMENT;
         let bind_layout = layout::bind_group_layout(
             device,

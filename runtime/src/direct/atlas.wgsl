@@ -9,7 +9,7 @@
 @group(0) @binding(5) var<storage, read> texels: array<Texel>;
 @group(0) @binding(6) var<storage, read_write> texel_radiance: array<vec4f>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn main(@builtin(global_invocation_id) id: vec3u) {
     let i = id.x;
     if i >= min(arrayLength(&texels), arrayLength(&texel_radiance)) {

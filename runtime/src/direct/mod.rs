@@ -17,7 +17,7 @@ use crate::{
     RuntimeError,
     common::{layout, shadow_map::ShadowMaps},
     frame::{FrameContext, FrameEncoder},
-    gpu_types::TYPES_WGSL,
+    shaders::{self, Shader},
     load::{CssmGpu, SceneGpu},
     method::{Backend, GiMethod, MethodEntry, MethodSetup},
 };
@@ -46,15 +46,6 @@ impl GiMethod for DirectOnly {
     fn resize(&mut self, _: &FrameContext) -> Result<(), RuntimeError> {
         Ok(())
     }
-}
-
-/// WGSL of the shared light model, after the types and the shadow lookup.
-fn light_wgsl() -> String {
-    format!(
-        "{TYPES_WGSL}\n{}\n{}",
-        crate::common::shadow_map::LOOKUP_WGSL,
-        include_str!("light.wgsl")
-    )
 }
 
 /// Layout entries 0 to 4 of both passes: view, materials, lights, shadow maps, sampler.
@@ -97,11 +88,7 @@ impl ScreenDirect {
     /// The pass shading the context's G-buffer.
     pub fn new(ctx: &FrameContext) -> Self {
         let device = &ctx.device;
-        let module = layout::shader(
-            device,
-            "direct screen",
-            light_wgsl() + include_str!("shade.wgsl"),
-        );
+        let module = Shader::DirectScreen.create(device);
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
         let mut entries = light_entries().to_vec();
@@ -165,7 +152,8 @@ impl ScreenDirect {
         let mut pass = frame.compute_pass("direct light");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+        let (x, y) = shaders::groups_2d(self.size);
+        pass.dispatch_workgroups(x, y, 1);
     }
 }
 
@@ -191,11 +179,7 @@ impl AtlasDirect {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let module = layout::shader(
-            device,
-            "direct atlas",
-            light_wgsl() + include_str!("atlas.wgsl"),
-        );
+        let module = Shader::DirectAtlas.create(device);
         let c = wgpu::ShaderStages::COMPUTE;
         let mut entries = light_entries().to_vec();
         entries.extend([layout::storage(5, true, c), layout::storage(6, false, c)]);
@@ -220,21 +204,6 @@ impl AtlasDirect {
         let mut pass = frame.compute_pass("direct light into atlas");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(self.texel_count.max(1).div_ceil(64), 1, 1);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn shaders_validate_with_naga() {
-        crate::tests::validate_wgsl(
-            "direct/shade",
-            &(super::light_wgsl() + include_str!("shade.wgsl")),
-        );
-        crate::tests::validate_wgsl(
-            "direct/atlas",
-            &(super::light_wgsl() + include_str!("atlas.wgsl")),
-        );
+        pass.dispatch_workgroups(shaders::groups_1d(self.texel_count), 1, 1);
     }
 }

@@ -9,7 +9,7 @@
 @group(0) @binding(7) var gb_albedo: texture_2d<f32>;
 @group(0) @binding(8) var radiance_out: texture_storage_2d<rgba32float, write>;
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
 fn main(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= view.size.x || id.y >= view.size.y {
         return;

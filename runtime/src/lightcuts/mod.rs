@@ -17,7 +17,7 @@ use crate::{
     gpu_types::GpuTraversalParams,
     method::{self, Backend, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
     radiosity::{self, AtlasGi, RadiosityOptions},
-    visibility::library_wgsl,
+    shaders::{self, Shader},
 };
 
 /// The final-gather pass: indirect radiance per pixel into [`Self::indirect`].
@@ -60,13 +60,7 @@ impl FinalGather {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = layout::shader(
-            device,
-            "final gather",
-            library_wgsl(1)
-                + include_str!("../radiosity/transfer.wgsl")
-                + include_str!("final_gather.wgsl"),
-        );
+        let module = Shader::FinalGather.create(device);
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),
@@ -168,7 +162,8 @@ impl FinalGather {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_bind_group(1, &cssm.query.bind_group, &[]);
-        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+        let (x, y) = shaders::groups_2d(self.size);
+        pass.dispatch_workgroups(x, y, 1);
     }
 }
 
@@ -279,17 +274,4 @@ impl GiMethod for Lightcuts {
 /// The seed of frame `frame`'s jitter (what [`FinalGather::run`] uploads).
 pub fn frame_seed(frame: u32) -> u32 {
     crate::radiosity::transfer::pcg_hash(frame.wrapping_add(0x9e37_79b9))
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn shader_validates_with_naga() {
-        crate::tests::validate_wgsl(
-            "lightcuts/final_gather",
-            &(super::library_wgsl(1)
-                + include_str!("../radiosity/transfer.wgsl")
-                + include_str!("final_gather.wgsl")),
-        );
-    }
 }

@@ -62,7 +62,7 @@ fn lookup(p: vec2f) -> vec3f {
     return sum / total;
 }
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
 fn main(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= view.size.x || id.y >= view.size.y {
         return;

@@ -18,7 +18,7 @@ use crate::{
     load::CssmGpu,
     method::{self, Backend, GiMethod, MethodEntry, MethodSetup, Resolved},
     radiosity::{self, AtlasGi, RadiosityOptions},
-    visibility::library_wgsl,
+    shaders::{self, Shader},
 };
 
 /// How the atlas is filtered at a pixel.
@@ -114,11 +114,7 @@ impl AtlasLookup {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = layout::shader(
-            device,
-            "atlas lookup",
-            library_wgsl(1) + include_str!("lookup.wgsl"),
-        );
+        let module = Shader::AtlasLookup.create(device);
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),
@@ -187,7 +183,8 @@ impl AtlasLookup {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_bind_group(1, &cssm.bind_group, &[]);
-        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+        let (x, y) = shaders::groups_2d(self.size);
+        pass.dispatch_workgroups(x, y, 1);
     }
 }
 
@@ -297,10 +294,14 @@ impl GiMethod for AtlasGiLookup {
 #[cfg(test)]
 mod tests {
     #[test]
-    fn shader_validates_with_naga() {
-        crate::tests::validate_wgsl(
-            "lightmap/lookup",
-            &(super::library_wgsl(1) + include_str!("lookup.wgsl")),
+    fn lookup_params_layout_matches_wgsl() {
+        use std::mem::{offset_of, size_of};
+        let module = crate::shaders::tests::module(crate::shaders::Shader::AtlasLookup);
+        crate::shaders::tests::check_struct(
+            &module,
+            "LookupParams",
+            size_of::<super::LookupParams>(),
+            &[("mode", offset_of!(super::LookupParams, filter))],
         );
     }
 

@@ -50,7 +50,7 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
     return e;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn main(@builtin(global_invocation_id) id: vec3u) {
     let leaf = id.x;
     if leaf >= params.receiver_count {

@@ -31,9 +31,9 @@ use crate::{
     common::{layout, readback, timestamps::PassTimer},
     direct::AtlasDirect,
     frame::{FrameContext, FrameEncoder, FrameSettings, PassInfo, Slot, Stage},
-    gpu_types::{GpuNode, GpuTraversalParams, TYPES_WGSL},
+    gpu_types::{GpuNode, GpuTraversalParams},
     load::{CssmGpu, limit_check, storage_buffer},
-    visibility::library_wgsl,
+    shaders::{self, Shader},
 };
 
 /// Threshold of the oracle when none is given: refine while a sender's tone-mapped bound is
@@ -195,8 +195,7 @@ impl Radiosity {
         let c = wgpu::ShaderStages::COMPUTE;
 
         // Gather: group 0 its own buffers, group 1 the CSSM.
-        let source = library_wgsl(1) + include_str!("transfer.wgsl") + include_str!("gather.wgsl");
-        let module = layout::shader(device, "radiosity gather", source);
+        let module = Shader::RadiosityGather.create(device);
         let entries = [
             layout::uniform(0, c),
             layout::storage(1, true, c),
@@ -254,11 +253,7 @@ impl Radiosity {
         ];
 
         // Pull: one uniform per level.
-        let module = layout::shader(
-            device,
-            "radiosity pull",
-            format!("{TYPES_WGSL}\n{}", include_str!("pull.wgsl")),
-        );
+        let module = Shader::RadiosityPull.create(device);
         let pull_layout = layout::bind_group_layout(
             device,
             "radiosity pull",
@@ -330,14 +325,14 @@ impl Radiosity {
                 pass.set_pipeline(&self.gather_pipeline);
                 pass.set_bind_group(0, &self.gather_groups[gather][written], &[]);
                 pass.set_bind_group(1, &cssm.bind_group, &[]);
-                pass.dispatch_workgroups(self.leaf_count.max(1).div_ceil(64), 1, 1);
+                pass.dispatch_workgroups(shaders::groups_1d(self.leaf_count), 1, 1);
             }
             // wgpu orders the dispatches of one pass: each level reads what the one before wrote.
             let mut pass = frame.compute_pass("radiosity: pull");
             pass.set_pipeline(&self.pull_pipeline);
             for (groups, &size) in self.pull_groups.iter().zip(&self.level_sizes) {
                 pass.set_bind_group(0, &groups[written], &[]);
-                pass.dispatch_workgroups(size.div_ceil(64), 1, 1);
+                pass.dispatch_workgroups(shaders::groups_1d(size), 1, 1);
             }
         }
     }
@@ -495,19 +490,20 @@ pub fn atlas_radiosity(
 
 #[cfg(test)]
 mod tests {
+    use crate::shaders::{Shader, tests::check_struct};
+    use std::mem::{offset_of, size_of};
+
     #[test]
-    fn shaders_validate_with_naga() {
-        crate::tests::validate_wgsl(
-            "radiosity/gather",
-            &(super::library_wgsl(1) + include_str!("transfer.wgsl") + include_str!("gather.wgsl")),
-        );
-        crate::tests::validate_wgsl(
-            "radiosity/pull",
-            &format!(
-                "{}\n{}",
-                crate::gpu_types::TYPES_WGSL,
-                include_str!("pull.wgsl")
-            ),
+    fn pull_level_layout_matches_wgsl() {
+        let module = crate::shaders::tests::module(Shader::RadiosityPull);
+        check_struct(
+            &module,
+            "PullLevel",
+            size_of::<super::PullLevel>(),
+            &[
+                ("start", offset_of!(super::PullLevel, start)),
+                ("end", offset_of!(super::PullLevel, end)),
+            ],
         );
     }
 }

@@ -15,7 +15,7 @@ struct PullLevel {
 @group(0) @binding(2) var<storage, read> pull_order: array<u32>;
 @group(0) @binding(3) var<storage, read_write> radiance: array<vec4f>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn main(@builtin(global_invocation_id) id: vec3u) {
     let i = level.start + id.x;
     if i >= level.end {

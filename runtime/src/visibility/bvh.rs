@@ -21,11 +21,11 @@ pub const MAX_DEPTH: usize = 60;
 /// A BVH node as `bvh.wgsl` reads it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct GpuBvhNode {
-    min: [f32; 3],
-    prim_count: u32,
-    max: [f32; 3],
-    first_index: u32,
+pub(crate) struct GpuBvhNode {
+    pub(crate) min: [f32; 3],
+    pub(crate) prim_count: u32,
+    pub(crate) max: [f32; 3],
+    pub(crate) first_index: u32,
 }
 
 /// A segment whose interior is tested for hits.
@@ -119,7 +119,7 @@ impl BvhKernel {
                 vertex_buffer.as_entire_binding(),
             ],
         );
-        let module = layout::shader(device, "bvh segments", include_str!("bvh.wgsl").into());
+        let module = crate::shaders::Shader::Bvh.create(device);
         let pipeline =
             layout::compute_pipeline(device, "bvh segments", &module, &[&io_layout, &bvh_layout]);
         Ok(Self {
@@ -182,12 +182,4 @@ fn depth(nodes: &[GpuBvhNode], root: u32) -> usize {
         }
     }
     deepest
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn kernel_validates_with_naga() {
-        crate::tests::validate_wgsl("visibility/bvh", include_str!("bvh.wgsl"));
-    }
 }

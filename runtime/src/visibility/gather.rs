@@ -28,9 +28,9 @@ pub struct Receiver {
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct GatherParams {
-    senders: u32,
-    texel_count: u32,
+pub(crate) struct GatherParams {
+    pub(crate) senders: u32,
+    pub(crate) texel_count: u32,
     _pad: [u32; 2],
 }
 
@@ -62,8 +62,7 @@ impl GatherKernel {
     /// The kernel for CSSMs bound with `cssm`'s layout.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
         let device = &gpu.device;
-        let source = super::library_wgsl(1) + include_str!("gather.wgsl");
-        let module = layout::shader(device, "cssm gather", source);
+        let module = crate::shaders::Shader::Gather.create(device);
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,

@@ -22,7 +22,7 @@ struct GatherParams {
 @group(0) @binding(1) var<storage, read_write> gathered: array<f32>;
 @group(0) @binding(2) var<uniform> gather: GatherParams;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn main(@builtin(global_invocation_id) id: vec3u, @builtin(num_workgroups) groups: vec3u) {
     let i = id.x + id.y * groups.x * 64u;
     if i >= arrayLength(&receivers) {

@@ -100,9 +100,6 @@ pub fn random_pairs(
         .unzip()
 }
 
-/// Threads per workgroup of the query kernel.
-const WORKGROUP: u32 = 64;
-
 /// A compute pass that answers a batch of [`QueryPair`]s: the visible fraction of each (PCF),
 /// or -1 where no texel stands for the sender.
 pub struct QueryKernel {
@@ -114,8 +111,7 @@ impl QueryKernel {
     /// Builds the kernel for CSSMs bound with `cssm`'s layout.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
         let device = &gpu.device;
-        let source = library_wgsl(1) + include_str!("query.wgsl");
-        let module = layout::shader(device, "cssm query", source);
+        let module = crate::shaders::Shader::Query.create(device);
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,
@@ -175,7 +171,7 @@ impl QueryKernel {
 /// Workgroups (x, y) covering `items` threads of 64: a 2D dispatch for large batches (at most
 /// 65,535 groups per dimension); kernels index `id.x + id.y * groups.x * 64`.
 pub(crate) fn dispatch_size(items: u32) -> (u32, u32) {
-    let groups = items.div_ceil(WORKGROUP);
+    let groups = items.div_ceil(crate::shaders::WORKGROUP_1D);
     if groups <= 65_535 {
         (groups, 1)
     } else {
@@ -228,11 +224,76 @@ pub(crate) fn dispatch_and_read(
 
 #[cfg(test)]
 mod tests {
+    use crate::shaders::{Shader, tests::check_struct};
+    use std::mem::{offset_of, size_of};
+
     #[test]
-    fn library_validates_with_naga() {
-        let source = super::library_wgsl(1) + include_str!("query.wgsl");
-        crate::tests::validate_wgsl("visibility/query", &source);
-        let source = super::library_wgsl(1) + include_str!("gather.wgsl");
-        crate::tests::validate_wgsl("visibility/gather", &source);
+    fn query_pair_layout_matches_wgsl() {
+        let module = crate::shaders::tests::module(Shader::Query);
+        check_struct(
+            &module,
+            "QueryPair",
+            size_of::<super::QueryPair>(),
+            &[
+                ("sender_bary", offset_of!(super::QueryPair, sender_bary)),
+                (
+                    "sender_triangle",
+                    offset_of!(super::QueryPair, sender_triangle),
+                ),
+                ("receiver", offset_of!(super::QueryPair, receiver)),
+                (
+                    "receiver_normal",
+                    offset_of!(super::QueryPair, receiver_normal),
+                ),
+            ],
+        );
+    }
+
+    #[test]
+    fn gather_layouts_match_wgsl() {
+        use super::gather::{GatherParams, Receiver};
+        let module = crate::shaders::tests::module(Shader::Gather);
+        check_struct(
+            &module,
+            "Receiver",
+            size_of::<Receiver>(),
+            &[
+                ("position", offset_of!(Receiver, position)),
+                ("first_sender", offset_of!(Receiver, first_sender)),
+                ("normal", offset_of!(Receiver, normal)),
+            ],
+        );
+        check_struct(
+            &module,
+            "GatherParams",
+            size_of::<GatherParams>(),
+            &[
+                ("senders", offset_of!(GatherParams, senders)),
+                ("texel_count", offset_of!(GatherParams, texel_count)),
+            ],
+        );
+    }
+
+    #[test]
+    fn bvh_layouts_match_wgsl() {
+        use super::bvh::{GpuBvhNode, Segment};
+        let module = crate::shaders::tests::module(Shader::Bvh);
+        check_struct(
+            &module,
+            "BvhNode",
+            size_of::<GpuBvhNode>(),
+            &[
+                ("min", offset_of!(GpuBvhNode, min)),
+                ("prim_count", offset_of!(GpuBvhNode, prim_count)),
+                ("max", offset_of!(GpuBvhNode, max)),
+                ("first_index", offset_of!(GpuBvhNode, first_index)),
+            ],
+        );
+        check_struct(
+            &module,
+            "Segment",
+            size_of::<Segment>(),
+            &[("a", offset_of!(Segment, a)), ("b", offset_of!(Segment, b))],
+        );
     }
 }

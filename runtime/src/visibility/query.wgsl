@@ -12,7 +12,7 @@ struct QueryPair {
 @group(0) @binding(0) var<storage, read> pairs: array<QueryPair>;
 @group(0) @binding(1) var<storage, read_write> answers: array<f32>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn main(@builtin(global_invocation_id) id: vec3u, @builtin(num_workgroups) groups: vec3u) {
     let i = id.x + id.y * groups.x * 64u;
     if i >= arrayLength(&pairs) {
