@@ -4,6 +4,9 @@
 
 use std::sync::OnceLock;
 
+#[path = "gpu/methods.rs"]
+mod methods;
+
 use cssm_bake::BakeOptions;
 use cssm_formats::{
     CssmFile, Scene, Traversal, visibility::QueryOptions, visibility::VisibilityQuery,

@@ -127,6 +127,24 @@ pub struct MethodEntry {
     pub passes: &'static [PassInfo],
     /// How it runs.
     pub backend: Backend,
+    /// What the tests every method gets from this table hold it to.
+    pub checks: Checks,
+}
+
+/// The tolerances a method declares for the tests every method gets from [`METHODS`]
+/// (`tests/gpu/methods.rs`), each measured and set with a margin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Checks {
+    /// The analytic energy check: in a closed sphere of one albedo lit by one spot light, the
+    /// indirect irradiance is the same everywhere (every form factor is `dA / A`), so every
+    /// pixel's indirect radiance is `rho / pi * Phi / A * (rho + ... + rho^B)` for `B`
+    /// bounces. This is the largest relative error of the image's mean indirect radiance the
+    /// method meets; `None` for a method without indirect light, whose indirect image must be
+    /// black.
+    pub energy: Option<f32>,
+    /// Largest mean FLIP error (0 to 1) of its image of the Cornell box against its golden
+    /// image (`tests/golden/`).
+    pub golden_flip: f32,
 }
 
 impl fmt::Debug for MethodEntry {

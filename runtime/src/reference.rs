@@ -57,7 +57,7 @@ use crate::{
     direct::cpu::{albedo_at, brdf, direct_radiance, facing_normal, ray_epsilon},
     gpu_types::GpuMaterial,
     load::AlbedoTexture,
-    method::{self, Backend, CpuSetup, MethodEntry, OptionKind, OptionSpec},
+    method::{self, Backend, Checks, CpuSetup, MethodEntry, OptionKind, OptionSpec},
 };
 
 /// `--method reference`: this path tracer, on the CPU, the ground truth of every other method.
@@ -79,6 +79,10 @@ pub const METHOD: MethodEntry = MethodEntry {
     ],
     passes: &[],
     backend: Backend::Cpu(render_method),
+    checks: Checks {
+        energy: Some(0.02),
+        golden_flip: 0.005,
+    },
 };
 
 /// [`METHOD`]'s entry point: the scene's materials and textures as the GPU sees them, a BVH,

@@ -19,7 +19,7 @@ use crate::{
     frame::{FrameContext, FrameEncoder},
     shaders::{self, Shader},
     load::{CssmGpu, SceneGpu},
-    method::{Backend, GiMethod, MethodEntry, MethodSetup},
+    method::{Backend, Checks, GiMethod, MethodEntry, MethodSetup},
 };
 
 /// `--method direct`: the shared passes alone (shadow maps, G-buffer, direct light); no
@@ -31,6 +31,10 @@ pub const METHOD: MethodEntry = MethodEntry {
     options: &[],
     passes: &[],
     backend: Backend::Gpu(|_: &MethodSetup| Ok(Box::new(DirectOnly))),
+    checks: Checks {
+        energy: None,
+        golden_flip: 0.005,
+    },
 };
 
 /// The `direct` method: nothing beyond the shared passes.

@@ -16,7 +16,7 @@ use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     load::CssmGpu,
-    method::{self, Backend, GiMethod, MethodEntry, MethodSetup, Resolved},
+    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, Resolved},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders::{self, Shader},
 };
@@ -208,6 +208,10 @@ pub const HRC: MethodEntry = MethodEntry {
     options: &[method::BOUNCES, method::THRESHOLD],
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Nearest)),
+    checks: Checks {
+        energy: Some(0.04),
+        golden_flip: 0.005,
+    },
 };
 
 /// `--method lightmap`: hierarchical radiosity looked up per pixel with a bicubic B-spline.
@@ -218,6 +222,10 @@ pub const LIGHTMAP: MethodEntry = MethodEntry {
     options: &[method::BOUNCES, method::THRESHOLD],
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Bicubic)),
+    checks: Checks {
+        energy: Some(0.04),
+        golden_flip: 0.005,
+    },
 };
 
 /// The options of `hrc` and `lightmap`.

@@ -1,0 +1,266 @@
+//! The tests every method gets from the method table (`cssm_runtime::METHODS`): an analytic
+//! energy check in a closed sphere, and a golden image of the Cornell box compared with FLIP.
+//! Each method declares the tolerances it meets (`MethodEntry::checks`); a new method of the
+//! table is tested here without a line of its own.
+
+use std::path::{Path, PathBuf};
+
+use cssm_bake::BakeOptions;
+use cssm_formats::{CssmFile, Scene};
+use cssm_runtime::{
+    METHODS,
+    common::{compose::Component, readback::Image},
+    method::{Backend, MethodEntry},
+};
+
+use super::{RenderOptions, cornell, gpu, render, render_reference};
+
+/// Albedo of the sphere's wall.
+const RHO: f32 = 0.5;
+/// Radiant intensity of its spot light (W/sr, every channel) and the cone's half-angle.
+const INTENSITY: f32 = 10.0;
+const CUTOFF_DEG: f32 = 50.0;
+/// Indirect bounces of the energy check.
+const BOUNCES: u32 = 2;
+
+/// A closed UV sphere of radius 1 around the origin with its triangles facing inwards, the
+/// camera at the centre and one spot light beside it (written to `dir`), and its wall area.
+fn write_sphere(dir: &Path) -> f32 {
+    let (rings, segments) = (12usize, 24usize);
+    let mut v = vec![[0.0f32, 1.0, 0.0]];
+    for i in 1..rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+            v.push([theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()]);
+        }
+    }
+    v.push([0.0, -1.0, 0.0]);
+    let ring = |i: usize, j: usize| 2 + (i - 1) * segments + j % segments; // 1-based OBJ index
+    let south = v.len();
+    let mut faces = Vec::new();
+    for j in 0..segments {
+        faces.push([1, ring(1, j), ring(1, j + 1)]);
+        faces.push([south, ring(rings - 1, j + 1), ring(rings - 1, j)]);
+        for i in 1..rings - 1 {
+            let (a, b, c, d) = (ring(i, j), ring(i, j + 1), ring(i + 1, j), ring(i + 1, j + 1));
+            faces.push([a, c, b]);
+            faces.push([b, c, d]);
+        }
+    }
+    // Inwards: every triangle's normal points at the centre (checked below).
+    let p = |k: usize| glam::Vec3::from(v[k - 1]);
+    let mut area = 0.0;
+    for f in &faces {
+        let n = (p(f[1]) - p(f[0])).cross(p(f[2]) - p(f[0]));
+        assert!(n.dot(p(f[0])) < 0.0, "a sphere triangle faces outwards");
+        area += 0.5 * n.length();
+    }
+    let mut obj = String::from("mtllib sphere.mtl\nusemtl wall\n");
+    for p in &v {
+        obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    for f in &faces {
+        obj += &format!("f {} {} {}\n", f[0], f[1], f[2]);
+    }
+    std::fs::write(dir.join("sphere.obj"), obj).unwrap();
+    std::fs::write(
+        dir.join("sphere.mtl"),
+        format!("newmtl wall\nKd {RHO} {RHO} {RHO}\nKs 0 0 0\nNs 1\n"),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("scene.toml"),
+        format!(
+            "name = \"sphere\"\nmesh = \"sphere.obj\"\n\n[camera]\nposition = [0.0, 0.0, 0.0]\n\
+             target = [0.0, 0.0, 1.0]\nup = [0.0, 1.0, 0.0]\nfov_y_deg = 60.0\n\
+             resolution = [32, 24]\n\n[[lights]]\ntype = \"spot\"\nposition = [0.0, 0.3, 0.0]\n\
+             direction = [0.0, -0.3, -1.0]\ncutoff_deg = {CUTOFF_DEG}\n\
+             intensity = [{INTENSITY}, {INTENSITY}, {INTENSITY}]\n"
+        ),
+    )
+    .unwrap();
+    area
+}
+
+/// The sphere, its wall area and its bake (atlas 32, cube 16), made once.
+fn sphere() -> &'static (Scene, f32, CssmFile) {
+    static SPHERE: std::sync::OnceLock<(Scene, f32, CssmFile)> = std::sync::OnceLock::new();
+    SPHERE.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let area = write_sphere(dir.path());
+        let scene = Scene::load(dir.path()).expect("sphere loads");
+        let options = BakeOptions {
+            atlas_resolution: 32,
+            cube_resolution: 16,
+            ..Default::default()
+        };
+        let file = cssm_bake::bake(&scene, &options, &mut |_, _| {})
+            .expect("sphere bakes")
+            .file;
+        (scene, area, file)
+    })
+}
+
+/// `method` on `scene` with `options`: the renderer for a GPU method, the CPU run otherwise.
+fn image_of(
+    method: &MethodEntry,
+    scene: &Scene,
+    file: &CssmFile,
+    options: &RenderOptions,
+) -> Image {
+    match method.backend {
+        Backend::Gpu(_) => render(gpu(), scene, Some(file), method.name, options),
+        Backend::Cpu(_) => render_reference(scene, options),
+    }
+    .unwrap_or_else(|e| panic!("{}: {e}", method.name))
+}
+
+/// In a closed sphere of albedo rho every form factor from a point to a patch is the patch's
+/// share of the wall, so each bounce's irradiance is uniform: `E_k = rho^k Phi / A` for the
+/// power `Phi = I 2 pi (1 - cos cutoff)` of the spot light, and a diffuse wall sends
+/// `rho / pi (E_1 + ... + E_B)` towards the eye from every pixel.
+#[test]
+fn every_method_conserves_energy_in_a_closed_sphere() {
+    let (scene, area, file) = sphere();
+    let power = INTENSITY * std::f32::consts::TAU * (1.0 - CUTOFF_DEG.to_radians().cos());
+    let bounces: f32 = (1..=BOUNCES).map(|k| RHO.powi(k as i32)).sum();
+    let expected = RHO / std::f32::consts::PI * power / area * bounces;
+    let options = RenderOptions {
+        width: 32,
+        height: 24,
+        bounces: BOUNCES,
+        component: Component::Indirect,
+        samples: 64,
+        shadow_resolution: 512,
+        ..Default::default()
+    };
+    let mut failures = Vec::new();
+    for method in METHODS {
+        let image = image_of(method, scene, file, &options);
+        let values: Vec<f32> = image
+            .radiance
+            .iter()
+            .map(|p| (p[0] + p[1] + p[2]) / 3.0)
+            .collect();
+        let mean = values.iter().sum::<f32>() / values.len() as f32;
+        match method.checks.energy {
+            None => {
+                eprintln!("{}: no indirect light, mean {mean}", method.name);
+                if values.iter().any(|&v| v != 0.0) {
+                    failures.push(format!("{}: indirect light where none is", method.name));
+                }
+            }
+            Some(tolerance) => {
+                let error = (mean / expected - 1.0).abs();
+                eprintln!(
+                    "{}: mean indirect radiance {mean:.5}, closed form {expected:.5}, relative \
+                     error {:.2}% (tolerance {:.1}%)",
+                    method.name,
+                    100.0 * error,
+                    100.0 * tolerance
+                );
+                if !(error <= tolerance) {
+                    failures.push(format!(
+                        "{}: relative error {error} above {tolerance}",
+                        method.name
+                    ));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Where failed comparisons leave their images (`target/tmp/golden/`).
+fn output_dir() -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("golden");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn save_rgb8(path: &Path, width: u32, height: u32, rgb: Vec<u8>) {
+    image::RgbImage::from_raw(width, height, rgb)
+        .expect("image size")
+        .save(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+}
+
+/// Every method's image of the Cornell box (64x48, one bounce) against its golden image in
+/// `tests/golden/NAME.png`, by the mean of the FLIP error map (Andersson et al. 2020). On a
+/// failure the test writes `NAME-actual.png` and `NAME-difference.png` (FLIP's magma map) to
+/// `target/tmp/golden/`; `CSSM_BLESS=1` writes the golden images anew (look at them first).
+#[test]
+fn every_method_matches_its_golden_image() {
+    let (scene, file) = cornell();
+    let options = RenderOptions {
+        width: 64,
+        height: 48,
+        bounces: 1,
+        samples: 16,
+        shadow_resolution: 1024,
+        ..Default::default()
+    };
+    let golden_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let bless = std::env::var_os("CSSM_BLESS").is_some();
+    let mut failures = Vec::new();
+    for method in METHODS {
+        let mut image = image_of(method, scene, file, &options);
+        if image.display.is_empty() {
+            // The CPU method's image, tone-mapped with the GPU's curve.
+            image.display = image
+                .radiance
+                .iter()
+                .flat_map(|c| {
+                    let rgb = cssm_runtime::common::tonemap::tonemap([c[0], c[1], c[2]], 1.0);
+                    [rgb[0], rgb[1], rgb[2], 255]
+                })
+                .collect();
+        }
+        let rgb: Vec<u8> = image
+            .display
+            .chunks(4)
+            .flat_map(|p| [p[0], p[1], p[2]])
+            .collect();
+        let golden_path = golden_dir.join(format!("{}.png", method.name));
+        if bless {
+            save_rgb8(&golden_path, image.width, image.height, rgb);
+            eprintln!("{}: wrote {}", method.name, golden_path.display());
+            continue;
+        }
+        let Ok(golden) = image::open(&golden_path) else {
+            failures.push(format!(
+                "{}: no golden image at {} (run with CSSM_BLESS=1 to write it)",
+                method.name,
+                golden_path.display()
+            ));
+            continue;
+        };
+        let golden = golden.to_rgb8();
+        assert_eq!(golden.dimensions(), (image.width, image.height), "{}", method.name);
+        let reference = nv_flip::FlipImageRgb8::with_data(image.width, image.height, &golden);
+        let test = nv_flip::FlipImageRgb8::with_data(image.width, image.height, &rgb);
+        let error_map = nv_flip::flip(reference, test, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+        let mean = nv_flip::FlipPool::from_image(&error_map).mean();
+        let tolerance = method.checks.golden_flip;
+        eprintln!(
+            "{}: mean FLIP {mean:.4} against its golden image (tolerance {tolerance})",
+            method.name
+        );
+        if !(mean <= tolerance) {
+            let out = output_dir();
+            let actual = out.join(format!("{}-actual.png", method.name));
+            let difference = out.join(format!("{}-difference.png", method.name));
+            save_rgb8(&actual, image.width, image.height, rgb);
+            let colours = error_map.apply_color_lut(&nv_flip::magma_lut());
+            save_rgb8(&difference, image.width, image.height, colours.to_vec());
+            failures.push(format!(
+                "{}: mean FLIP {mean} above {tolerance}; see {} and {}",
+                method.name,
+                actual.display(),
+                difference.display()
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
