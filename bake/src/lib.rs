@@ -455,6 +455,7 @@ pub(crate) mod tests {
             texcoords: Vec::new(),
             triangles,
             triangle_materials: vec![0; count],
+            objects: vec![cssm_formats::SceneObject::whole_static(count)],
             materials: vec![Material {
                 name: "default".into(),
                 kd: [0.5; 3],

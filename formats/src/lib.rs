@@ -17,5 +17,7 @@ pub mod visibility;
 
 pub use cssm::{BakeParams, CssmError, CssmFile, RunData, SceneRef};
 pub use hierarchy::{Hierarchy, HierarchyNode};
-pub use scene::{Camera, Material, Scene, SceneError, SpotLight, hash_hex};
+pub use scene::{
+    Camera, Material, ObjectKind, Scene, SceneError, SceneObject, SpotLight, hash_hex,
+};
 pub use texel::{Texel, Traversal};

@@ -569,6 +569,7 @@ mod tests {
             name: "lit-sphere".into(),
             dir: std::path::PathBuf::from("/nonexistent"),
             triangle_materials: vec![0; triangles.len()],
+            objects: vec![cssm_formats::SceneObject::whole_static(triangles.len())],
             positions,
             texcoords: Vec::new(),
             triangles,

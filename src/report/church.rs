@@ -220,6 +220,7 @@ mod tests {
         Scene {
             name: "grids".into(),
             dir: std::path::PathBuf::from("/nonexistent"),
+            objects: vec![cssm_formats::SceneObject::whole_static(triangles.len())],
             positions,
             texcoords: Vec::new(),
             triangles,

@@ -3,8 +3,12 @@
 //!
 //! [`Scene::load`] reads either form, triangulates, merges everything into one indexed
 //! world-space mesh, validates it, and hashes every file it read ([`Scene::content_hash`]).
+//! The merged mesh remembers where it came from: [`Scene::objects`] lists the static part and
+//! each rigid `[[objects]]` entry as a [`SceneObject`], a contiguous range of the merged
+//! triangles with its object-to-world transform (the bake still treats all of it as static).
 
 mod obj;
+mod objects;
 mod toml;
 mod validate;
 
@@ -12,8 +16,9 @@ use std::collections::HashSet;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 
+pub use self::objects::{ObjectKind, STATIC_OBJECT_NAME, SceneObject};
 use self::toml::{SceneToml, mesh_path};
 use validate::{check_camera, check_light, object_transform};
 
@@ -60,7 +65,8 @@ pub struct SpotLight {
     pub intensity: [f32; 3],
 }
 
-/// A loaded, triangulated, validated scene: one indexed triangle mesh in world space.
+/// A loaded, triangulated, validated scene: one indexed triangle mesh in world space, and the
+/// objects it was merged from.
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// Scene name.
@@ -75,6 +81,13 @@ pub struct Scene {
     pub triangles: Vec<[u32; 3]>,
     /// Material index of every triangle.
     pub triangle_materials: Vec<u32>,
+    /// The objects the merged mesh was built from, in load order: the static part first, then
+    /// the `[[objects]]` entries in file order. Invariants ([`Scene::check_objects`]): the
+    /// triangle ranges are non-empty, disjoint, in increasing order and together cover
+    /// `0..triangles.len()` exactly once, so [`Scene::object_of`] finds every triangle's object.
+    /// A scene without `[[objects]]` is one [`ObjectKind::Static`] object over all triangles.
+    /// Not part of [`Scene::content_hash`], which covers the files only.
+    pub objects: Vec<SceneObject>,
     /// Materials.
     pub materials: Vec<Material>,
     /// Camera.
@@ -298,6 +311,7 @@ struct Builder {
     triangle_materials: Vec<u32>,
     materials: Vec<Material>,
     default_material: Option<u32>,
+    objects: Vec<SceneObject>,
     warnings: Vec<String>,
 }
 
@@ -320,6 +334,28 @@ impl Builder {
             });
             (self.materials.len() - 1) as u32
         })
+    }
+
+    /// Records the triangles appended since triangle `start` as one object.
+    fn push_object(
+        &mut self,
+        name: String,
+        kind: ObjectKind,
+        start: usize,
+        transform: Affine3A,
+        path: &Path,
+    ) -> Result<(), SceneError> {
+        let end = u32::try_from(self.triangles.len()).map_err(|_| SceneError::Invalid {
+            path: path.to_path_buf(),
+            message: "scene has more than 2^32 - 1 triangles".into(),
+        })?;
+        self.objects.push(SceneObject {
+            name,
+            kind,
+            triangles: start as u32..end,
+            transform,
+        });
+        Ok(())
     }
 }
 
@@ -373,7 +409,9 @@ impl Scene {
     /// Loads the scene directory `dir`: `dir/scene.toml` and the meshes it names, or, without
     /// a `scene.toml`, every `*.obj` in `dir` (sorted by file name) with a default camera and
     /// light (see `docs/scene-format.md`). Degenerate triangles are dropped with a warning;
-    /// everything else that is wrong is an error naming the file.
+    /// everything else that is wrong is an error naming the file. [`Scene::objects`] gets one
+    /// static object for the `mesh` (or for all the OBJs of a directory without `scene.toml`)
+    /// and one rigid object per `[[objects]]` entry, over the triangles each kept.
     pub fn load(dir: &Path) -> Result<Scene, SceneError> {
         let dir = match std::fs::canonicalize(dir) {
             Ok(d) => d,
@@ -442,6 +480,13 @@ impl Scene {
             }
             let main = mesh_path(&dir, &toml_path, "mesh", &desc.mesh)?;
             b.add_obj(&main, None, &mut hasher)?;
+            b.push_object(
+                STATIC_OBJECT_NAME.into(),
+                ObjectKind::Static,
+                0,
+                Affine3A::IDENTITY,
+                &main,
+            )?;
             for (o, t) in desc.objects.iter().zip(transforms) {
                 let p = mesh_path(
                     &dir,
@@ -449,7 +494,16 @@ impl Scene {
                     &format!("object `{}`: mesh", o.name),
                     &o.mesh,
                 )?;
+                let start = b.triangles.len();
                 b.add_obj(&p, Some(t), &mut hasher)?;
+                let (m, tr) = t;
+                b.push_object(
+                    o.name.clone(),
+                    ObjectKind::Rigid,
+                    start,
+                    Affine3A::from_mat3_translation(m, tr),
+                    &p,
+                )?;
                 b.warnings.push(format!(
                     "object `{}`: rigid objects are baked as static geometry for now (no \
                      per-object CSSM/CSM yet)",
@@ -495,6 +549,13 @@ impl Scene {
             for p in &objs {
                 b.add_obj(p, None, &mut hasher)?;
             }
+            b.push_object(
+                STATIC_OBJECT_NAME.into(),
+                ObjectKind::Static,
+                0,
+                Affine3A::IDENTITY,
+                &dir,
+            )?;
             (dir_name, None, Vec::new())
         };
 
@@ -535,19 +596,22 @@ impl Scene {
         } else {
             Vec::new()
         };
-        Ok(Scene {
+        let scene = Scene {
             name,
             dir,
             positions: b.positions,
             texcoords,
             triangles: b.triangles,
             triangle_materials: b.triangle_materials,
+            objects: b.objects,
             materials: b.materials,
             camera,
             lights,
             content_hash: *hasher.hasher.finalize().as_bytes(),
             warnings: b.warnings,
-        })
+        };
+        debug_assert_eq!(scene.check_objects(), Ok(()));
+        Ok(scene)
     }
 }
 

@@ -1,0 +1,363 @@
+//! The objects of a scene: [`SceneObject`] (the static part, or one rigid `[[objects]]` entry)
+//! as a contiguous range of the scene's merged triangles with its object-to-world transform, and
+//! the lookups and checks over [`Scene::objects`].
+
+use std::ops::Range;
+
+use glam::Affine3A;
+
+use super::Scene;
+
+/// What a [`SceneObject`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ObjectKind {
+    /// The static part: the `mesh` of `scene.toml`, or every OBJ of a directory without one.
+    Static,
+    /// A rigid object that may move: one `[[objects]]` entry of `scene.toml`.
+    Rigid,
+}
+
+/// Name of the static object of every scene ([`SceneObject::whole_static`] and
+/// [`Scene::load`]). A rigid object may carry the same name; [`SceneObject::kind`] tells them
+/// apart.
+pub const STATIC_OBJECT_NAME: &str = "static";
+
+/// One object of a [`Scene`]: which of the scene's merged triangles are its own, and where it
+/// stands. Its vertices are already in world space in [`Scene::positions`]; `transform` is the
+/// object-to-world transform they were placed with, so that a moving object can be re-placed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneObject {
+    /// The `[[objects]]` name, or [`STATIC_OBJECT_NAME`] for the static part.
+    pub name: String,
+    /// Static part or rigid object.
+    pub kind: ObjectKind,
+    /// Its triangles: indices into [`Scene::triangles`] (and [`Scene::triangle_materials`]),
+    /// contiguous, never empty in a loaded scene, counting only the triangles kept at load
+    /// (degenerate ones are dropped).
+    pub triangles: Range<u32>,
+    /// Object space to world space as loaded: scale, then rotation (X, then Y, then Z), then
+    /// translation, from the `[[objects]]` entry; the identity for the static part.
+    pub transform: Affine3A,
+}
+
+impl SceneObject {
+    /// The static object of a scene that is nothing else: named [`STATIC_OBJECT_NAME`], identity
+    /// transform, triangles `0..triangle_count`. For scenes built by hand (tests, generated
+    /// scenes): `objects: vec![SceneObject::whole_static(triangles.len())]`.
+    ///
+    /// # Panics
+    /// If `triangle_count` does not fit in a `u32`.
+    pub fn whole_static(triangle_count: usize) -> SceneObject {
+        let end = u32::try_from(triangle_count).expect("more than 2^32 - 1 triangles");
+        SceneObject {
+            name: STATIC_OBJECT_NAME.into(),
+            kind: ObjectKind::Static,
+            triangles: 0..end,
+            transform: Affine3A::IDENTITY,
+        }
+    }
+}
+
+impl Scene {
+    /// Index into [`Scene::objects`] of the object that triangle `triangle` belongs to (binary
+    /// search over the ranges).
+    ///
+    /// # Panics
+    /// If no object holds `triangle` (out of range, or the objects break their invariants).
+    pub fn object_of(&self, triangle: usize) -> usize {
+        let i = self
+            .objects
+            .partition_point(|o| (o.triangles.end as usize) <= triangle);
+        match self.objects.get(i) {
+            Some(o) if (o.triangles.start as usize) <= triangle => i,
+            _ => panic!(
+                "triangle {triangle} belongs to no object ({} triangles, {} objects)",
+                self.triangles.len(),
+                self.objects.len()
+            ),
+        }
+    }
+
+    /// Checks the invariants of [`Scene::objects`]: at least one object; ranges non-empty,
+    /// contiguous and in order, starting at 0 and ending at `triangles.len()`. `Err` says which
+    /// object breaks them.
+    pub fn check_objects(&self) -> Result<(), String> {
+        if self.objects.is_empty() {
+            return Err("the scene has no objects".into());
+        }
+        let mut next = 0u64;
+        for (i, o) in self.objects.iter().enumerate() {
+            let (start, end) = (o.triangles.start as u64, o.triangles.end as u64);
+            if start != next {
+                return Err(format!(
+                    "object {i} (`{}`) starts at triangle {start}, expected {next}",
+                    o.name
+                ));
+            }
+            if end <= start {
+                return Err(format!(
+                    "object {i} (`{}`) has no triangles ({start}..{end})",
+                    o.name
+                ));
+            }
+            next = end;
+        }
+        if next != self.triangles.len() as u64 {
+            return Err(format!(
+                "the objects cover triangles 0..{next}, the scene has {}",
+                self.triangles.len()
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Affine3A, Mat3, Vec3};
+
+    use super::{ObjectKind, STATIC_OBJECT_NAME, SceneObject};
+    use crate::scene::tests::{QUAD_MTL, QUAD_OBJ, SCENE_TOML, scene};
+    use crate::scene::{Camera, Scene};
+
+    const TRI_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    /// A unit square in the xz plane, two triangles (no MTL).
+    const SQUARE_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3\nf 1 3 4\n";
+
+    /// `[[objects]]` entries appended to [`SCENE_TOML`].
+    fn with_objects(objects: &str) -> String {
+        format!("{SCENE_TOML}\n{objects}")
+    }
+
+    /// Vertex positions of a small OBJ (`v x y z` lines) and its faces (`f` lines), as triangles
+    /// of 0-based position indices.
+    fn parse_obj(text: &str) -> (Vec<Vec3>, Vec<[usize; 3]>) {
+        let (mut v, mut f) = (Vec::new(), Vec::new());
+        for line in text.lines() {
+            let w: Vec<&str> = line.split_whitespace().collect();
+            match w.first() {
+                Some(&"v") => v.push(Vec3::new(
+                    w[1].parse().unwrap(),
+                    w[2].parse().unwrap(),
+                    w[3].parse().unwrap(),
+                )),
+                Some(&"f") => {
+                    // `i`, `i/t`, ...: the position index; polygons become fans, as tobj does.
+                    let i: Vec<usize> = w[1..]
+                        .iter()
+                        .map(|c| c.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
+                        .collect();
+                    f.extend((1..i.len() - 1).map(|k| [i[0], i[k], i[k + 1]]));
+                }
+                _ => {}
+            }
+        }
+        (v, f)
+    }
+
+    /// Every kept triangle of `object` is the next non-degenerate face of `obj` placed by the
+    /// object's transform; every face of `obj` is accounted for.
+    fn assert_object_is(s: &Scene, object: usize, obj: &str) {
+        let o = &s.objects[object];
+        let (v, faces) = parse_obj(obj);
+        let kept: Vec<[Vec3; 3]> = faces
+            .iter()
+            .map(|f| f.map(|i| v[i]))
+            .filter(|[a, b, c]| (*b - *a).cross(*c - *a).length_squared() > 0.0)
+            .collect();
+        assert_eq!(o.triangles.len(), kept.len(), "object `{}`", o.name);
+        for (t, corners) in o.triangles.clone().zip(&kept) {
+            let merged = s.triangle(t as usize);
+            for (m, p) in merged.iter().zip(corners) {
+                let placed = o.transform.transform_point3(*p);
+                assert!(
+                    (placed - *m).length() <= 1e-5 * (1.0 + m.length()),
+                    "object `{}`, triangle {t}: {placed} != {m}",
+                    o.name
+                );
+            }
+            assert_eq!(s.object_of(t as usize), object);
+        }
+    }
+
+    /// A bare scene with `triangle_count` triangles (all the same) and the given objects.
+    fn bare(triangle_count: usize, objects: Vec<SceneObject>) -> Scene {
+        Scene {
+            name: "bare".into(),
+            dir: "/nonexistent".into(),
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            texcoords: Vec::new(),
+            triangles: vec![[0, 1, 2]; triangle_count],
+            triangle_materials: vec![0; triangle_count],
+            objects,
+            materials: Vec::new(),
+            camera: Camera {
+                position: Vec3::Z,
+                target: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y_deg: 40.0,
+                resolution: [4, 4],
+            },
+            lights: Vec::new(),
+            content_hash: [0; 32],
+            warnings: Vec::new(),
+        }
+    }
+
+    fn rigid(name: &str, triangles: std::ops::Range<u32>) -> SceneObject {
+        SceneObject {
+            name: name.into(),
+            kind: ObjectKind::Rigid,
+            triangles,
+            transform: Affine3A::IDENTITY,
+        }
+    }
+
+    #[test]
+    fn static_mesh_and_two_objects_give_three_objects() {
+        let toml = with_objects(
+            "[[objects]]\nname = \"bunny\"\nmesh = \"tri.obj\"\n\
+             translation = [10.0, 0.0, 0.0]\nrotation_deg = [0.0, 0.0, 90.0]\nscale = 2.0\n\n\
+             [[objects]]\nname = \"crate\"\nmesh = \"square.obj\"\n\
+             translation = [1.0, 2.0, 3.0]\nrotation_deg = [30.0, 45.0, 60.0]\nscale = 0.5\n",
+        );
+        let dir = scene(&[
+            ("scene.toml", &toml),
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", QUAD_MTL),
+            ("tri.obj", TRI_OBJ),
+            ("square.obj", SQUARE_OBJ),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.check_objects(), Ok(()));
+        assert_eq!(s.triangles.len(), 5);
+        let summary: Vec<(&str, ObjectKind, std::ops::Range<u32>)> = s
+            .objects
+            .iter()
+            .map(|o| (o.name.as_str(), o.kind, o.triangles.clone()))
+            .collect();
+        assert_eq!(
+            summary,
+            vec![
+                (STATIC_OBJECT_NAME, ObjectKind::Static, 0..2),
+                ("bunny", ObjectKind::Rigid, 2..3),
+                ("crate", ObjectKind::Rigid, 3..5),
+            ]
+        );
+        // The static part stays where it is; the objects are placed as the loader placed them.
+        assert_eq!(s.objects[0].transform, Affine3A::IDENTITY);
+        let bunny = s.objects[1].transform;
+        // (1,0,0) scaled by 2, rotated 90° about z -> (0,2,0), translated -> (10,2,0).
+        assert!((bunny.transform_point3(Vec3::X) - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-5);
+        let (r, d) = (f32::to_radians, 0.5);
+        let expected = Affine3A::from_mat3_translation(
+            Mat3::from_rotation_z(r(60.0))
+                * Mat3::from_rotation_y(r(45.0))
+                * Mat3::from_rotation_x(r(30.0))
+                * Mat3::from_diagonal(Vec3::splat(d)),
+            Vec3::new(1.0, 2.0, 3.0),
+        );
+        assert!(s.objects[2].transform.abs_diff_eq(expected, 1e-6));
+        assert_object_is(&s, 0, QUAD_OBJ);
+        assert_object_is(&s, 1, TRI_OBJ);
+        assert_object_is(&s, 2, SQUARE_OBJ);
+        // The merged arrays and the warning are as before.
+        let w = s.warnings.join("\n");
+        assert!(w.contains("object `bunny`: rigid objects are baked as static geometry"));
+        assert!(w.contains("object `crate`: rigid objects are baked as static geometry"));
+        assert_eq!(s.triangle_materials, vec![0, 0, 1, 1, 1]);
+    }
+
+    #[test]
+    fn scene_toml_without_objects_is_one_static_object() {
+        let dir = scene(&[
+            ("scene.toml", SCENE_TOML),
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", QUAD_MTL),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.objects, vec![SceneObject::whole_static(2)]);
+        assert_eq!(s.check_objects(), Ok(()));
+    }
+
+    #[test]
+    fn directory_of_objs_is_one_static_object() {
+        let b = "v 5 0 0\nv 6 0 0\nv 5 1 0\nf 1 2 3\n";
+        let dir = scene(&[("b.obj", b), ("a.obj", TRI_OBJ), ("c.obj", SQUARE_OBJ)]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert_eq!(s.triangles.len(), 4);
+        assert_eq!(s.objects, vec![SceneObject::whole_static(4)]);
+        assert_eq!(s.objects[0].name, STATIC_OBJECT_NAME);
+        assert_eq!(s.objects[0].kind, ObjectKind::Static);
+        assert_eq!(s.check_objects(), Ok(()));
+        assert!((0..4).all(|t| s.object_of(t) == 0));
+    }
+
+    #[test]
+    fn dropped_degenerate_triangles_keep_the_ranges() {
+        // Static: the first face is degenerate (collinear), one kept.
+        let main = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n";
+        // `a`: kept, degenerate (repeated vertex), kept.
+        let a = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 1 1 2\nf 2 4 3\n";
+        // `b`: kept, then degenerate (collinear).
+        let b = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\n";
+        let toml = with_objects(
+            "[[objects]]\nname = \"a\"\nmesh = \"a.obj\"\ntranslation = [0.0, 0.0, 5.0]\n\n\
+             [[objects]]\nname = \"b\"\nmesh = \"b.obj\"\nrotation_deg = [90.0, 0.0, 0.0]\n\
+             scale = 3.0\n",
+        )
+        .replace("mesh = \"quad.obj\"", "mesh = \"main.obj\"");
+        let dir = scene(&[
+            ("scene.toml", &toml),
+            ("main.obj", main),
+            ("a.obj", a),
+            ("b.obj", b),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        let w = s.warnings.join("\n");
+        assert_eq!(w.matches("dropped 1 degenerate").count(), 3, "{w}");
+        assert_eq!(s.triangles.len(), 4);
+        let ranges: Vec<_> = s.objects.iter().map(|o| o.triangles.clone()).collect();
+        assert_eq!(ranges, vec![0..1, 1..3, 3..4]);
+        assert_eq!(s.check_objects(), Ok(()));
+        assert_object_is(&s, 0, main);
+        assert_object_is(&s, 1, a);
+        assert_object_is(&s, 2, b);
+        let owners: Vec<usize> = (0..4).map(|t| s.object_of(t)).collect();
+        assert_eq!(owners, vec![0, 1, 1, 2]);
+    }
+
+    #[test]
+    fn object_of_and_check_objects_on_hand_built_scenes() {
+        let s = bare(3, vec![SceneObject::whole_static(3)]);
+        assert_eq!(s.check_objects(), Ok(()));
+        assert!((0..3).all(|t| s.object_of(t) == 0));
+
+        let mut objects = vec![SceneObject::whole_static(2)];
+        objects.extend([rigid("a", 2..3), rigid("b", 3..7), rigid("c", 7..8)]);
+        let s = bare(8, objects);
+        assert_eq!(s.check_objects(), Ok(()));
+        let owners: Vec<usize> = (0..8).map(|t| s.object_of(t)).collect();
+        assert_eq!(owners, vec![0, 0, 1, 2, 2, 2, 2, 3]);
+
+        let broken = |objects: Vec<SceneObject>| bare(4, objects).check_objects().unwrap_err();
+        assert!(broken(Vec::new()).contains("no objects"));
+        // A gap, an overlap, an empty range, too few and too many triangles.
+        let e = broken(vec![rigid("a", 0..1), rigid("b", 2..4)]);
+        assert!(e.contains("`b`") && e.contains("expected 1"), "{e}");
+        let e = broken(vec![rigid("a", 0..2), rigid("b", 1..4)]);
+        assert!(e.contains("`b`") && e.contains("expected 2"), "{e}");
+        let e = broken(vec![rigid("a", 0..4), rigid("b", 4..4)]);
+        assert!(e.contains("`b`") && e.contains("no triangles"), "{e}");
+        let e = broken(vec![rigid("a", 0..3)]);
+        assert!(e.contains("0..3") && e.contains("has 4"), "{e}");
+        let e = broken(vec![SceneObject::whole_static(5)]);
+        assert!(e.contains("0..5") && e.contains("has 4"), "{e}");
+    }
+
+    #[test]
+    #[should_panic(expected = "triangle 3 belongs to no object")]
+    fn object_of_a_missing_triangle_panics() {
+        bare(3, vec![SceneObject::whole_static(3)]).object_of(3);
+    }
+}
