@@ -287,7 +287,7 @@ impl FrameContext {
         settings.check()?;
         let scene_gpu = SceneGpu::new(device, queue, scene, cssm)?;
         let lights = shadow_map::gpu_lights(scene, settings.shadow_resolution)?;
-        let shadows = ShadowMaps::new(device, &lights, settings.shadow_resolution);
+        let shadows = ShadowMaps::new(device, &scene_gpu, &lights, settings.shadow_resolution);
         let camera = View::of_scene(scene, settings.width, settings.height);
         let view = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("view"),

@@ -23,6 +23,8 @@ pub struct GpuVertex {
     pub material: u32,
     /// Scene triangle index.
     pub triangle: u32,
+    /// Index of the triangle's object in `Scene::objects` (its row of the object motion).
+    pub object: u32,
 }
 
 /// A material (conventions in `docs/architecture.md`).
@@ -292,6 +294,7 @@ mod tests {
             offset_of!(GpuVertex, atlas_uv),
             offset_of!(GpuVertex, material),
             offset_of!(GpuVertex, triangle),
+            offset_of!(GpuVertex, object),
         ];
         assert_eq!(offsets, fields.map(|f| f as u64));
     }

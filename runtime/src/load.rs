@@ -390,6 +390,11 @@ pub struct SceneGpu {
     pub cpu_textures: Vec<AlbedoTexture>,
     /// Materials as uploaded.
     pub cpu_materials: Vec<GpuMaterial>,
+    /// Per object of `Scene::objects`, the motion since loading (`mat4x4f`, column-major): the
+    /// raster passes draw each vertex at `motion * position` (identity where it was loaded).
+    pub motion: wgpu::Buffer,
+    /// Every object's object-to-world transform as loaded (`SceneObject::transform`).
+    pub load_transforms: Vec<glam::Affine3A>,
 }
 
 impl SceneGpu {
@@ -398,7 +403,8 @@ impl SceneGpu {
         array_stride: std::mem::size_of::<GpuVertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Uint32, 5 => Uint32
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Uint32, 5 => Uint32,
+            6 => Uint32
         ],
     };
 
@@ -414,6 +420,11 @@ impl SceneGpu {
     ) -> Result<Self, RuntimeError> {
         let mut vertices = Vec::with_capacity(scene.triangles.len() * 3);
         for (t, tri) in scene.triangles.iter().enumerate() {
+            let object = if scene.objects.is_empty() {
+                0
+            } else {
+                scene.object_of(t) as u32
+            };
             let [a, b, c] = scene.triangle(t);
             let normal = (b - a).cross(c - a).normalize_or_zero();
             for (k, &v) in tri.iter().enumerate() {
@@ -426,6 +437,7 @@ impl SceneGpu {
                         .map_or([0.0; 2], |uv| uv[k]),
                     material: scene.triangle_materials[t],
                     triangle: t as u32,
+                    object,
                 });
             }
         }
@@ -498,7 +510,17 @@ impl SceneGpu {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
         });
+        // Every object where it was loaded: the identity motion.
+        let object_count = scene.objects.len().max(1);
+        let identity = vec![glam::Mat4::IDENTITY.to_cols_array(); object_count];
+        let motion = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("object motion"),
+            contents: bytemuck::cast_slice(&identity),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        });
         Ok(Self {
+            motion,
+            load_transforms: scene.objects.iter().map(|o| o.transform).collect(),
             vertices: vertex_buffer,
             vertex_count: vertices.len() as u32,
             materials,

@@ -280,6 +280,47 @@ impl Renderer {
         Ok(())
     }
 
+    /// Places object `index` of `Scene::objects` at `transform` (object space to world space,
+    /// as `SceneObject::transform`: rigid, with a uniform scale). The raster passes (shadow maps,
+    /// G-buffer) draw it there from the next frame on, the shadow maps and the method's
+    /// view-independent passes run again, and accumulation restarts.
+    ///
+    /// What was precomputed for the object where it was loaded stays there: a `.cssm` holds the
+    /// visibility of the scene as baked, so the indirect light of the CSSM methods does not
+    /// follow a moved object (moving objects get their own CSSM and CSM in a later step), and
+    /// the CPU references render the scene as loaded.
+    ///
+    /// # Errors
+    /// An index past the scene's objects, or a transform that is not finite or not invertible.
+    pub fn set_object_transform(
+        &mut self,
+        index: usize,
+        transform: glam::Affine3A,
+    ) -> Result<(), RuntimeError> {
+        let scene = &self.ctx.scene;
+        let Some(loaded) = scene.load_transforms.get(index) else {
+            return Err(RuntimeError::Unsupported(format!(
+                "object {index}: the scene has {} objects",
+                scene.load_transforms.len()
+            )));
+        };
+        let determinant = transform.matrix3.determinant();
+        if !(transform.is_finite() && determinant.is_finite() && determinant.abs() > 1e-12) {
+            return Err(RuntimeError::Unsupported(format!(
+                "object {index}: transform {transform:?} is not finite and invertible"
+            )));
+        }
+        let motion = glam::Mat4::from(transform * loaded.inverse());
+        self.ctx.queue.write_buffer(
+            &scene.motion,
+            (index * size_of::<[f32; 16]>()) as u64,
+            bytemuck::cast_slice(&motion.to_cols_array()),
+        );
+        self.needs_prepare = true;
+        self.accumulated = 0;
+        Ok(())
+    }
+
     /// The composed linear radiance of the last frame (`Rgba32Float`, the image size;
     /// `COPY_SRC`, for read-back or OpenEXR).
     pub fn radiance(&self) -> &wgpu::Texture {

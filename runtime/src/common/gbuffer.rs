@@ -82,6 +82,7 @@ impl GBuffer {
                 layout::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 layout::storage(1, true, fragment),
                 layout::texture(2, wgpu::TextureViewDimension::D2Array, fragment),
+                layout::storage(3, true, wgpu::ShaderStages::VERTEX),
             ],
         );
         let bind_group = layout::bind_group(
@@ -92,6 +93,7 @@ impl GBuffer {
                 view.as_entire_binding(),
                 scene.materials.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&scene.albedo_view),
+                scene.motion.as_entire_binding(),
             ],
         );
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

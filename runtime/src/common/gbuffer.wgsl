@@ -5,6 +5,8 @@
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> materials: array<Material>;
 @group(0) @binding(2) var albedo_textures: texture_2d_array<f32>;
+// Per object, its motion since loading (rigid: rotation, uniform scale, translation).
+@group(0) @binding(3) var<storage, read> object_motion: array<mat4x4f>;
 
 struct VertexIn {
     @location(0) position: vec3f,
@@ -13,6 +15,7 @@ struct VertexIn {
     @location(3) atlas_uv: vec2f,
     @location(4) material: u32,
     @location(5) triangle: u32,
+    @location(6) object: u32,
 }
 
 struct VertexOut {
@@ -27,10 +30,12 @@ struct VertexOut {
 
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
+    let motion = object_motion[v.object];
+    let position = (motion * vec4f(v.position, 1.0)).xyz;
     var out: VertexOut;
-    out.clip = view.view_proj * vec4f(v.position, 1.0);
-    out.position = v.position;
-    out.normal = v.normal;
+    out.clip = view.view_proj * vec4f(position, 1.0);
+    out.position = position;
+    out.normal = normalize((motion * vec4f(v.normal, 0.0)).xyz);
     out.uv = v.uv;
     out.atlas_uv = v.atlas_uv;
     out.material = v.material;

@@ -112,8 +112,14 @@ pub struct ShadowMaps {
 }
 
 impl ShadowMaps {
-    /// Shadow maps for `lights` at `resolution`.
-    pub fn new(device: &wgpu::Device, lights: &[GpuSpotLight], resolution: u32) -> Self {
+    /// Shadow maps for `lights` at `resolution`, of `scene` (its objects where its motion
+    /// buffer puts them).
+    pub fn new(
+        device: &wgpu::Device,
+        scene: &SceneGpu,
+        lights: &[GpuSpotLight],
+        resolution: u32,
+    ) -> Self {
         use wgpu::util::DeviceExt;
         let layers = lights.len().max(1) as u32;
         let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -160,28 +166,37 @@ impl ShadowMaps {
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow map"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
-                    min_binding_size: wgpu::BufferSize::new(64),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: true,
+                        min_binding_size: wgpu::BufferSize::new(64),
+                    },
+                    count: None,
                 },
-                count: None,
-            }],
+                crate::common::layout::storage(1, true, wgpu::ShaderStages::VERTEX),
+            ],
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shadow map"),
             layout: &layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &transforms,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(64),
-                }),
-            }],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &transforms,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(64),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: scene.motion.as_entire_binding(),
+                },
+            ],
         });
         let module = crate::shaders::Shader::ShadowMap.create(device);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
