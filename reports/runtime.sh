@@ -10,11 +10,14 @@ case "${1:-}" in
 prepare)
     cargo build --release
     cargo bench --bench gpu_queries --no-run 2>&1 | tail -1
+    cargo bench --bench frame_time --no-run 2>&1 | tail -1
     bench=$(ls -t target/release/deps/gpu_queries-* | grep -v '\.d$' | head -1)
+    frame_bench=$(ls -t target/release/deps/frame_time-* | grep -v '\.d$' | head -1)
     (cd ../shared/tools/gpu-limit && cargo build --release)
     mkdir -p .carry/scenes
     cp target/release/cssm "$bench" ../shared/tools/gpu-limit/target/release/gpu-limit .carry/
     mv ".carry/$(basename "$bench")" .carry/gpu_queries
+    cp "$frame_bench" .carry/frame_time
     cp -r ../shared/scenes/sibenik .carry/scenes/ 2>/dev/null || echo "no sibenik: its rows will be skipped"
     # GI scenes (Table 1: 128x128 texels): the Cornell box and the heads baked here; the church
     # is baked on the device (16 cores), its atlas needing 256.
@@ -35,6 +38,9 @@ measure)
     .carry/gpu-limit --sizes-mb 8,512 --r 64,256 --qlog2 26 --reps 20 | tee "$out/runtime-gpu-limit.txt"
     .carry/gpu_queries --scenes .carry/scenes --atlas 128 --cube 32 --csv "$out/runtime-queries.csv" \
         | tee "$out/runtime-queries.txt"
+    # The persistent renderer's frame against a one-shot render (issue 16), with GPU ms per pass.
+    .carry/frame_time --size 640x480 --frames 20 --one-shots 5 --out "$out/runtime-frame-time.md" \
+        | tee "$out/runtime-frame-time.txt"
     for size in 640x480 1280x720; do
         .carry/cssm render --size "$size" --timings --out "$out/direct-$size.png" \
             | tee "$out/runtime-direct-$size.txt"

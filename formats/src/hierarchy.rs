@@ -102,8 +102,7 @@ impl Hierarchy {
     /// is split along the longest axis of the bounding box of its positions (ties to the lower
     /// axis, x < y < z), its lower `count / 2` texels by (coordinate, texel index) going left,
     /// until every leaf holds one texel. Deterministic (no threads, every tie broken by the texel
-    /// index) and O(n log n): about 0.15 s of CPU time for 200,000 texels in release (test
-    /// `build_time_200k`). No recursion: a stack of at most the tree's depth (~log2 n) pending
+    /// index) and O(n log n) (the ignored test `build_time_200k` times it). No recursion: a stack of at most the tree's depth (~log2 n) pending
     /// subtrees.
     ///
     /// Bounds are merged bottom-up: an inner node's sphere is the smallest one enclosing its
