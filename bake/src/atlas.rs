@@ -42,13 +42,11 @@ pub struct Atlas {
 /// 75% of the page, shrink it until every chart fits on the single page, then bisect between
 /// the last scale that did not fit and the first that did.
 pub fn build(scene: &Scene, resolution: u32) -> Result<Atlas, BakeError> {
-    if !ATLAS_RESOLUTION_RANGE.contains(&resolution) {
-        return Err(BakeError::Parameter(format!(
-            "atlas resolution {resolution} is out of range {}..={}",
-            ATLAS_RESOLUTION_RANGE.start(),
-            ATLAS_RESOLUTION_RANGE.end()
-        )));
-    }
+    crate::check_range(
+        crate::BakeParameter::AtlasResolution,
+        resolution,
+        &ATLAS_RESOLUTION_RANGE,
+    )?;
     let area: f64 = (0..scene.triangles.len())
         .map(|t| triangle_area(scene.triangle(t)) as f64)
         .sum();

@@ -45,12 +45,42 @@ pub const DEFAULT_NEAR_FRACTION: f32 = 0.002;
 /// that beat both the Hilbert and the Spiral order alone).
 pub const PILOT_CUBE_RESOLUTION: u32 = 8;
 
+/// The options of [`BakeOptions`] a [`BakeError::Parameter`] can be about, so that a caller can
+/// name them its own way (the command line: `--atlas`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BakeParameter {
+    /// [`BakeOptions::atlas_resolution`].
+    AtlasResolution,
+    /// [`BakeOptions::cube_resolution`].
+    CubeResolution,
+    /// [`BakeOptions::near`], or the default near distance for the scene.
+    Near,
+}
+
+impl BakeParameter {
+    /// The parameter in words, as errors name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            BakeParameter::AtlasResolution => "atlas resolution",
+            BakeParameter::CubeResolution => "cube resolution",
+            BakeParameter::Near => "near distance",
+        }
+    }
+}
+
 /// Errors of the bake.
 #[derive(Debug, thiserror::Error)]
 pub enum BakeError {
-    /// A parameter out of range.
-    #[error("{0}")]
-    Parameter(String),
+    /// A parameter out of range: "cube resolution 4 is out of range 8..=128".
+    #[error("{} {value} {problem}", parameter.name())]
+    Parameter {
+        /// Which parameter.
+        parameter: BakeParameter,
+        /// Its value.
+        value: String,
+        /// What is wrong with it: "is out of range 8..=128".
+        problem: String,
+    },
     /// The scene cannot be baked.
     #[error("scene: {0}")]
     Scene(String),
@@ -100,6 +130,71 @@ impl Default for BakeOptions {
     }
 }
 
+impl BakeOptions {
+    /// Checks what can be checked without the scene: the atlas and cube resolutions
+    /// ([`ATLAS_RESOLUTION_RANGE`], [`CUBE_RESOLUTION_RANGE`]) and a near distance, if given,
+    /// finite and positive ([`bake`] checks it against the scene's diameter too). [`bake`]
+    /// calls it first; a caller can call it before loading a scene.
+    ///
+    /// ```
+    /// use cssm_bake::{BakeOptions, BakeError, BakeParameter};
+    ///
+    /// let options = BakeOptions { cube_resolution: 4, ..Default::default() };
+    /// let Err(e @ BakeError::Parameter { parameter: BakeParameter::CubeResolution, .. }) = options.check() else {
+    ///     panic!("cube 4 is out of range");
+    /// };
+    /// assert_eq!(e.to_string(), "cube resolution 4 is out of range 8..=128");
+    /// assert!(BakeOptions::default().check().is_ok());
+    /// ```
+    pub fn check(&self) -> Result<(), BakeError> {
+        check_range(
+            BakeParameter::AtlasResolution,
+            self.atlas_resolution,
+            &ATLAS_RESOLUTION_RANGE,
+        )?;
+        check_range(
+            BakeParameter::CubeResolution,
+            self.cube_resolution,
+            &CUBE_RESOLUTION_RANGE,
+        )?;
+        match self.near {
+            Some(near) => check_near(near, None),
+            None => Ok(()),
+        }
+    }
+}
+
+/// `value` of `parameter` inside `range`.
+pub(crate) fn check_range(
+    parameter: BakeParameter,
+    value: u32,
+    range: &std::ops::RangeInclusive<u32>,
+) -> Result<(), BakeError> {
+    if range.contains(&value) {
+        return Ok(());
+    }
+    Err(BakeError::Parameter {
+        parameter,
+        value: value.to_string(),
+        problem: format!("is out of range {}..={}", range.start(), range.end()),
+    })
+}
+
+/// A near distance: finite, positive and, where the scene diameter `far` is known, below it.
+fn check_near(near: f32, far: Option<f32>) -> Result<(), BakeError> {
+    if near.is_finite() && near > 0.0 && far.is_none_or(|far| near < far) {
+        return Ok(());
+    }
+    Err(BakeError::Parameter {
+        parameter: BakeParameter::Near,
+        value: near.to_string(),
+        problem: match far {
+            Some(far) => format!("must be positive and below the scene diameter {far}"),
+            None => "must be positive and finite".into(),
+        },
+    })
+}
+
 /// Figures of one bake.
 #[derive(Clone, Debug, Default)]
 pub struct BakeStats {
@@ -146,24 +241,14 @@ pub fn bake(
     options: &BakeOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Baked, BakeError> {
+    options.check()?;
     let n = options.cube_resolution;
-    if !CUBE_RESOLUTION_RANGE.contains(&n) {
-        return Err(BakeError::Parameter(format!(
-            "cube resolution {n} is out of range {}..={}",
-            CUBE_RESOLUTION_RANGE.start(),
-            CUBE_RESOLUTION_RANGE.end()
-        )));
-    }
     let far = scene.diameter();
     if !(far.is_finite() && far > 0.0) {
         return Err(BakeError::Scene("the scene has no extent".into()));
     }
     let near = options.near.unwrap_or(DEFAULT_NEAR_FRACTION * far);
-    if !(near.is_finite() && near > 0.0 && near < far) {
-        return Err(BakeError::Parameter(format!(
-            "near distance {near} must be positive and below the scene diameter {far}"
-        )));
-    }
+    check_near(near, Some(far))?;
     let mut stats = BakeStats::default();
 
     // 1. Atlas (§3.2.3).
