@@ -7,6 +7,7 @@
 //! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check;
 //! - [`runtime`]: the GPU runtime on wgpu (loaders, visibility queries in WGSL, rendering).
 //! - [`report`]: the compression report (`cssm report compression`), measured against the paper.
+//! - [`summary`]: what `cssm bake`, `cssm inspect` and `cssm check` print, as text or JSON.
 //!
 //! ```no_run
 //! use cssm::{bake, formats};
@@ -19,11 +20,39 @@
 
 pub mod builtin;
 pub mod report;
+pub mod summary;
 
 pub use cssm_bake as bake;
 pub use cssm_formats as formats;
 pub use cssm_raycast as raycast;
 pub use cssm_runtime as runtime;
+
+/// A bake error as the command line says it: a parameter by the flag that sets it (`cssm bake`
+/// and `cssm report compression` spell them alike), any other error as the library does.
+///
+/// ```
+/// use cssm::bake::BakeOptions;
+///
+/// let e = BakeOptions { atlas_resolution: 16, ..Default::default() }.check().unwrap_err();
+/// assert_eq!(cssm::flag_error(&e), "--atlas 16 is out of range 32..=1024");
+/// ```
+pub fn flag_error(e: &bake::BakeError) -> String {
+    match e {
+        bake::BakeError::Parameter {
+            parameter,
+            value,
+            problem,
+        } => {
+            let flag = match parameter {
+                bake::BakeParameter::AtlasResolution => "--atlas",
+                bake::BakeParameter::CubeResolution => "--cube",
+                bake::BakeParameter::Near => "--near",
+            };
+            format!("{flag} {value} {problem}")
+        }
+        other => other.to_string(),
+    }
+}
 
 /// `bytes` in binary units (B, KiB, MiB, GiB, TiB) with `decimals` digits after the point;
 /// whole bytes below 1 KiB.

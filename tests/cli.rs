@@ -321,11 +321,19 @@ fn help_explains_every_command() {
         assert!(text.contains("Usage"), "{text}");
     }
     for cmd in [
+        vec!["--help"],
         vec!["bake", "--help"],
+        vec!["inspect", "--help"],
+        vec!["check", "--help"],
+        vec!["render", "--help"],
+        vec!["report", "--help"],
         vec!["report", "compression", "--help"],
+        vec!["report", "heads", "--help"],
+        vec!["report", "church", "--help"],
     ] {
         let o = cssm(&cmd);
-        assert!(String::from_utf8_lossy(&o.stdout).contains("Examples"));
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(text.contains("Example"), "{cmd:?}: {text}");
     }
 }
 

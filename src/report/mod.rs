@@ -24,8 +24,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use cssm_bake::{compress::RunValue, cubemap::SecondLayer, traverse::ChartOrder};
+use cssm_bake::{BakeOptions, compress::RunValue, cubemap::SecondLayer, traverse::ChartOrder};
 use cssm_formats::{Traversal, cssm::FileCoding};
+
+use crate::summary::{BakeSummary, CheckSummary};
 
 /// Tables of the report.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
@@ -493,17 +495,14 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
             args.out.display()
         ));
     }
-    for &a in &args.atlas {
-        if !cssm_bake::ATLAS_RESOLUTION_RANGE.contains(&a) {
-            return Err(format!("--atlas {a} is out of range 32..=1024"));
-        }
-    }
-    if let Some(c) = args.cube
-        && !cssm_bake::CUBE_RESOLUTION_RANGE.contains(&c)
-    {
-        return Err(format!("--cube {c} is out of range 8..=128"));
-    }
     let plans = plan(args);
+    // Every row's options, checked by the bake library before anything runs; `--atlas` and
+    // `--cube` set them.
+    for plan in &plans {
+        plan.bake_options()
+            .check()
+            .map_err(|e| crate::flag_error(&e))?;
+    }
     let work =
         tempfile::tempdir().map_err(|e| format!("cannot create a temporary directory: {e}"))?;
     let cornell = crate::builtin::cornell_box()
@@ -684,6 +683,22 @@ impl Plan {
         )
     }
 
+    /// What the row's `cssm bake` bakes, as the bake library takes it (the file coding is the
+    /// writer's: [`Variant::file_coding`]).
+    pub fn bake_options(&self) -> BakeOptions {
+        let v = &self.variant;
+        BakeOptions {
+            atlas_resolution: self.atlas,
+            cube_resolution: self.cube,
+            traversal: v.traversal,
+            chart_order: v.chart_order,
+            near: None,
+            run_value: v.run_value,
+            merge_short_runs: v.merge_short_runs,
+            second_layer: v.second_layer,
+        }
+    }
+
     /// Name of the plan's table.
     pub fn table_name(&self) -> &'static str {
         match self.table {
@@ -703,7 +718,7 @@ fn bake_and_check(
     pairs: u64,
 ) -> Result<Measured, String> {
     let v = &plan.variant;
-    let bake = child_json(
+    let bake: BakeSummary = child_json(
         Command::new(exe)
             .arg("bake")
             .arg(scene)
@@ -720,7 +735,7 @@ fn bake_and_check(
             .arg("--json"),
         "bake",
     )?;
-    let check = child_json(
+    let check = child_json::<CheckSummary>(
         Command::new(exe)
             .arg("check")
             .arg(file)
@@ -732,28 +747,27 @@ fn bake_and_check(
     );
     let _ = std::fs::remove_file(file);
     let check = check?;
-    let u = |j: &serde_json::Value, k: &str| j[k].as_u64().ok_or(format!("bake --json lacks {k}"));
-    let f = |j: &serde_json::Value, k: &str| j[k].as_f64().ok_or(format!("--json lacks {k}"));
     Ok(Measured {
-        faces: u(&bake, "triangles")?,
-        charts: u(&bake, "charts")?,
-        maps: u(&bake, "defined_texels")?,
-        runs: u(&bake, "runs")?,
-        uncompressed: u(&bake, "uncompressed_bytes")?,
-        gpu: u(&bake, "gpu_bytes")?,
-        file: u(&bake, "file_bytes")?,
-        seconds: f(&bake, "total_seconds")?,
-        peak_rss: bake["peak_rss_bytes"].as_u64(),
-        agreement: f(&check, "exchanging_agreement")?,
-        agreement_all: f(&check, "agreement")?,
-        exchanging_pairs: u(&check, "exchanging_pairs")?,
-        false_visible: f(&check, "exchanging_false_visible_rate")?,
-        false_occluded: f(&check, "exchanging_false_occluded_rate")?,
+        faces: bake.triangles,
+        charts: bake.charts.into(),
+        maps: bake.defined_texels,
+        runs: bake.runs,
+        uncompressed: bake.uncompressed_bytes,
+        gpu: bake.gpu_bytes,
+        file: bake.file_bytes,
+        seconds: bake.total_seconds,
+        peak_rss: bake.peak_rss_bytes,
+        agreement: check.exchanging_agreement,
+        agreement_all: check.agreement,
+        exchanging_pairs: check.exchanging_pairs,
+        false_visible: check.exchanging_false_visible_rate,
+        false_occluded: check.exchanging_false_occluded_rate,
     })
 }
 
-/// Runs a child `cssm` command and parses its JSON summary; a failure gives its last error line.
-fn child_json(cmd: &mut Command, what: &str) -> Result<serde_json::Value, String> {
+/// Runs a child `cssm` command and reads its JSON summary ([`crate::summary`]); a failure gives
+/// its last error line.
+fn child_json<T: serde::de::DeserializeOwned>(cmd: &mut Command, what: &str) -> Result<T, String> {
     let out = cmd
         .output()
         .map_err(|e| format!("cannot run {:?}: {e}", cmd.get_program()))?;

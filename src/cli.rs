@@ -1,0 +1,529 @@
+//! The command line's definitions (clap) and each command's arguments turned into a config of
+//! library types: what the flags mean and how they are spelled live here; every range is
+//! checked by the library that takes the value ([`bake::BakeOptions::check`], the runtime's
+//! method table and frame settings), and an error names the flag.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+use cssm::{bake, formats, runtime};
+use formats::{Traversal, cssm::FileCoding, visibility::QueryOptions};
+use runtime::{
+    common::compose::Component,
+    method::{MethodEntry, OptionValue, OptionValues, Resolved},
+};
+
+#[derive(Parser)]
+#[command(
+    name = "cssm",
+    version,
+    about = "Bake and inspect Coherent Surface Shadow Maps (Ritschel et al. 2008)",
+    long_about = "Bake and inspect Coherent Surface Shadow Maps (Ritschel et al. 2008): precomputed \
+                  depth cube maps swept over every surface of a scene, compressed per pixel, that \
+                  answer visibility between any two surface points.\n\n\
+                  Start with `cssm bake`, which bakes the built-in Cornell box.",
+    after_help = "Examples:\n  \
+        cssm bake -o cornell.cssm                  # the built-in Cornell box\n  \
+        cssm inspect cornell.cssm\n  \
+        cssm check cornell.cssm --min-agreement 0.98\n  \
+        cssm render --cssm cornell.cssm --method lightcuts --out gi.png\n  \
+        cssm report compression --quick --out /tmp"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Bake a scene directory into a .cssm file.
+    #[command(after_help = "Examples:\n  cssm bake -o cornell.cssm\n  \
+        cssm bake ../shared/scenes/bunny -o bunny.cssm --atlas 128 --cube 32 --traversal zigzag")]
+    Bake(BakeArgs),
+    /// Print the header and sizes of a .cssm file.
+    #[command(
+        after_help = "Examples:\n  cssm inspect cornell.cssm\n  cssm inspect cornell.cssm --json"
+    )]
+    Inspect(InspectArgs),
+    /// Measure a .cssm file's visibility against exact ray casts on random surface point pairs.
+    #[command(after_help = "Examples:\n  cssm check cornell.cssm\n  \
+        cssm check cornell.cssm --pairs 1000000 --no-pcf --min-agreement 0.98")]
+    Check(CheckArgs),
+    /// Render a scene on the GPU to a PNG (tone-mapped) and optionally an EXR (linear radiance).
+    #[command(
+        long_about = "Render a scene on the GPU (Vulkan; Mesa's lavapipe where there is no GPU) \
+                      to a tone-mapped PNG and, with --exr, linear radiance in OpenEXR. The \
+                      method `reference` path traces on the CPU instead: the ground truth.",
+        after_help = render_after_help()
+    )]
+    Render(RenderArgs),
+    /// Measure the toolchain against the paper and write a report.
+    #[command(
+        subcommand,
+        after_help = "Examples:\n  \
+            cssm report compression --quick --out /tmp\n  \
+            cssm report heads --out /tmp/heads\n  \
+            cssm report church --out /tmp/church"
+    )]
+    Report(ReportCommand),
+}
+
+#[derive(Subcommand)]
+pub enum ReportCommand {
+    /// Bake a grid of settings and write reports/compression.md, .csv and .svg: the paper's
+    /// Tables 2 and 3 (compression ratio, sizes, bake time, peak memory, accuracy against ray
+    /// casts) next to the paper's figures, and every option beyond the paper.
+    ///
+    /// Every row runs `cssm bake --json` and `cssm check --json` as child processes, so each
+    /// row's peak memory is its own. The full grid (atlas up to 512, four scenes) takes about
+    /// an hour on a quiet 2-core machine, the Cornell box's rows about 14 minutes of it;
+    /// `reports/compression.sh` runs it. Rows whose scene is missing from
+    /// --scenes are listed as not run.
+    #[command(after_help = "Examples:\n  \
+        cssm report compression --quick --out /tmp            # smoke test: atlas 32 and 64, cube 8, Cornell box\n  \
+        cssm report compression --scene cornell               # Tables 2 and 3 and the options for the Cornell box\n  \
+        cssm report compression --tables table3 --scene church --atlas 256\n  \
+        cssm report compression                               # everything (reports/compression.sh)")]
+    Compression(cssm::report::CompressionArgs),
+    /// Write the "Cornell Heads" scene of Table 3 to a directory: the built-in Cornell box with
+    /// the Utah teapot and the Stanford bunny inside, the bunny simplified (meshoptimizer) so
+    /// that the scene has about 19,000 faces like the paper's. Bake and render it like any
+    /// scene.
+    #[command(after_help = "Example:\n  \
+        cssm report heads --out /tmp/heads && cssm render /tmp/heads --method lightcuts")]
+    Heads(HeadsArgs),
+    /// Write the church of Table 3 at the paper's size to a directory: the Sibenik cathedral
+    /// simplified (meshoptimizer, material by material) from about 73,500 faces to the paper's
+    /// 3,700. Bake and render it like any scene.
+    #[command(after_help = "Example:\n  \
+        cssm report church --out /tmp/church && cssm bake /tmp/church --atlas 128")]
+    Church(ChurchArgs),
+}
+
+#[derive(clap::Args)]
+pub struct ChurchArgs {
+    /// Directory of the third-party scenes (needs sibenik/).
+    #[arg(long, default_value = "../shared/scenes")]
+    pub scenes: PathBuf,
+    /// Directory to write the scene into (created; OBJ and MTL).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(clap::Args)]
+pub struct HeadsArgs {
+    /// Directory of the third-party scenes (needs teapot/ and bunny/).
+    #[arg(long, default_value = "../shared/scenes")]
+    pub scenes: PathBuf,
+    /// Directory to write the scene into (created; scene.toml, OBJ and MTL).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(clap::Args)]
+pub struct BakeArgs {
+    /// Scene directory (scene.toml + OBJ/MTL, or a directory of OBJ files). Default: the
+    /// built-in Cornell box.
+    scene: Option<PathBuf>,
+    /// Output file. Default: <scene name>.cssm in the current directory.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Atlas width and height in texels (32 to 1024).
+    #[arg(long, default_value_t = 64)]
+    atlas: u32,
+    /// Cube-map face resolution N; each map has 6 x N x N pixels (8 to 128).
+    #[arg(long, default_value_t = 32)]
+    cube: u32,
+    /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3); hilbert (chart by
+    /// chart, a Hilbert curve inside each chart; beyond the paper, and the default: in
+    /// reports/compression.md it compresses better than the paper's orders at the same
+    /// accuracy); or piloted (per chart the Hilbert or the Spiral order, whichever a pilot bake
+    /// of the chart at cube 8 compresses better; beyond the paper: a little better than hilbert,
+    /// 41.2 against 41.0 : 1 on the Cornell box at atlas 128, cube 64, for 7-10% more bake time
+    /// at cube 32).
+    #[arg(long, default_value = "hilbert")]
+    traversal: Traversal,
+    /// How the chart-by-chart traversals choose the next chart: nearest (§3.2.3: the chart whose
+    /// first texel is nearest) or ends (the chart with an end, first or last texel, nearest;
+    /// walked backwards from its last one; beyond the paper).
+    #[arg(long, default_value = "nearest")]
+    chart_order: bake::traverse::ChartOrder,
+    /// Which depth a run stores inside the codes all its maps accept: middle (the middle code)
+    /// or balanced (equal relative margins to the near and the far layer). Beyond the paper.
+    #[arg(long, default_value = "middle")]
+    run_value: bake::compress::RunValue,
+    /// Lossy: merge runs of at most this many depth maps into their neighbours when those agree
+    /// (0: lossless, as in the paper). Fewer runs, a few wrong depths; measure with `cssm check`.
+    #[arg(long, default_value_t = 0)]
+    merge_short_runs: u32,
+    /// Which intersections bound each pixel's depth interval: any (the first and the second, as in
+    /// the paper); facing (the second is the nearest one beyond the first whose surface faces the
+    /// texel: surfaces facing away exchange no light with it, so their visibility never matters;
+    /// beyond the paper); or exchange (as facing, and a first surface that faces away sets no
+    /// lower bound; a pixel that meets no facing surface, nor do its neighbours, is don't care;
+    /// beyond the paper).
+    #[arg(long, default_value = "any")]
+    second_layer: bake::cubemap::SecondLayer,
+    /// How the file stores the runs: packed (run lengths and depth differences as varints before
+    /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).
+    #[arg(long, default_value = "packed")]
+    file_coding: FileCoding,
+    /// Distance the cube maps sit off the surface, in scene units. Default: 0.2% of the scene
+    /// diameter.
+    #[arg(long)]
+    near: Option<f32>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `cssm bake`, checked.
+pub struct BakeConfig {
+    /// Scene directory; `None`: the built-in Cornell box.
+    pub scene: Option<PathBuf>,
+    /// Output file; `None`: `<scene name>.cssm`.
+    pub output: Option<PathBuf>,
+    /// What to bake, checked by the bake library as far as it can without the scene.
+    pub options: bake::BakeOptions,
+    /// How the file codes the runs.
+    pub file_coding: FileCoding,
+    /// `--json`.
+    pub json: bool,
+}
+
+impl BakeArgs {
+    /// The bake options, checked by the bake library before any scene is loaded (the near
+    /// distance against the scene's size when it is); an error names the flag.
+    pub fn config(self) -> Result<BakeConfig, String> {
+        let options = bake::BakeOptions {
+            atlas_resolution: self.atlas,
+            cube_resolution: self.cube,
+            traversal: self.traversal,
+            chart_order: self.chart_order,
+            near: self.near,
+            run_value: self.run_value,
+            merge_short_runs: self.merge_short_runs,
+            second_layer: self.second_layer,
+        };
+        options.check().map_err(|e| cssm::flag_error(&e))?;
+        Ok(BakeConfig {
+            scene: self.scene,
+            output: self.output,
+            options,
+            file_coding: self.file_coding,
+            json: self.json,
+        })
+    }
+}
+
+#[derive(clap::Args)]
+pub struct InspectArgs {
+    /// The .cssm file.
+    pub file: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args)]
+pub struct CheckArgs {
+    /// The .cssm file.
+    file: PathBuf,
+    /// Scene directory to check against. Default: the directory recorded in the file.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Number of random surface point pairs.
+    #[arg(long, default_value_t = 100_000)]
+    pairs: u64,
+    /// Seed of the pairs.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Turn off percentage-closer filtering over the 2x2 pixels around each projection.
+    #[arg(long)]
+    no_pcf: bool,
+    /// Use only the texel under each sender point (no filtering across neighbouring cube maps).
+    #[arg(long)]
+    no_sender_filter: bool,
+    /// Constant depth bias, in multiples of the bake's near distance.
+    #[arg(long, default_value_t = QueryOptions::default().bias_near)]
+    bias_near: f32,
+    /// Depth bias proportional to the query depth.
+    #[arg(long, default_value_t = QueryOptions::default().bias_relative)]
+    bias_relative: f32,
+    /// Exit with status 1 when the agreement over the pairs that exchange light is below this
+    /// fraction.
+    #[arg(long)]
+    min_agreement: Option<f64>,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `cssm check`, as library types.
+pub struct CheckConfig {
+    /// The .cssm file.
+    pub file: PathBuf,
+    /// Scene directory; `None`: the one recorded in the file.
+    pub scene: Option<PathBuf>,
+    /// Random surface point pairs.
+    pub pairs: u64,
+    /// Seed of the pairs.
+    pub seed: u64,
+    /// How the CSSM is queried.
+    pub query: QueryOptions,
+    /// Exit status 1 below this agreement over the pairs that exchange light.
+    pub min_agreement: Option<f64>,
+    /// `--json`.
+    pub json: bool,
+}
+
+impl CheckArgs {
+    /// The query options and the rest, as the bake library's check takes them.
+    pub fn config(self) -> CheckConfig {
+        CheckConfig {
+            file: self.file,
+            scene: self.scene,
+            pairs: self.pairs,
+            seed: self.seed,
+            query: QueryOptions {
+                bias_near: self.bias_near,
+                bias_relative: self.bias_relative,
+                pcf: !self.no_pcf,
+                sender_filter: !self.no_sender_filter,
+            },
+            min_agreement: self.min_agreement,
+            json: self.json,
+        }
+    }
+}
+
+/// `cssm render --help`'s text after the options: the method table, then examples.
+fn render_after_help() -> String {
+    format!(
+        "Methods and their options (--set NAME=VALUE; --bounces, --threshold and --samples are \
+         short for those options):\n{}\n\
+         Every method marked [needs .cssm] takes the scene's .cssm: --cssm FILE, else one is \
+         baked first (atlas 64, cube 32; a few seconds for the Cornell box).\n\n\
+         Examples:\n  cssm render --out cornell.png\n  \
+         cssm bake -o cornell-box.cssm && cssm render --cssm cornell-box.cssm --method lightcuts --bounces 2 --out gi.png\n  \
+         cssm render scenes/cornell-glossy --method lightcuts --frames 16 --out glossy.png\n  \
+         cssm render --method lightmap --component indirect --exr indirect.exr\n  \
+         cssm render --method reference --bounces 3 --samples 1024 --exr truth.exr\n  \
+         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings",
+        runtime::method::describe_methods()
+    )
+}
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// Scene directory. Default: the built-in Cornell box.
+    scene: Option<PathBuf>,
+    /// Rendering method (see the list below).
+    #[arg(long, default_value = "direct", value_parser = parse_method)]
+    method: &'static MethodEntry,
+    /// Output PNG (tone-mapped sRGB).
+    #[arg(long, default_value = "render.png")]
+    out: PathBuf,
+    /// Also write linear radiance to this OpenEXR file.
+    #[arg(long)]
+    exr: Option<PathBuf>,
+    /// Image size WIDTHxHEIGHT. Default: the scene camera's resolution.
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Exposure in stops (radiance is scaled by 2^EV before tone mapping).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Shadow-map resolution in texels per side.
+    #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
+    shadow_resolution: u32,
+    /// Print GPU milliseconds per pass (timestamp queries): the first frame, which also runs
+    /// the view-independent passes, and the last (one more frame is rendered to time it warm).
+    #[arg(long)]
+    timings: bool,
+    /// The scene's baked CSSM (`cssm bake`), for the methods that need one. Default: bake one
+    /// in memory at atlas 64, cube 32.
+    #[arg(long)]
+    cssm: Option<PathBuf>,
+    /// Indirect bounces (the option `bounces`; lightcuts: the final gather is the last).
+    /// Default: the method's.
+    #[arg(long)]
+    bounces: Option<u32>,
+    /// Oracle threshold (the option `threshold`, §4.3): a sender is refined while the
+    /// tone-mapped upper bound of what it sends is above this; smaller is slower and closer.
+    #[arg(long, allow_negative_numbers = true)]
+    threshold: Option<f32>,
+    /// Paths per pixel of `--method reference` (the option `samples`).
+    #[arg(long)]
+    samples: Option<u32>,
+    /// Set a method option, NAME=VALUE (see the list below); repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    set: Vec<String>,
+    /// Frames to render and average, 1 to 4096 (lightcuts: every frame jitters its senders
+    /// over their nodes' surfaces, §4.5, so the average converges for glossy scenes).
+    #[arg(long, default_value_t = 1)]
+    frames: u32,
+    /// Which light the image holds: direct, indirect or full.
+    #[arg(long, default_value = "full")]
+    component: Component,
+}
+
+fn parse_method(s: &str) -> Result<&'static MethodEntry, String> {
+    runtime::method::find(s).map_err(|e| e.to_string())
+}
+
+/// `WIDTHxHEIGHT`; the range is the renderer's to check.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT (for example 640x480)"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("'{s}': each side must be a whole number"))
+    };
+    Ok((parse(w)?, parse(h)?))
+}
+
+/// Most frames `--frames` takes.
+const MAX_FRAMES: u32 = 4096;
+
+/// `cssm render`, checked: the method's options resolved by its table; the image size and the
+/// shadow-map resolution are checked by the runtime's frame settings once the scene (its
+/// camera) is loaded.
+pub struct RenderConfig {
+    /// Scene directory; `None`: the built-in Cornell box.
+    pub scene: Option<PathBuf>,
+    /// The method.
+    pub method: &'static MethodEntry,
+    /// The method options the user gave.
+    pub values: OptionValues,
+    /// Every option of the method, the given ones and the defaults, checked by its table.
+    pub resolved: Resolved,
+    /// Output PNG.
+    pub out: PathBuf,
+    /// Output OpenEXR.
+    pub exr: Option<PathBuf>,
+    /// Image size; `None`: the scene camera's.
+    pub size: Option<(u32, u32)>,
+    /// Exposure in stops.
+    pub exposure: f32,
+    /// Shadow-map resolution.
+    pub shadow_resolution: u32,
+    /// `--timings`.
+    pub timings: bool,
+    /// The scene's `.cssm`; `None`: baked in memory where the method needs one.
+    pub cssm: Option<PathBuf>,
+    /// Frames to average, 1..=[`MAX_FRAMES`].
+    pub frames: u32,
+    /// Which light the image holds.
+    pub component: Component,
+}
+
+impl RenderArgs {
+    /// The method's options from the flags, resolved by the runtime's method table, and the
+    /// frame count checked.
+    pub fn config(self) -> Result<RenderConfig, String> {
+        if !(1..=MAX_FRAMES).contains(&self.frames) {
+            return Err(format!(
+                "--frames {} is out of range 1..={MAX_FRAMES}",
+                self.frames
+            ));
+        }
+        let values = self.option_values()?;
+        let resolved = self.method.resolve(&values).map_err(|e| e.to_string())?;
+        Ok(RenderConfig {
+            scene: self.scene,
+            method: self.method,
+            values,
+            resolved,
+            out: self.out,
+            exr: self.exr,
+            size: self.size,
+            exposure: self.exposure,
+            shadow_resolution: self.shadow_resolution,
+            timings: self.timings,
+            cssm: self.cssm,
+            frames: self.frames,
+            component: self.component,
+        })
+    }
+
+    /// The method options the user gave: the short flags, then `--set` in order. A short flag
+    /// for an option the method does not have is ignored with a warning (`--bounces` with
+    /// `direct`); `--set` of an unknown option is an error, from the method table.
+    fn option_values(&self) -> Result<OptionValues, String> {
+        let method = self.method;
+        let mut values = OptionValues::default();
+        let short = [
+            ("bounces", self.bounces.map(OptionValue::Count)),
+            ("threshold", self.threshold.map(OptionValue::Number)),
+            ("samples", self.samples.map(OptionValue::Count)),
+        ];
+        for (name, value) in short {
+            let Some(value) = value else { continue };
+            if method.option(name).is_some() {
+                values.set(name, value);
+            } else {
+                eprintln!("warning: --{name} has no effect on method {method}");
+            }
+        }
+        // Several frames of lightcuts jitter unless told otherwise (§4.5).
+        if self.frames > 1 && method.option("jitter").is_some() {
+            values.set("jitter", OptionValue::Switch(true));
+        }
+        for assignment in &self.set {
+            let (name, text) = assignment
+                .split_once('=')
+                .ok_or_else(|| format!("--set {assignment}: expected NAME=VALUE"))?;
+            let spec = method.option(name.trim()).ok_or_else(|| {
+                let known: Vec<&str> = method.options.iter().map(|o| o.name).collect();
+                format!(
+                    "--set {assignment}: method {method} has no option '{}' (its options: {})",
+                    name.trim(),
+                    if known.is_empty() {
+                        "none".into()
+                    } else {
+                        known.join(", ")
+                    }
+                )
+            })?;
+            values.set(spec.name, spec.parse(text)?);
+        }
+        Ok(values)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::{CommandFactory, Parser};
+
+    use super::{Cli, Command};
+
+    #[test]
+    fn the_definitions_are_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    fn bake_config(args: &[&str]) -> Result<super::BakeConfig, String> {
+        let cli = Cli::try_parse_from([&["cssm", "bake"], args].concat()).unwrap();
+        let Command::Bake(args) = cli.command else {
+            unreachable!()
+        };
+        args.config()
+    }
+
+    /// The bake library checks the options; the command line names the flag.
+    #[test]
+    fn bake_options_are_checked_by_the_library_and_name_the_flag() {
+        let config = bake_config(&["--atlas", "128", "--near", "0.5"]).unwrap();
+        assert_eq!(config.options.atlas_resolution, 128);
+        assert_eq!(config.options.near, Some(0.5));
+        for (args, message) in [
+            (["--atlas", "16"], "--atlas 16 is out of range 32..=1024"),
+            (["--cube", "256"], "--cube 256 is out of range 8..=128"),
+            (["--near", "0"], "--near 0 must be positive and finite"),
+        ] {
+            assert_eq!(bake_config(&args).err().as_deref(), Some(message));
+        }
+    }
+}
