@@ -75,8 +75,8 @@ pub enum ReportCommand {
     /// casts) next to the paper's figures, and every option beyond the paper.
     ///
     /// Every row runs `cssm bake --json` and `cssm check --json` as child processes, so each
-    /// row's peak memory is its own. The full grid (atlas up to 512, four scenes) takes about
-    /// an hour on a quiet 2-core machine, the Cornell box's rows about 14 minutes of it;
+    /// row's peak memory is its own. The full grid (atlas up to 512, four scenes) takes long
+    /// (reports/compression.md gives the last run's time and machine);
     /// `reports/compression.sh` runs it. Rows whose scene is missing from
     /// --scenes are listed as not run.
     #[command(after_help = "Examples:\n  \

@@ -149,11 +149,10 @@ pub const PAPER: Variant = Variant {
 /// The options that win at the same accuracy, together (see the Options table of the report for
 /// how each one measured alone). Lossless: the lossy short-run merge has a row of its own.
 ///
-/// The chart order stays the paper's (next chart by nearest first texel): `chart-ends` gains 0.1%
-/// alone, and with the pilot and `exchange` it cost the Cornell box 0.04 percentage points more
-/// (atlas 128, cube 64: 66.8 : 1 at 99.18% against 66.7 : 1 at 99.22%), taking the combination
-/// to the 0.1-point line of "the same accuracy"; on the church at 3,604 faces it gained at most
-/// 1.1%.
+/// The chart order stays the paper's (next chart by nearest first texel): with the pilot and
+/// `exchange`, `chart-ends` cost the Cornell box enough agreement to take the combination to the
+/// line of "the same accuracy" for a gain of a fraction of a percent
+/// (`reports/figures-from-docs.md` keeps the figures).
 pub const BEST: Variant = Variant {
     name: "best",
     about: "inside each chart the Hilbert or the Spiral order, whichever a pilot bake at cube 8 compresses better; intervals bounded only by surfaces that face the texel (exchange: per pixel, the same answer for every pair that exchanges light); file: entropy stage",
