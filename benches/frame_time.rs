@@ -81,20 +81,7 @@ fn main() {
         },
         ..Default::default()
     };
-    let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("bench target"),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: settings.target_format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-        view_formats: &[],
-    });
+    let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);
     let view = target.create_view(&Default::default());
     let mut report = format!(
         "Cornell box (atlas {atlas}, cube {cube}), {width}x{height}, on {}; median of {one_shots} \

@@ -186,7 +186,7 @@ mod tests {
                 triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
             }
         }
-        crate::raycast::SceneBvh::new(&crate::tests::scene_from(positions, triangles))
+        crate::raycast::SceneBvh::new(&cssm_formats::Scene::from_triangles(positions, triangles))
     }
 
     #[test]

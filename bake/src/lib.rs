@@ -464,7 +464,7 @@ const PILOT_CACHED_MAPS: usize = 4096;
 
 #[cfg(test)]
 pub(crate) mod tests {
-    use cssm_formats::{Camera, Material, Scene};
+    use cssm_formats::Scene;
     use glam::Vec3;
 
     /// The pilot keeps the order that compresses into fewer runs, whether it renders the chart
@@ -472,7 +472,7 @@ pub(crate) mod tests {
     /// slab, walked in a row or hopping between the two halves.
     #[test]
     fn pilot_keeps_the_order_with_fewer_runs() {
-        let scene = scene_from(
+        let scene = Scene::from_triangles(
             vec![
                 Vec3::new(-3.0, -1.0, 1.0),
                 Vec3::new(0.0, -1.0, 1.0),
@@ -526,37 +526,6 @@ pub(crate) mod tests {
                 0,
                 "cached up to {cached_maps}"
             );
-        }
-    }
-
-    /// A bare scene from raw triangles, for unit tests.
-    pub fn scene_from(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
-        let count = triangles.len();
-        Scene {
-            name: "test".into(),
-            dir: std::path::PathBuf::from("/nonexistent"),
-            positions,
-            texcoords: Vec::new(),
-            triangles,
-            triangle_materials: vec![0; count],
-            objects: vec![cssm_formats::SceneObject::whole_static(count)],
-            materials: vec![Material {
-                name: "default".into(),
-                kd: [0.5; 3],
-                ks: [0.0; 3],
-                ns: 1.0,
-                map_kd: None,
-            }],
-            camera: Camera {
-                position: Vec3::new(0.0, 0.0, 5.0),
-                target: Vec3::ZERO,
-                up: Vec3::Y,
-                fov_y_deg: 40.0,
-                resolution: [64, 48],
-            },
-            lights: Vec::new(),
-            content_hash: [0; 32],
-            warnings: Vec::new(),
         }
     }
 }

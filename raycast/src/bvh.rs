@@ -299,7 +299,10 @@ mod tests {
             Vec3::new(1.0, 1.0, 3.0),
             Vec3::new(-1.0, 1.0, 3.0),
         ];
-        crate::test_scene(positions, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+        cssm_formats::Scene::from_triangles(
+            positions,
+            vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]],
+        )
     }
 
     #[test]
@@ -344,7 +347,7 @@ mod tests {
                 triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
             }
         }
-        crate::test_scene(positions, triangles)
+        cssm_formats::Scene::from_triangles(positions, triangles)
     }
 
     #[test]

@@ -29,39 +29,3 @@ pub mod sample;
 pub use bvh::{DualHit, FrontHit, SceneBvh, scene_triangles};
 pub use rng::SplitMix64;
 pub use sample::{SurfacePoint, SurfaceSampler, triangle_area};
-
-/// A bare scene from raw triangles, for unit tests.
-#[cfg(test)]
-pub(crate) fn test_scene(
-    positions: Vec<glam::Vec3>,
-    triangles: Vec<[u32; 3]>,
-) -> cssm_formats::Scene {
-    use cssm_formats::{Camera, Material};
-    let count = triangles.len();
-    cssm_formats::Scene {
-        name: "test".into(),
-        dir: std::path::PathBuf::from("/nonexistent"),
-        positions,
-        texcoords: Vec::new(),
-        triangles,
-        triangle_materials: vec![0; count],
-        objects: vec![cssm_formats::SceneObject::whole_static(count)],
-        materials: vec![Material {
-            name: "default".into(),
-            kd: [0.5; 3],
-            ks: [0.0; 3],
-            ns: 1.0,
-            map_kd: None,
-        }],
-        camera: Camera {
-            position: glam::Vec3::new(0.0, 0.0, 5.0),
-            target: glam::Vec3::ZERO,
-            up: glam::Vec3::Y,
-            fov_y_deg: 40.0,
-            resolution: [64, 48],
-        },
-        lights: Vec::new(),
-        content_hash: [0; 32],
-        warnings: Vec::new(),
-    }
-}

@@ -68,7 +68,7 @@ mod tests {
     #[test]
     fn points_follow_area() {
         // Two triangles, the second with three times the area of the first.
-        let scene = crate::test_scene(
+        let scene = cssm_formats::Scene::from_triangles(
             vec![
                 Vec3::ZERO,
                 Vec3::X,

@@ -119,6 +119,46 @@ impl Scene {
         )
     }
 
+    /// A bare scene of raw triangles for tests and generated geometry: one grey Lambertian
+    /// material (Kd 0.5), one static object, a camera on +z looking at the origin, no lights, no
+    /// files (a zero content hash). Nothing is validated: the caller's triangles are taken as
+    /// they are.
+    ///
+    /// ```
+    /// use glam::Vec3;
+    /// let scene = cssm_formats::Scene::from_triangles(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]);
+    /// assert_eq!(scene.object_of(0), 0);
+    /// ```
+    pub fn from_triangles(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
+        let count = triangles.len();
+        Scene {
+            name: "test".into(),
+            dir: PathBuf::from("/nonexistent"),
+            positions,
+            texcoords: Vec::new(),
+            triangles,
+            triangle_materials: vec![0; count],
+            objects: vec![SceneObject::whole_static(count)],
+            materials: vec![Material {
+                name: "default".into(),
+                kd: [0.5; 3],
+                ks: [0.0; 3],
+                ns: 1.0,
+                map_kd: None,
+            }],
+            camera: Camera {
+                position: Vec3::new(0.0, 0.0, 5.0),
+                target: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y_deg: 40.0,
+                resolution: [64, 48],
+            },
+            lights: Vec::new(),
+            content_hash: [0; 32],
+            warnings: Vec::new(),
+        }
+    }
+
     /// Length of the bounding-box diagonal: the far plane of every depth cube map (§3.2.1).
     pub fn diameter(&self) -> f32 {
         let (lo, hi) = self.bounds();

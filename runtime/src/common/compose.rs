@@ -142,18 +142,7 @@ impl Compose {
         direct: &wgpu::Texture,
         indirect: &wgpu::Buffer,
     ) -> (wgpu::Texture, wgpu::BindGroup) {
-        let radiance = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("radiance"),
-            size: direct.size(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let radiance = layout::radiance_texture(&ctx.device, "radiance", direct.size());
         let direct_view = direct.create_view(&Default::default());
         let out_view = radiance.create_view(&Default::default());
         let bind_group = layout::bind_group(

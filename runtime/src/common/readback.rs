@@ -104,6 +104,25 @@ pub struct Image {
     pub timings: Vec<(&'static str, f64)>,
 }
 
+/// An `Rgba8Unorm` target of `width` x `height` to render into and read back (the default
+/// target format of [`crate::RendererSettings`]).
+pub fn offscreen_target(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("offscreen target"),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
 /// Renders `frames` (at least one) frames of `renderer` into an offscreen target and reads the
 /// last back: the offscreen loop of the command line, the tests and the benchmarks. The
 /// renderer must draw into `Rgba8Unorm` (the default of [`crate::RendererSettings`]).
@@ -122,20 +141,7 @@ pub fn render_image(renderer: &mut crate::Renderer, frames: u32) -> Result<Image
         (ctx.device.clone(), ctx.queue.clone())
     };
     let (width, height) = renderer.context().size();
-    let target = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("offscreen target"),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8Unorm,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    });
+    let target = offscreen_target(&device, width, height);
     let view = target.create_view(&Default::default());
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let (mut first_timings, mut timings) = (Vec::new(), Vec::new());

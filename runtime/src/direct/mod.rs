@@ -120,18 +120,8 @@ impl ScreenDirect {
         bind_layout: &wgpu::BindGroupLayout,
     ) -> (wgpu::Texture, wgpu::BindGroup) {
         let gbuffer = &ctx.gbuffer;
-        let radiance = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("direct radiance"),
-            size: gbuffer.position.size(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let radiance =
+            layout::radiance_texture(&ctx.device, "direct radiance", gbuffer.position.size());
         let views = [
             &gbuffer.position,
             &gbuffer.normal,
