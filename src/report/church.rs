@@ -164,7 +164,7 @@ pub fn simplify_per_material(scene: &Scene, target: usize) -> Result<Simplified,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use cssm_formats::{Camera, Material};
+    use cssm_formats::Material;
 
     /// A `k x k` grid of quads in the plane z = `z`, its vertices split along the middle column
     /// as an OBJ loader splits them at a texture seam.
@@ -217,26 +217,11 @@ mod tests {
             ns: 1.0,
             map_kd: None,
         };
-        Scene {
-            name: "grids".into(),
-            dir: std::path::PathBuf::from("/nonexistent"),
-            objects: vec![cssm_formats::SceneObject::whole_static(triangles.len())],
-            positions,
-            texcoords: Vec::new(),
-            triangles,
-            triangle_materials,
-            materials: vec![material("floor"), material("ceiling")],
-            camera: Camera {
-                position: Vec3::new(0.0, 0.0, 20.0),
-                target: Vec3::ZERO,
-                up: Vec3::Y,
-                fov_y_deg: 40.0,
-                resolution: [64, 48],
-            },
-            lights: Vec::new(),
-            content_hash: [0; 32],
-            warnings: Vec::new(),
-        }
+        let mut scene = Scene::from_triangles(positions, triangles);
+        scene.name = "grids".into();
+        scene.triangle_materials = triangle_materials;
+        scene.materials = vec![material("floor"), material("ceiling")];
+        scene
     }
 
     #[test]
