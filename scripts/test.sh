@@ -30,6 +30,8 @@ for example in bake-library embed-runtime; do
         --manifest-path "examples/$example/Cargo.toml"
 done
 target/release/bake-library scenes/cornell-box "$examples_out/cornell-box.cssm"
-target/release/embed-runtime scenes/cornell-box "$examples_out/cornell-box.cssm" \
+# Mesa warns that XDG_RUNTIME_DIR is not set where no desktop session is (a headless render never
+# needs it); the private directory quiets it, as `cssm` does for itself.
+XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$examples_out}" target/release/embed-runtime scenes/cornell-box "$examples_out/cornell-box.cssm" \
     "$examples_out/embedded.png"
 test -s "$examples_out/embedded.png"
