@@ -2,10 +2,20 @@
 //! [`Shader::create`], and the test below validates every one with naga under the capabilities
 //! the runtime requests (none beyond core WGSL), so a shader error fails `cargo test` without a GPU.
 //!
+//! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
+//! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
+//! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`) and a module
+//! imports what it uses (`#import cssm::visibility::{cssm_texels, cssm_visibility_texel}`).
+//!
 //! The workgroup sizes are defined once, here ([`WORKGROUP_1D`], [`WORKGROUP_2D`]): the WGSL
-//! reads them as constants of the [`prelude`] and the passes dispatch with the same numbers.
+//! reads them as shader definitions (`@workgroup_size(#{WORKGROUP_1D})`) and the passes
+//! dispatch with the same numbers.
 
-use crate::gpu_types::TYPES_WGSL;
+use std::{borrow::Cow, collections::HashMap};
+
+use naga_oil::compose::{
+    ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue,
+};
 
 /// Invocations per workgroup of the kernels with one invocation per item (texels, leaves,
 /// nodes, query pairs, segments).
@@ -14,17 +24,64 @@ pub const WORKGROUP_1D: u32 = 64;
 /// Side of the square workgroups of the kernels with one invocation per pixel.
 pub const WORKGROUP_2D: u32 = 8;
 
-/// The workgroup sizes as WGSL constants.
-fn workgroup_wgsl() -> String {
-    format!(
-        "const WORKGROUP_1D: u32 = {WORKGROUP_1D}u;\nconst WORKGROUP_2D: u32 = {WORKGROUP_2D}u;\n"
-    )
+/// The libraries the modules import (`#import cssm::...`), each defining its import path:
+/// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
+/// the shadow lookup, the light model, the CSSM visibility query, the light transfer.
+const LIBRARIES: [(&str, &str); 6] = [
+    ("runtime/src/types.wgsl", include_str!("types.wgsl")),
+    (
+        "runtime/src/common/albedo.wgsl",
+        include_str!("common/albedo.wgsl"),
+    ),
+    (
+        "runtime/src/common/shadow_lookup.wgsl",
+        include_str!("common/shadow_lookup.wgsl"),
+    ),
+    (
+        "runtime/src/direct/light.wgsl",
+        include_str!("direct/light.wgsl"),
+    ),
+    (
+        "runtime/src/visibility/cssm.wgsl",
+        include_str!("visibility/cssm.wgsl"),
+    ),
+    (
+        "runtime/src/radiosity/transfer.wgsl",
+        include_str!("radiosity/transfer.wgsl"),
+    ),
+];
+
+/// Bind group of the CSSM library in the runtime's own modules (group 0 is each pass's own).
+pub const CSSM_GROUP: u32 = 1;
+
+/// The shader definitions every module is composed with: the workgroup sizes
+/// (`#{WORKGROUP_1D}`, `#{WORKGROUP_2D}`) and the CSSM library's bind group (`#{CSSM_GROUP}`).
+fn shader_defs(cssm_group: u32) -> HashMap<String, ShaderDefValue> {
+    HashMap::from([
+        ("WORKGROUP_1D".into(), ShaderDefValue::UInt(WORKGROUP_1D)),
+        ("WORKGROUP_2D".into(), ShaderDefValue::UInt(WORKGROUP_2D)),
+        ("CSSM_GROUP".into(), ShaderDefValue::UInt(cssm_group)),
+    ])
 }
 
-/// What every module starts with: the workgroup sizes as WGSL constants and the structs shared
-/// with Rust (`types.wgsl`, twins in [`crate::gpu_types`]).
-pub fn prelude() -> String {
-    format!("{}{TYPES_WGSL}\n", workgroup_wgsl())
+/// A naga_oil composer holding every library.
+///
+/// # Errors
+/// A library that does not parse (a bug: the registry test composes every module).
+pub fn composer() -> Result<Composer, String> {
+    let mut composer = Composer::default();
+    for (file_path, source) in LIBRARIES {
+        let added = composer.add_composable_module(ComposableModuleDescriptor {
+            source,
+            file_path,
+            shader_defs: shader_defs(CSSM_GROUP),
+            ..Default::default()
+        });
+        if let Err(e) = added {
+            return Err(e.emit_to_string(&composer));
+        }
+    }
+    Ok(composer)
 }
 
 /// Workgroups of [`WORKGROUP_1D`] covering `items` (at least one).
@@ -105,46 +162,91 @@ impl Shader {
         }
     }
 
-    /// The module's whole WGSL source.
-    pub fn source(self) -> String {
-        let light = || {
-            format!(
-                "{}{}\n{}",
-                prelude(),
-                crate::common::shadow_map::LOOKUP_WGSL,
-                include_str!("direct/light.wgsl")
-            )
-        };
-        // The library a user's shader includes too (`library_wgsl`), behind the sizes.
-        let cssm = || workgroup_wgsl() + &crate::visibility::library_wgsl(1);
-        let transfer = include_str!("radiosity/transfer.wgsl");
+    /// The module's own source and its path (its imports come from the libraries).
+    pub fn source(self) -> (&'static str, &'static str) {
         match self {
-            Shader::ShadowMap => include_str!("common/shadow_map.wgsl").to_string(),
-            Shader::GBuffer => format!(
-                "{}{}\n{}",
-                prelude(),
-                include_str!("common/albedo.wgsl"),
-                include_str!("common/gbuffer.wgsl")
+            Shader::ShadowMap => (
+                "runtime/src/common/shadow_map.wgsl",
+                include_str!("common/shadow_map.wgsl"),
             ),
-            Shader::DirectScreen => light() + include_str!("direct/shade.wgsl"),
-            Shader::DirectAtlas => light() + include_str!("direct/atlas.wgsl"),
-            Shader::RadiosityGather => cssm() + transfer + include_str!("radiosity/gather.wgsl"),
-            Shader::RadiosityPull => prelude() + include_str!("radiosity/pull.wgsl"),
-            Shader::AtlasLookup => cssm() + include_str!("lightmap/lookup.wgsl"),
-            Shader::FinalGather => cssm() + transfer + include_str!("lightcuts/final_gather.wgsl"),
-            Shader::Compose => prelude() + include_str!("common/compose.wgsl"),
-            Shader::Tonemap => prelude() + include_str!("common/tonemap.wgsl"),
-            Shader::Query => cssm() + include_str!("visibility/query.wgsl"),
-            Shader::Gather => cssm() + include_str!("visibility/gather.wgsl"),
-            Shader::Bvh => prelude() + include_str!("visibility/bvh.wgsl"),
+            Shader::GBuffer => (
+                "runtime/src/common/gbuffer.wgsl",
+                include_str!("common/gbuffer.wgsl"),
+            ),
+            Shader::DirectScreen => (
+                "runtime/src/direct/shade.wgsl",
+                include_str!("direct/shade.wgsl"),
+            ),
+            Shader::DirectAtlas => (
+                "runtime/src/direct/atlas.wgsl",
+                include_str!("direct/atlas.wgsl"),
+            ),
+            Shader::RadiosityGather => (
+                "runtime/src/radiosity/gather.wgsl",
+                include_str!("radiosity/gather.wgsl"),
+            ),
+            Shader::RadiosityPull => (
+                "runtime/src/radiosity/pull.wgsl",
+                include_str!("radiosity/pull.wgsl"),
+            ),
+            Shader::AtlasLookup => (
+                "runtime/src/lightmap/lookup.wgsl",
+                include_str!("lightmap/lookup.wgsl"),
+            ),
+            Shader::FinalGather => (
+                "runtime/src/lightcuts/final_gather.wgsl",
+                include_str!("lightcuts/final_gather.wgsl"),
+            ),
+            Shader::Compose => (
+                "runtime/src/common/compose.wgsl",
+                include_str!("common/compose.wgsl"),
+            ),
+            Shader::Tonemap => (
+                "runtime/src/common/tonemap.wgsl",
+                include_str!("common/tonemap.wgsl"),
+            ),
+            Shader::Query => (
+                "runtime/src/visibility/query.wgsl",
+                include_str!("visibility/query.wgsl"),
+            ),
+            Shader::Gather => (
+                "runtime/src/visibility/gather.wgsl",
+                include_str!("visibility/gather.wgsl"),
+            ),
+            Shader::Bvh => (
+                "runtime/src/visibility/bvh.wgsl",
+                include_str!("visibility/bvh.wgsl"),
+            ),
         }
     }
 
-    /// The module on `device`.
+    /// The module composed by naga_oil from its source and the libraries it imports.
+    ///
+    /// # Errors
+    /// naga_oil's message (a bug: the registry test composes every module).
+    pub fn module(self) -> Result<naga::Module, String> {
+        let mut composer = composer()?;
+        let (file_path, source) = self.source();
+        composer
+            .make_naga_module(NagaModuleDescriptor {
+                source,
+                file_path,
+                shader_defs: shader_defs(CSSM_GROUP),
+                ..Default::default()
+            })
+            .map_err(|e| e.emit_to_string(&composer))
+    }
+
+    /// The module on `device`. Should composition fail (a bug the registry test catches), the
+    /// uncomposed source goes to wgpu, whose validation error names the module.
     pub fn create(self, device: &wgpu::Device) -> wgpu::ShaderModule {
+        let source = match self.module() {
+            Ok(module) => wgpu::ShaderSource::Naga(Cow::Owned(module)),
+            Err(_) => wgpu::ShaderSource::Wgsl(self.source().1.into()),
+        };
         device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(self.label()),
-            source: wgpu::ShaderSource::Wgsl(self.source().into()),
+            source,
         })
     }
 }
@@ -158,16 +260,6 @@ pub(crate) mod tests {
     /// (`Gpu::new_headless`), neither of which is a shader capability, so a module that needs
     /// more fails here.
     pub const CAPABILITIES: naga::valid::Capabilities = naga::valid::Capabilities::empty();
-
-    /// `source` parsed and validated as the runtime's pipelines would compile it.
-    pub fn validated(name: &str, source: &str) -> naga::Module {
-        let module = naga::front::wgsl::parse_str(source)
-            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
-            .validate(&module)
-            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
-        module
-    }
 
     /// Asserts that the WGSL struct `name` of `module` has `size` bytes and each member of
     /// `offsets` its offset: the Rust twin's `size_of` and `offset_of!`.
@@ -192,9 +284,15 @@ pub(crate) mod tests {
         }
     }
 
-    /// The module of `shader`, validated.
+    /// The module of `shader`, composed and validated.
     pub fn module(shader: Shader) -> naga::Module {
-        validated(shader.label(), &shader.source())
+        let module = shader
+            .module()
+            .unwrap_or_else(|e| panic!("{}: {e}", shader.label()));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{}: {e:?}", shader.label()));
+        module
     }
 
     #[test]
@@ -211,7 +309,7 @@ pub(crate) mod tests {
 
     /// Every kernel's workgroup size is one of the Rust constants the passes dispatch with.
     #[test]
-    fn workgroup_sizes_come_from_the_prelude() {
+    fn workgroup_sizes_come_from_the_shader_definitions() {
         for shader in Shader::ALL {
             for entry in module(shader).entry_points {
                 if entry.stage != naga::ShaderStage::Compute {

@@ -1,3 +1,5 @@
+#define_import_path cssm::types
+
 // Structs shared with Rust; their twins are in gpu_types.rs (a test holds the layouts together).
 
 struct Material {
@@ -23,7 +25,7 @@ struct View {
     light_count: u32,
     size: vec2u,
     exposure: f32,
-    _pad: u32,
+    padding: u32,
 }
 
 struct Texel {
@@ -49,7 +51,7 @@ struct CssmParams {
     bias_relative: f32,
     flags: u32,
     triangle_count: u32,
-    _pad: u32,
+    padding: u32,
 }
 
 struct Node {
@@ -62,9 +64,9 @@ struct Node {
     first: u32,
     count: u32,
     representative: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    padding_a: u32,
+    padding_b: u32,
+    padding_c: u32,
 }
 
 struct TraversalParams {

@@ -1,3 +1,5 @@
+#define_import_path cssm::albedo
+
 // Bilinear sample of an albedo texture layer with repeat wrapping, done by hand with
 // textureLoad so that float textures need no filtering feature and the CPU reference
 // (load::AlbedoTexture::sample) computes the same.

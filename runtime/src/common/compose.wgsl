@@ -1,3 +1,5 @@
+#import cssm::types::View
+
 // Composes a frame's radiance from its parts: the direct light per pixel (texture) and the
 // indirect light per pixel (buffer, rgb), keeping the component asked for
 // (component 0: direct, 1: indirect, 2: full). Needs types.wgsl (View).
@@ -15,7 +17,7 @@ struct ComposeParams {
 @group(0) @binding(3) var<storage, read> indirect: array<vec4f>;
 @group(0) @binding(4) var radiance: texture_storage_2d<rgba32float, write>;
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+@compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= view.size.x || id.y >= view.size.y {
         return;

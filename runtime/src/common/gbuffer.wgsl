@@ -1,3 +1,6 @@
+#import cssm::types::{Material, View}
+#import cssm::albedo::albedo_sample
+
 // G-buffer raster pass: world position, camera-facing normal, material, albedo and atlas
 // coordinates per pixel, sampled at pixel centres (the rays of the CPU references).
 // Needs types.wgsl (View, Material) and albedo.wgsl.

@@ -1,7 +1,14 @@
+#define_import_path cssm::shadow_lookup
+
 // Spot-light shadow test with percentage-closer filtering: 3x3 hardware-filtered comparisons
 // (each a bilinear blend of 2x2 texels), after a normal offset that keeps surfaces from
 // shadowing themselves. Needs types.wgsl (SpotLight) and these two bindings in the includer:
 //   shadow_maps: texture_depth_2d_array, shadow_sampler: sampler_comparison.
+
+#import cssm::types::SpotLight
+
+@group(0) @binding(3) var shadow_maps: texture_depth_2d_array;
+@group(0) @binding(4) var shadow_sampler: sampler_comparison;
 
 fn shadow_visibility(light: SpotLight, layer: u32, p: vec3f, n: vec3f) -> f32 {
     let lifted = p + n * (light.normal_offset * distance(light.position, p));

@@ -12,10 +12,6 @@ pub const DEFAULT_RESOLUTION: u32 = 2048;
 /// Widest cone a single perspective shadow map covers, degrees (half-angle).
 pub const MAX_CUTOFF_DEG: f32 = 80.0;
 
-/// The WGSL of the shadow test (needs `types.wgsl` and the `shadow_maps` / `shadow_sampler`
-/// bindings declared by the includer).
-pub const LOOKUP_WGSL: &str = include_str!("shadow_lookup.wgsl");
-
 /// World to shadow-map clip space of `light` for a scene whose bounds are `lo`..`hi`: a
 /// perspective frustum one degree wider than the cone on each side.
 pub fn light_view_proj(light: &SpotLight, lo: Vec3, hi: Vec3) -> Mat4 {

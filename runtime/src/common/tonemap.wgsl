@@ -1,3 +1,5 @@
+#import cssm::types::View
+
 // Tone mapping: exposure, the ACES filmic curve (Narkowicz 2015 fit) per channel, sRGB encoding,
 // drawn as one triangle over the caller's target. Its CPU twin is common::tonemap::tonemap.
 @group(0) @binding(0) var<uniform> view: View;

@@ -1,8 +1,17 @@
+#define_import_path cssm::light
+
 // Direct light from spot lights (§4.7), shared by the screen and the atlas passes. Needs
 // types.wgsl, shadow_lookup.wgsl and the bindings `lights: array<SpotLight>`.
 // Conventions (docs/architecture.md): constant radiant intensity inside the cone, zero outside;
 // BRDF Kd/pi + Ks (Ns+2)/(2 pi) cos^Ns of the angle between the mirrored light direction and
 // the view direction (normalised Phong).
+
+#import cssm::types::{Material, SpotLight, View}
+#import cssm::shadow_lookup::shadow_visibility
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> materials: array<Material>;
+@group(0) @binding(2) var<storage, read> lights: array<SpotLight>;
 
 const PI: f32 = 3.14159265358979;
 

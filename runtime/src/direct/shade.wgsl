@@ -1,15 +1,12 @@
+#import cssm::light::{view, materials, direct_radiance}
+
 // Direct light per pixel from the G-buffer into linear radiance.
-@group(0) @binding(0) var<uniform> view: View;
-@group(0) @binding(1) var<storage, read> materials: array<Material>;
-@group(0) @binding(2) var<storage, read> lights: array<SpotLight>;
-@group(0) @binding(3) var shadow_maps: texture_depth_2d_array;
-@group(0) @binding(4) var shadow_sampler: sampler_comparison;
 @group(0) @binding(5) var gb_position: texture_2d<f32>;
 @group(0) @binding(6) var gb_normal: texture_2d<f32>;
 @group(0) @binding(7) var gb_albedo: texture_2d<f32>;
 @group(0) @binding(8) var radiance_out: texture_storage_2d<rgba32float, write>;
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+@compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= view.size.x || id.y >= view.size.y {
         return;

@@ -1,3 +1,7 @@
+#import cssm::types::{Material, Node, TraversalParams, View}
+#import cssm::visibility::{cssm_senders_at, cssm_texels, cssm_visibility_senders}
+#import cssm::transfer::{brdf, brdf_bound, irradiance_bound, irradiance_from, jitter_in_disk, jitter_leaf, tone_mapped}
+
 // Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
 // pixel instead of a receiver leaf, the oracle bounding the normalised Phong BRDF so glossy
 // surfaces refine towards their highlight; each node of the cut is a VPL holding the direct
@@ -68,7 +72,7 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
     return vec4f(l_out, f32(cut));
 }
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+@compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= view.size.x || id.y >= view.size.y {
         return;

@@ -1,3 +1,6 @@
+#import cssm::types::View
+#import cssm::visibility::{CSSM_NONE, cssm_cell, cssm_texel_at, cssm_texels}
+
 // Indirect light from the atlas per pixel: the radiosity iteration's indirect irradiance per
 // texel, looked up at the pixel's atlas coordinates and reflected with the pixel's albedo.
 // Mode 0: the texel under the pixel (the "direct visualisation" of the radiosity solution,
@@ -62,7 +65,7 @@ fn lookup(p: vec2f) -> vec3f {
     return sum / total;
 }
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+@compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= view.size.x || id.y >= view.size.y {
         return;

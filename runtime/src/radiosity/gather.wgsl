@@ -1,3 +1,7 @@
+#import cssm::types::{Node, TraversalParams}
+#import cssm::visibility::{cssm_texels, cssm_visibility_texel}
+#import cssm::transfer::{TRANSFER_PI, irradiance_bound, irradiance_from, tone_mapped}
+
 // GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
 // (texel) walks the hierarchy without a stack from the root, refining a sender while the oracle
 // says so, else gathering from it with the clamped form factor and CSSM visibility, then
@@ -50,7 +54,7 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
     return e;
 }
 
-@compute @workgroup_size(WORKGROUP_1D)
+@compute @workgroup_size(#{WORKGROUP_1D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
     let leaf = id.x;
     if leaf >= params.receiver_count {

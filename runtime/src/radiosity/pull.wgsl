@@ -1,3 +1,5 @@
+#import cssm::types::Node
+
 // Pull (§4.1.1): the radiance of an inner node is the area-weighted mean of its children's,
 // one level of the tree per dispatch, deepest first. CPU twin: radiosity/cpu.rs::pull.
 // Needs types.wgsl (Node).
@@ -15,7 +17,7 @@ struct PullLevel {
 @group(0) @binding(2) var<storage, read> pull_order: array<u32>;
 @group(0) @binding(3) var<storage, read_write> radiance: array<vec4f>;
 
-@compute @workgroup_size(WORKGROUP_1D)
+@compute @workgroup_size(#{WORKGROUP_1D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
     let i = level.start + id.x;
     if i >= level.end {

@@ -1,3 +1,7 @@
+#define_import_path cssm::transfer
+
+#import cssm::types::Node
+
 // Light transfer from a hierarchy node to a receiver point and the oracle's upper bound of it
 // (§4.3, §4.4). Twin of radiosity/transfer.rs, function by function; read its docs for the
 // model. Needs types.wgsl (Node) and the binding `nodes: array<Node>`.

@@ -133,7 +133,7 @@ fn segment_clear(a: vec3f, b: vec3f) -> bool {
     return true;
 }
 
-@compute @workgroup_size(WORKGROUP_1D)
+@compute @workgroup_size(#{WORKGROUP_1D})
 fn main(@builtin(global_invocation_id) id: vec3u, @builtin(num_workgroups) groups: vec3u) {
     let i = id.x + id.y * groups.x * 64u;
     if i >= arrayLength(&segments) {

@@ -1,3 +1,7 @@
+#define_import_path cssm::visibility
+
+#import cssm::types::{CssmParams, Texel}
+
 // The CSSM visibility query (Ritschel et al. 2008, §3.2.2) in WGSL: the same computation, step
 // for step, as the CPU reference `cssm_formats::visibility::VisibilityQuery`. Read that module's
 // docs for the why of every step; the comments here name the CPU function each part mirrors.
@@ -5,16 +9,16 @@
 // Needs `types.wgsl` (CssmParams, Texel). The bind group index is substituted for CSSM_GROUP
 // when the library is assembled (`cssm_runtime::visibility::library_wgsl`).
 
-@group(CSSM_GROUP) @binding(0) var<uniform> cssm: CssmParams;
-@group(CSSM_GROUP) @binding(1) var<storage, read> cssm_texels: array<Texel>;
+@group(#{CSSM_GROUP}) @binding(0) var<uniform> cssm: CssmParams;
+@group(#{CSSM_GROUP}) @binding(1) var<storage, read> cssm_texels: array<Texel>;
 // Texel index of every atlas cell, 0xffffffff where undefined.
-@group(CSSM_GROUP) @binding(2) var<storage, read> cssm_grid: array<u32>;
+@group(#{CSSM_GROUP}) @binding(2) var<storage, read> cssm_grid: array<u32>;
 // Atlas coordinates of the three corners of every scene triangle: 6 floats per triangle.
-@group(CSSM_GROUP) @binding(3) var<storage, read> cssm_triangle_uvs: array<f32>;
+@group(#{CSSM_GROUP}) @binding(3) var<storage, read> cssm_triangle_uvs: array<f32>;
 // Random-access run data (formats::cssm::RunData): per (segment, pixel) offsets into `runs`,
 // runs packed as start_in_segment << 16 | depth16.
-@group(CSSM_GROUP) @binding(4) var<storage, read> cssm_offsets: array<u32>;
-@group(CSSM_GROUP) @binding(5) var<storage, read> cssm_runs: array<u32>;
+@group(#{CSSM_GROUP}) @binding(4) var<storage, read> cssm_offsets: array<u32>;
+@group(#{CSSM_GROUP}) @binding(5) var<storage, read> cssm_runs: array<u32>;
 
 const CSSM_NONE: u32 = 0xffffffffu;
 const CSSM_DEPTH_MAX: u32 = 65535u;

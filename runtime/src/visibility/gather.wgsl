@@ -1,3 +1,5 @@
+#import cssm::visibility::cssm_visibility_texel
+
 // Benchmark kernel in the access pattern of a final gather (§4.4): every receiver (a G-buffer
 // pixel, here a surface point) queries `senders` consecutive sender texels of the depth-map
 // sequence, as a receiver tile gathering from one cut of the hierarchy does, and sums the
@@ -22,7 +24,7 @@ struct GatherParams {
 @group(0) @binding(1) var<storage, read_write> gathered: array<f32>;
 @group(0) @binding(2) var<uniform> gather: GatherParams;
 
-@compute @workgroup_size(WORKGROUP_1D)
+@compute @workgroup_size(#{WORKGROUP_1D})
 fn main(@builtin(global_invocation_id) id: vec3u, @builtin(num_workgroups) groups: vec3u) {
     let i = id.x + id.y * groups.x * 64u;
     if i >= arrayLength(&receivers) {

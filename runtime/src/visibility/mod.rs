@@ -22,13 +22,20 @@ use crate::{
     load::CssmGpu,
 };
 
-/// The WGSL visibility library with its bindings at `@group(group)`, preceded by the shared
-/// struct declarations (`types.wgsl`). Append your own shader code to it.
+/// The WGSL visibility library as plain WGSL, its bindings at `@group(group)`, preceded by the
+/// shared struct declarations (`types.wgsl`): append your own shader code to it. This is for a
+/// shader of your own composed without naga_oil; with naga_oil, add the libraries of
+/// [`crate::shaders::composer`] and `#import cssm::visibility::{cssm_visible, ...}` as the
+/// runtime's own modules do. Here the lines naga_oil reads (`#define_import_path`, `#import`)
+/// are dropped and the bind group filled in.
 pub fn library_wgsl(group: u32) -> String {
-    format!(
-        "{TYPES_WGSL}\n{}",
-        include_str!("cssm.wgsl").replace("CSSM_GROUP", &group.to_string())
-    )
+    let group = group.to_string();
+    [TYPES_WGSL, include_str!("cssm.wgsl")]
+        .iter()
+        .flat_map(|source| source.lines())
+        .filter(|line| !line.starts_with("#define_import_path") && !line.starts_with("#import"))
+        .map(|line| line.replace("#{CSSM_GROUP}", &group) + "\n")
+        .collect()
 }
 
 /// One query: is `receiver` (with normal `receiver_normal`, or zero when unknown) visible from

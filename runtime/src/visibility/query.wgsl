@@ -1,3 +1,5 @@
+#import cssm::visibility::cssm_visibility
+
 // Answers a batch of visibility queries (tests and benchmarks): one thread per pair.
 
 struct QueryPair {
@@ -12,7 +14,7 @@ struct QueryPair {
 @group(0) @binding(0) var<storage, read> pairs: array<QueryPair>;
 @group(0) @binding(1) var<storage, read_write> answers: array<f32>;
 
-@compute @workgroup_size(WORKGROUP_1D)
+@compute @workgroup_size(#{WORKGROUP_1D})
 fn main(@builtin(global_invocation_id) id: vec3u, @builtin(num_workgroups) groups: vec3u) {
     let i = id.x + id.y * groups.x * 64u;
     if i >= arrayLength(&pairs) {
