@@ -138,9 +138,8 @@ pub struct BakeArgs {
     /// chart, a Hilbert curve inside each chart; beyond the paper, and the default: in
     /// reports/compression.md it compresses better than the paper's orders at the same
     /// accuracy); or piloted (per chart the Hilbert or the Spiral order, whichever a pilot bake
-    /// of the chart at cube 8 compresses better; beyond the paper: a little better than hilbert,
-    /// 41.2 against 41.0 : 1 on the Cornell box at atlas 128, cube 64, for 7-10% more bake time
-    /// at cube 32).
+    /// of the chart at cube 8 compresses better; beyond the paper: a little better than hilbert
+    /// for a little more bake time, as reports/compression.md measures).
     #[arg(long, default_value = "hilbert")]
     traversal: Traversal,
     /// How the chart-by-chart traversals choose the next chart: nearest (§3.2.3: the chart whose
