@@ -147,14 +147,6 @@ fn render_on_cpu(
     })
     .map_err(|e| format!("{}: {e}", scene.dir.display()))?;
     bar.finish_and_clear();
-    let exposure = settings.frame.exposure;
-    let display = radiance
-        .iter()
-        .flat_map(|c| {
-            let [r, g, b] = runtime::common::tonemap::tonemap([c[0], c[1], c[2]], exposure);
-            [r, g, b, 255]
-        })
-        .collect();
     let options: Vec<String> = resolved.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!(
         "{} {} at {w}x{h} on the CPU ({})",
@@ -162,14 +154,12 @@ fn render_on_cpu(
         scene.name,
         options.join(", ")
     );
-    Ok(readback::Image {
-        width: w,
-        height: h,
+    Ok(readback::Image::from_cpu(
+        w,
+        h,
         radiance,
-        display,
-        first_timings: Vec::new(),
-        timings: Vec::new(),
-    })
+        settings.frame.exposure,
+    ))
 }
 
 /// The CSSM `cssm render` uses: `--cssm`, checked against the scene, else a small one baked in

@@ -164,14 +164,12 @@ fn render_reference(
         options: &resolved,
         progress: &|_, _| {},
     })?;
-    Ok(Image {
-        width: options.width,
-        height: options.height,
+    Ok(Image::from_cpu(
+        options.width,
+        options.height,
         radiance,
-        display: Vec::new(),
-        first_timings: Vec::new(),
-        timings: Vec::new(),
-    })
+        options.exposure,
+    ))
 }
 
 /// Writes the tone-mapped image to `path` (to look at after a failure).
@@ -566,21 +564,34 @@ fn vec3s(v: &[[f32; 4]]) -> Vec<glam::Vec3> {
 /// Shadow-map resolution of the GI tests (small scenes, small images).
 const GI_SHADOW: u32 = 1024;
 
+/// The direct light into the atlas and `iterations` radiosity bounces of `file` on the shared
+/// device, read back.
+fn solve_atlas(
+    scene: &Scene,
+    file: &CssmFile,
+    iterations: u32,
+    options: cssm_runtime::radiosity::RadiosityOptions,
+) -> Result<cssm_runtime::radiosity::AtlasRadiosity, cssm_runtime::RuntimeError> {
+    let gpu = gpu();
+    let solved = cssm_runtime::radiosity::atlas_radiosity(
+        &gpu.device,
+        &gpu.queue,
+        scene,
+        file,
+        GI_SHADOW,
+        iterations,
+        options,
+    )?;
+    gpu.wait()?;
+    Ok(solved)
+}
+
 #[test]
 fn radiosity_matches_cpu_twin() {
     use cssm_runtime::radiosity::{RadiosityOptions, cpu};
     let (scene, file) = cornell32();
     let options = RadiosityOptions::default();
-    let gpu_result = cssm_runtime::radiosity::atlas_radiosity(
-        &gpu().device,
-        &gpu().queue,
-        scene,
-        file,
-        GI_SHADOW,
-        2,
-        options,
-    )
-    .expect("radiosity");
+    let gpu_result = solve_atlas(scene, file, 2, options).expect("radiosity");
     let direct = vec3s(&gpu_result.direct);
     let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     let query = VisibilityQuery::new(file, QueryOptions::default());
@@ -621,16 +632,7 @@ fn radiosity_error(threshold: f32) -> (f64, u64) {
         threshold,
         exposure: 1.0,
     };
-    let gpu_result = cssm_runtime::radiosity::atlas_radiosity(
-        &gpu().device,
-        &gpu().queue,
-        scene,
-        file,
-        GI_SHADOW,
-        2,
-        options,
-    )
-    .expect("radiosity");
+    let gpu_result = solve_atlas(scene, file, 2, options).expect("radiosity");
     let all = vec![true; brute.len()];
     let rmse = relative_rmse(&vec3s(&gpu_result.irradiance), brute, &all);
     let query = VisibilityQuery::new(file, QueryOptions::default());
@@ -671,16 +673,7 @@ fn radiosity_matches_brute_force() {
     };
     let all = vec![true; brute.len()];
     let cssm_only = cpu::radiosity(&query, &exact_direct, &albedo, &flat, 2);
-    let gpu_direct = cssm_runtime::radiosity::atlas_radiosity(
-        &gpu().device,
-        &gpu().queue,
-        scene,
-        file,
-        GI_SHADOW,
-        0,
-        Default::default(),
-    )
-    .expect("direct");
+    let gpu_direct = solve_atlas(scene, file, 0, Default::default()).expect("direct");
     let with_gpu_direct = cpu::radiosity(&query, &vec3s(&gpu_direct.direct), &albedo, &flat, 2);
     eprintln!(
         "  of which: CSSM visibility instead of ray casts {:.2}%, plus the shadow-mapped direct \
@@ -813,12 +806,9 @@ fn final_gather_vs_twin(
     let image = render(gpu(), scene, Some(file), "lightcuts", &options).expect("render");
     // One frame: frame 0's seed, and the receiver's id is its pixel index.
     let seed = cssm_runtime::lightcuts::frame_seed(0);
-    let atlas = cssm_runtime::radiosity::atlas_radiosity(
-        &gpu().device,
-        &gpu().queue,
+    let atlas = solve_atlas(
         scene,
         file,
-        GI_SHADOW,
         0,
         RadiosityOptions {
             threshold,
@@ -914,16 +904,7 @@ fn lightmap_lookup_matches_cpu_twin() {
     let (scene, file) = cornell32();
     let (w, h) = (64u32, 48u32);
     let query = VisibilityQuery::new(file, QueryOptions::default());
-    let atlas = cssm_runtime::radiosity::atlas_radiosity(
-        &gpu().device,
-        &gpu().queue,
-        scene,
-        file,
-        GI_SHADOW,
-        1,
-        RadiosityOptions::default(),
-    )
-    .expect("radiosity");
+    let atlas = solve_atlas(scene, file, 1, RadiosityOptions::default()).expect("radiosity");
     let irradiance = vec3s(&atlas.irradiance);
     let seen = cpu_receivers(scene, file, w, h);
     let keep = interior(scene, &seen, w, h);

@@ -11,7 +11,11 @@
 //! reads them as shader definitions (`@workgroup_size(#{WORKGROUP_1D})`) and the passes
 //! dispatch with the same numbers.
 
-use std::{borrow::Cow, collections::HashMap};
+use std::{
+    borrow::Cow,
+    collections::HashMap,
+    sync::{Mutex, OnceLock},
+};
 
 use naga_oil::compose::{
     ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue,
@@ -225,7 +229,15 @@ impl Shader {
     /// # Errors
     /// naga_oil's message (a bug: the registry test composes every module).
     pub fn module(self) -> Result<naga::Module, String> {
-        let mut composer = composer()?;
+        // One composer for the process: the libraries are parsed once, and naga_oil keeps each
+        // composed import, so a renderer's start-up does not parse them again per module.
+        static COMPOSER: OnceLock<Result<Mutex<Composer>, String>> = OnceLock::new();
+        let shared = COMPOSER.get_or_init(|| composer().map(Mutex::new));
+        let mut composer = shared
+            .as_ref()
+            .map_err(Clone::clone)?
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
         let (file_path, source) = self.source();
         composer
             .make_naga_module(NagaModuleDescriptor {

@@ -104,6 +104,28 @@ pub struct Image {
     pub timings: Vec<(&'static str, f64)>,
 }
 
+impl Image {
+    /// An image of linear `radiance` computed on the CPU (the path tracer), tone-mapped with the
+    /// GPU's curve ([`crate::common::tonemap::tonemap`]) at `exposure`; no timings.
+    pub fn from_cpu(width: u32, height: u32, radiance: Vec<[f32; 4]>, exposure: f32) -> Self {
+        let display = radiance
+            .iter()
+            .flat_map(|c| {
+                let [r, g, b] = crate::common::tonemap::tonemap([c[0], c[1], c[2]], exposure);
+                [r, g, b, 255]
+            })
+            .collect();
+        Self {
+            width,
+            height,
+            radiance,
+            display,
+            first_timings: Vec::new(),
+            timings: Vec::new(),
+        }
+    }
+}
+
 /// An `Rgba8Unorm` target of `width` x `height` to render into and read back (the default
 /// target format of [`crate::RendererSettings`]).
 pub fn offscreen_target(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Texture {
