@@ -1230,3 +1230,25 @@ fn moving_a_light_runs_the_radiosity_again() {
     assert_eq!(same, 0.0, "the indirect light follows the light exactly");
     assert!(changed > 0.05, "the indirect light changed: {changed}");
 }
+
+/// A hand-built scene whose objects do not cover its triangles is refused with an error, not a
+/// panic.
+#[test]
+fn a_scene_with_broken_objects_is_an_error() {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let mut broken = scene.clone();
+    broken.objects[0].triangles.end -= 1;
+    let err = Renderer::new(
+        &gpu.device,
+        &gpu.queue,
+        &broken,
+        None,
+        method::find("direct").unwrap(),
+        &Default::default(),
+        &RendererSettings::default(),
+    )
+    .err()
+    .expect("refused");
+    assert!(err.to_string().contains("cornell-box"), "{err}");
+}

@@ -411,13 +411,20 @@ impl SceneGpu {
     /// Uploads `scene`; `atlas` (a `.cssm` of the same scene) supplies atlas coordinates.
     ///
     /// # Errors
-    /// [`RuntimeError::Texture`] when a `map_Kd` cannot be read.
+    /// [`RuntimeError::Texture`] when a `map_Kd` cannot be read; [`RuntimeError::Unsupported`]
+    /// when `Scene::objects` do not cover the triangles once each.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         scene: &Scene,
         atlas: Option<&CssmFile>,
     ) -> Result<Self, RuntimeError> {
+        // A scene built by hand may break the objects' invariants; a loaded one never does.
+        if !scene.objects.is_empty() {
+            scene
+                .check_objects()
+                .map_err(|e| RuntimeError::Unsupported(format!("scene '{}': {e}", scene.name)))?;
+        }
         let mut vertices = Vec::with_capacity(scene.triangles.len() * 3);
         for (t, tri) in scene.triangles.iter().enumerate() {
             let object = if scene.objects.is_empty() {
