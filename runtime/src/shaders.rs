@@ -4,7 +4,8 @@
 //!
 //! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
 //! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
-//! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`) and a module
+//! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`,
+//! `cssm::lowres`) and a module
 //! imports what it uses (`#import cssm::visibility::{cssm_texels, cssm_visibility_texel}`).
 //!
 //! The workgroup sizes are defined once, here ([`WORKGROUP_1D`], [`WORKGROUP_2D`]): the WGSL
@@ -30,8 +31,9 @@ pub const WORKGROUP_2D: u32 = 8;
 
 /// The libraries the modules import (`#import cssm::...`), each defining its import path:
 /// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
-/// the shadow lookup, the light model, the CSSM visibility query, the light transfer.
-const LIBRARIES: [(&str, &str); 6] = [
+/// the shadow lookup, the light model, the CSSM visibility query, the light transfer, the
+/// low-res pixel's representative pixel.
+const LIBRARIES: [(&str, &str); 7] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -52,6 +54,10 @@ const LIBRARIES: [(&str, &str); 6] = [
     (
         "runtime/src/radiosity/transfer.wgsl",
         include_str!("radiosity/transfer.wgsl"),
+    ),
+    (
+        "runtime/src/common/lowres.wgsl",
+        include_str!("common/lowres.wgsl"),
     ),
 ];
 
@@ -121,6 +127,9 @@ pub enum Shader {
     Compose,
     /// `common/tonemap.wgsl`.
     Tonemap,
+    /// `common/filters.wgsl`: edge-aware blur (`blur_x`, `blur_y`) and joint bilateral
+    /// up-sampling (`upsample`), with `common/lowres.wgsl`.
+    Filters,
     /// `visibility/query.wgsl`, the batch query kernel, with the CSSM library.
     Query,
     /// `visibility/gather.wgsl`, the gather benchmark kernel, with the CSSM library.
@@ -131,7 +140,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 13] = [
+    pub const ALL: [Shader; 14] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -142,6 +151,7 @@ impl Shader {
         Shader::FinalGather,
         Shader::Compose,
         Shader::Tonemap,
+        Shader::Filters,
         Shader::Query,
         Shader::Gather,
         Shader::Bvh,
@@ -160,6 +170,7 @@ impl Shader {
             Shader::FinalGather => "final gather",
             Shader::Compose => "compose",
             Shader::Tonemap => "tonemap",
+            Shader::Filters => "edge-aware filters",
             Shader::Query => "visibility query",
             Shader::Gather => "visibility gather",
             Shader::Bvh => "bvh segments",
@@ -208,6 +219,10 @@ impl Shader {
             Shader::Tonemap => (
                 "runtime/src/common/tonemap.wgsl",
                 include_str!("common/tonemap.wgsl"),
+            ),
+            Shader::Filters => (
+                "runtime/src/common/filters.wgsl",
+                include_str!("common/filters.wgsl"),
             ),
             Shader::Query => (
                 "runtime/src/visibility/query.wgsl",

@@ -128,11 +128,24 @@ pub fn bind_group(
     })
 }
 
-/// A compute pipeline running `entry` of `module` with `layouts` at groups 0, 1, ...
+/// A compute pipeline running the entry point `main` of `module` with `layouts` at groups
+/// 0, 1, ...
 pub fn compute_pipeline(
     device: &wgpu::Device,
     label: &str,
     module: &wgpu::ShaderModule,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> wgpu::ComputePipeline {
+    compute_pipeline_entry(device, label, module, "main", layouts)
+}
+
+/// A compute pipeline running the entry point `entry` of `module` (a module with several
+/// kernels) with `layouts` at groups 0, 1, ...
+pub fn compute_pipeline_entry(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    entry: &str,
     layouts: &[&wgpu::BindGroupLayout],
 ) -> wgpu::ComputePipeline {
     let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
@@ -145,7 +158,7 @@ pub fn compute_pipeline(
         label: Some(label),
         layout: Some(&pipeline_layout),
         module,
-        entry_point: Some("main"),
+        entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,
     })

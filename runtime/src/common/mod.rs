@@ -1,8 +1,10 @@
 //! GPU pieces every technique shares, each defined once: the camera, the G-buffer, the
-//! spot-light shadow map, tone mapping, pass timing, read-back, and bind-group shorthands.
+//! spot-light shadow map, tone mapping, pass timing, read-back, bind-group shorthands, and the
+//! edge-aware blur and up-sampling of indirect light computed at reduced resolution.
 
 pub mod camera;
 pub mod compose;
+pub mod filters;
 pub mod gbuffer;
 pub mod layout;
 pub mod readback;
