@@ -50,6 +50,9 @@ pub enum Slot {
     View,
     /// One depth map per light.
     ShadowMaps,
+    /// The reflective shadow map of every light (the same raster as the shadow maps, made
+    /// when a method's pass reads it).
+    Rsm,
     /// Position, normal, albedo, atlas coordinates per pixel.
     GBuffer,
     /// Direct radiance per pixel.
@@ -60,6 +63,10 @@ pub enum Slot {
     NodeRadiance,
     /// Indirect irradiance of every atlas texel.
     TexelIrradiance,
+    /// Indirect light at a reduced resolution, before the shared filters (`common::filters`).
+    Reduced,
+    /// The reduced indirect light filtered and up-sampled to the G-buffer's resolution.
+    Upsampled,
     /// Indirect radiance per pixel: a method's output.
     Indirect,
     /// Composed linear radiance per pixel.
@@ -100,7 +107,7 @@ pub const SHARED_PREPARE: &[PassInfo] = &[PassInfo {
     name: "shadow maps",
     stage: Stage::Prepare,
     reads: &[Slot::Scene, Slot::Lights],
-    writes: &[Slot::ShadowMaps],
+    writes: &[Slot::ShadowMaps, Slot::Rsm],
 }];
 
 /// The renderer's own passes before a method's frame passes.
@@ -273,7 +280,9 @@ pub struct FrameContext {
 }
 
 impl FrameContext {
-    /// Uploads `scene` (and `cssm`, if given) and creates the shared resources.
+    /// Uploads `scene` (and `cssm`, if given) and creates the shared resources; the shadow
+    /// maps' raster also writes the reflective shadow map when `rsm` (a method reads
+    /// [`Slot::Rsm`]).
     ///
     /// # Errors
     /// Unsupported lights or sizes, unreadable textures, buffers beyond the device's limits.
@@ -283,11 +292,13 @@ impl FrameContext {
         scene: &Scene,
         cssm: Option<&CssmFile>,
         settings: FrameSettings,
+        rsm: bool,
     ) -> Result<Self, RuntimeError> {
         settings.check()?;
         let scene_gpu = SceneGpu::new(device, queue, scene, cssm)?;
         let lights = shadow_map::gpu_lights(scene, settings.shadow_resolution)?;
-        let shadows = ShadowMaps::new(device, &scene_gpu, &lights, settings.shadow_resolution);
+        let resolution = settings.shadow_resolution;
+        let shadows = ShadowMaps::new(device, &scene_gpu, &lights, resolution, rsm);
         let camera = View::of_scene(scene, settings.width, settings.height);
         let view = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("view"),

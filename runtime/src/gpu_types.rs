@@ -60,6 +60,12 @@ pub struct GpuSpotLight {
     pub shadow_resolution: f32,
     /// World to shadow-map clip space.
     pub view_proj: [[f32; 4]; 4],
+    /// Solid angle of the shadow-map texel on the cone's axis, steradians; a texel at angle
+    /// `a` off the axis spans `texel_solid_angle cos³ a` (the reflective shadow map's flux,
+    /// `common::shadow_map::Rsm`).
+    pub texel_solid_angle: f32,
+    /// Unused.
+    pub _pad: [f32; 3],
 }
 
 /// Per-frame view constants.
@@ -201,6 +207,10 @@ mod tests {
                     offset_of!(GpuSpotLight, shadow_resolution),
                 ),
                 ("view_proj", offset_of!(GpuSpotLight, view_proj)),
+                (
+                    "texel_solid_angle",
+                    offset_of!(GpuSpotLight, texel_solid_angle),
+                ),
             ],
         );
         check(

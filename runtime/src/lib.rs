@@ -76,6 +76,7 @@ method_table! {
     direct => [METHOD],
     lightmap => [HRC, LIGHTMAP],
     lightcuts => [METHOD],
+    rsm => [METHOD],
     reference => [METHOD],
 }
 

@@ -35,7 +35,7 @@ use cssm_formats::{CssmFile, Scene};
 use crate::{
     RuntimeError,
     common::camera::View,
-    frame::{FrameContext, FrameEncoder, PassInfo},
+    frame::{FrameContext, FrameEncoder, PassInfo, Slot},
 };
 
 /// A global-illumination method on the GPU, built once by the renderer and driven by it.
@@ -204,6 +204,12 @@ impl MethodEntry {
         self.options.iter().find(|o| o.name == name)
     }
 
+    /// Whether one of its passes reads `slot` (the renderer makes the shared resources its
+    /// passes read: the reflective shadow map only for a method that reads [`Slot::Rsm`]).
+    pub fn reads(&self, slot: Slot) -> bool {
+        self.passes.iter().any(|p| p.reads.contains(&slot))
+    }
+
     /// Whether it runs on the GPU, inside the renderer.
     pub fn on_gpu(&self) -> bool {
         matches!(self.backend, Backend::Gpu(_))
@@ -277,6 +283,13 @@ pub enum OptionKind {
         /// Default.
         default: bool,
     },
+    /// One of a few named variants.
+    Choice {
+        /// Default, one of `choices`.
+        default: &'static str,
+        /// The names accepted.
+        choices: &'static [&'static str],
+    },
 }
 
 impl OptionKind {
@@ -286,6 +299,7 @@ impl OptionKind {
             OptionKind::Count { default, .. } => OptionValue::Count(default),
             OptionKind::Number { default, .. } => OptionValue::Number(default),
             OptionKind::Switch { default } => OptionValue::Switch(default),
+            OptionKind::Choice { default, .. } => OptionValue::Choice(default),
         }
     }
 }
@@ -298,6 +312,9 @@ impl fmt::Display for OptionKind {
             }
             OptionKind::Number { default, min } => write!(f, "default {default}, at least {min}"),
             OptionKind::Switch { default } => write!(f, "default {default}"),
+            OptionKind::Choice { default, choices } => {
+                write!(f, "default {default}, one of {}", choices.join(", "))
+            }
         }
     }
 }
@@ -325,12 +342,20 @@ impl OptionSpec {
                 }
             }
             (OptionKind::Switch { .. }, OptionValue::Switch(_)) => Ok(()),
+            (OptionKind::Choice { choices, .. }, OptionValue::Choice(v)) => {
+                if choices.contains(&v) {
+                    Ok(())
+                } else {
+                    Err(format!("{name} {v} is not one of {}", choices.join(", ")))
+                }
+            }
             (kind, value) => Err(format!(
                 "{name} takes {}, not {value}",
                 match kind {
-                    OptionKind::Count { .. } => "a whole number",
-                    OptionKind::Number { .. } => "a number",
-                    OptionKind::Switch { .. } => "true or false",
+                    OptionKind::Count { .. } => "a whole number".to_string(),
+                    OptionKind::Number { .. } => "a number".to_string(),
+                    OptionKind::Switch { .. } => "true or false".to_string(),
+                    OptionKind::Choice { choices, .. } => format!("one of {}", choices.join(", ")),
                 }
             )),
         }
@@ -358,6 +383,11 @@ impl OptionSpec {
                 "false" | "off" | "no" | "0" => Ok(OptionValue::Switch(false)),
                 _ => Err(format!("{name} takes true or false, not '{text}'")),
             },
+            OptionKind::Choice { choices, .. } => choices
+                .iter()
+                .find(|&&c| c == text)
+                .map(|&c| OptionValue::Choice(c))
+                .ok_or_else(|| format!("{name} takes one of {}, not '{text}'", choices.join(", "))),
         }
     }
 }
@@ -371,6 +401,8 @@ pub enum OptionValue {
     Number(f32),
     /// On or off.
     Switch(bool),
+    /// One of the names of an [`OptionKind::Choice`].
+    Choice(&'static str),
 }
 
 impl fmt::Display for OptionValue {
@@ -379,6 +411,7 @@ impl fmt::Display for OptionValue {
             OptionValue::Count(v) => write!(f, "{v}"),
             OptionValue::Number(v) => write!(f, "{v}"),
             OptionValue::Switch(v) => write!(f, "{v}"),
+            OptionValue::Choice(v) => f.write_str(v),
         }
     }
 }
@@ -452,6 +485,20 @@ impl Resolved {
             OptionValue::Switch(v) => v,
             other => panic!(
                 "option {name} of {} is {other:?}, not a switch",
+                self.method
+            ),
+        }
+    }
+
+    /// The choice `name`: one of its declared names.
+    ///
+    /// # Panics
+    /// When the method does not declare `name` as a choice (a bug in the method).
+    pub fn choice(&self, name: &str) -> &'static str {
+        match self.value(name) {
+            OptionValue::Choice(v) => v,
+            other => panic!(
+                "option {name} of {} is {other:?}, not a choice",
                 self.method
             ),
         }

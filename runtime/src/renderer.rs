@@ -133,7 +133,8 @@ impl Renderer {
         settings: &RendererSettings,
         build: fn(&MethodSetup) -> Result<Box<dyn GiMethod>, RuntimeError>,
     ) -> Result<Self, RuntimeError> {
-        let ctx = FrameContext::new(device, queue, scene, cssm, settings.frame)?;
+        let rsm = entry.reads(frame::Slot::Rsm);
+        let ctx = FrameContext::new(device, queue, scene, cssm, settings.frame, rsm)?;
         let method = build(&MethodSetup {
             ctx: &ctx,
             scene,

@@ -136,11 +136,15 @@ pub enum Shader {
     Gather,
     /// `visibility/bvh.wgsl`, the exact ray-cast baseline.
     Bvh,
+    /// `rsm/sample.wgsl`, the RSM gather with the micro linear buffer.
+    RsmSampling,
+    /// `rsm/resolve.wgsl`, the filtered RSM light reflected towards the eye.
+    RsmResolve,
 }
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 14] = [
+    pub const ALL: [Shader; 16] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -155,6 +159,8 @@ impl Shader {
         Shader::Query,
         Shader::Gather,
         Shader::Bvh,
+        Shader::RsmSampling,
+        Shader::RsmResolve,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -174,6 +180,8 @@ impl Shader {
             Shader::Query => "visibility query",
             Shader::Gather => "visibility gather",
             Shader::Bvh => "bvh segments",
+            Shader::RsmSampling => "rsm sampling",
+            Shader::RsmResolve => "rsm resolve",
         }
     }
 
@@ -235,6 +243,14 @@ impl Shader {
             Shader::Bvh => (
                 "runtime/src/visibility/bvh.wgsl",
                 include_str!("visibility/bvh.wgsl"),
+            ),
+            Shader::RsmSampling => (
+                "runtime/src/rsm/sample.wgsl",
+                include_str!("rsm/sample.wgsl"),
+            ),
+            Shader::RsmResolve => (
+                "runtime/src/rsm/resolve.wgsl",
+                include_str!("rsm/resolve.wgsl"),
             ),
         }
     }

@@ -17,6 +17,10 @@ struct SpotLight {
     intensity: vec3f,
     shadow_resolution: f32,
     view_proj: mat4x4f,
+    texel_solid_angle: f32,
+    padding_a: f32,
+    padding_b: f32,
+    padding_c: f32,
 }
 
 struct View {

@@ -459,7 +459,7 @@ pub fn atlas_radiosity(
         exposure: 1.0,
         shadow_resolution,
     };
-    let ctx = FrameContext::new(device, queue, scene, Some(file), settings)?;
+    let ctx = FrameContext::new(device, queue, scene, Some(file), settings, false)?;
     let gi = AtlasGi::new(&ctx, scene, file, options)?;
     let mut timer = PassTimer::new(device, queue);
     let mut encoder = device.create_command_encoder(&Default::default());

@@ -1,0 +1,144 @@
+//! Frame time of `rsm` (Bang 2011, Tables 5.1-5.3) with and without the micro linear buffer,
+//! measured in the same run on the same device, per pass from GPU timestamps.
+//!
+//! ```text
+//! cargo bench --bench rsm_time -- [--size 1280x720] [--frames 5] [--scene DIR]
+//!     [--shadow-resolution 512] [--out FILE.md]
+//! ```
+//!
+//! Two rows per variant: a static light (the RSM rendered once, a frame is the G-buffer, direct
+//! light, sampling, filters, resolve, compose and tone mapping) and a light that moves every
+//! frame (the thesis' setting: the RSM rendered every frame). Wall-clock milliseconds per frame
+//! from submit to the GPU's idle (median) and GPU milliseconds per pass of the last frame. On
+//! lavapipe only the ratio with/without visibility means something; absolute GPU times count
+//! only from a real GPU (`reports/runtime.sh`).
+
+use std::{path::PathBuf, time::Instant};
+
+use cssm::{formats, runtime};
+use runtime::{
+    Gpu, Renderer, RendererSettings,
+    frame::FrameSettings,
+    method::{self, OptionValue, OptionValues},
+};
+
+fn arg(args: &[String], name: &str) -> Option<String> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .cloned()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Records one frame into `target`, submits it and waits for the GPU.
+fn frame(gpu: &Gpu, renderer: &mut Renderer, target: &wgpu::TextureView) {
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    renderer.render(&mut encoder, target);
+    gpu.queue.submit([encoder.finish()]);
+    gpu.wait().expect("frame");
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let (width, height) = arg(&args, "--size")
+        .and_then(|s| {
+            let (w, h) = s.split_once('x')?;
+            Some((w.parse().ok()?, h.parse().ok()?))
+        })
+        .unwrap_or((1280u32, 720u32));
+    let frames: usize = arg(&args, "--frames")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    let shadow_resolution: u32 = arg(&args, "--shadow-resolution")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(runtime::common::shadow_map::DEFAULT_RESOLUTION);
+    let dir = arg(&args, "--scene")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
+    let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
+
+    let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
+    let scene = formats::Scene::load(&dir).unwrap_or_else(|e| panic!("{e}"));
+    let settings = RendererSettings {
+        frame: FrameSettings {
+            width,
+            height,
+            shadow_resolution,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);
+    let view = target.create_view(&Default::default());
+    let entry = method::find("rsm").expect("rsm");
+    let mut report = format!(
+        "`rsm` on {} ({} triangles), {width}x{height}, RSM {shadow_resolution}², default \
+         options, on {}; median of {frames} frames after the first.\n\n\
+         | visibility | light | frame ms | GPU ms per pass, last frame |\n\
+         | --- | --- | --- | --- |\n",
+        scene.name,
+        scene.triangle_materials.len(),
+        gpu.describe()
+    );
+    let mut medians = Vec::new();
+    for visibility in ["micro-buffer", "none"] {
+        for moving in [false, true] {
+            let mut values = OptionValues::default();
+            values.set("visibility", OptionValue::Choice(visibility));
+            let mut renderer = Renderer::new(
+                &gpu.device,
+                &gpu.queue,
+                &scene,
+                None,
+                entry,
+                &values,
+                &settings,
+            )
+            .expect("renderer");
+            frame(&gpu, &mut renderer, &view);
+            let mut passes = Vec::new();
+            let times: Vec<f64> = (0..frames.max(1))
+                .map(|_| {
+                    if moving {
+                        renderer.set_light(0, &scene.lights[0]).expect("light");
+                    }
+                    let start = Instant::now();
+                    frame(&gpu, &mut renderer, &view);
+                    let ms = start.elapsed().as_secs_f64() * 1e3;
+                    passes = renderer.read_timings().expect("timings");
+                    ms
+                })
+                .collect();
+            let ms = median(times);
+            medians.push(ms);
+            let gpu_total: f64 = passes.iter().map(|(_, t)| t).sum();
+            let passes: Vec<String> = passes.iter().map(|(n, t)| format!("{n} {t:.2}")).collect();
+            let row = format!(
+                "| {visibility} | {} | {ms:.1} | {} |\n",
+                if moving { "moving" } else { "static" },
+                if passes.is_empty() {
+                    "no timestamps".into()
+                } else {
+                    format!("{} (sum {gpu_total:.2})", passes.join(", "))
+                }
+            );
+            print!("{row}");
+            report += &row;
+        }
+    }
+    let ratio = format!(
+        "\nVisibility costs {:.2}x the frame without it (static light), {:.2}x (moving light).\n",
+        medians[0] / medians[2],
+        medians[1] / medians[3]
+    );
+    print!("{ratio}");
+    report += &ratio;
+    if let Some(out) = out {
+        std::fs::write(&out, &report).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
+        println!("wrote {}", out.display());
+    }
+}
