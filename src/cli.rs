@@ -63,7 +63,8 @@ pub enum Command {
         after_help = "Examples:\n  \
             cssm report compression --quick --out /tmp\n  \
             cssm report heads --out /tmp/heads\n  \
-            cssm report church --out /tmp/church"
+            cssm report church --out /tmp/church\n  \
+            cssm report error --method direct --method lightcuts --out /tmp/error"
     )]
     Report(ReportCommand),
 }
@@ -98,6 +99,18 @@ pub enum ReportCommand {
     #[command(after_help = "Example:\n  \
         cssm report church --out /tmp/church && cssm bake /tmp/church --atlas 128")]
     Church(ChurchArgs),
+    /// Render each scene with the reference path tracer and with every --method variant, and
+    /// write each variant's error against the path tracer: relative RMSE, mean bias, light
+    /// leaking into the reference's dark places, mean FLIP, and the reference's own noise floor
+    /// (error.md, error.csv, one PNG per image and a side-by-side strip per scene).
+    ///
+    /// The reference is path traced in two independent halves of --samples paths each (other
+    /// seeds than `--method reference` uses): their mean is the ground truth, their difference
+    /// gives its noise floor, the relative RMSE a method equal to the converged image would show
+    /// against it. Every pixel counts in every figure. The leak's mask is the pixels whose
+    /// reference luminance is below half the median of the nonzero ones.
+    #[command(after_help = error_after_help())]
+    Error(ErrorArgs),
 }
 
 #[derive(clap::Args)]
@@ -294,6 +307,202 @@ impl CheckArgs {
             json: self.json,
         }
     }
+}
+
+/// `cssm report error --help`'s text after the options: the method table, then examples.
+fn error_after_help() -> String {
+    format!(
+        "Methods and their options (--method NAME:OPTION=VALUE,OPTION=VALUE; --bounces and \
+         --samples fill those options of every variant that has them and does not set them):\n{}\n\
+         Every method marked [needs .cssm] gets one baked in memory per scene (--atlas, --cube).\n\n\
+         Examples:\n  \
+         cssm report error --method direct --method lightcuts --out /tmp/error\n  \
+         cssm report error --method hrc --method lightmap --method lightcuts:jitter=true --samples 4096 --out /tmp/error\n  \
+         cssm report error --scene reports/scenes/sibenik --method direct --size 320x240 --reference-cache --out /tmp/sibenik",
+        runtime::method::describe_methods()
+    )
+}
+
+#[derive(clap::Args)]
+pub struct ErrorArgs {
+    /// Scene directory; repeatable. Default: the built-in Cornell box and the Cornell box with a
+    /// glossy floor (scenes/cornell-box, scenes/cornell-glossy).
+    #[arg(long = "scene", value_name = "DIR")]
+    scenes: Vec<PathBuf>,
+    /// A method variant to measure, NAME or NAME:OPTION=VALUE,OPTION=VALUE (for example
+    /// `lightcuts:bounces=2,jitter=true`; the list below); repeatable, at least one.
+    #[arg(long = "method", value_name = "SPEC", required = true)]
+    methods: Vec<String>,
+    /// Image size WIDTHxHEIGHT.
+    #[arg(long, default_value = "160x120", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Paths per pixel of the reference (and of `--method reference` unless its spec sets
+    /// `samples`).
+    #[arg(long, default_value_t = 1024)]
+    samples: u32,
+    /// Indirect bounces of the reference and of every variant with a `bounces` option that does
+    /// not set it.
+    #[arg(long, default_value_t = 1)]
+    bounces: u32,
+    /// Which light the images hold and the figures measure: direct, indirect or full.
+    #[arg(long, default_value = "indirect")]
+    component: Component,
+    /// Exposure in stops of every PNG, the strip and the FLIP images (radiance is scaled by
+    /// 2^EV before tone mapping; also the oracle's tone mapping of hrc, lightmap, lightcuts).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Shadow-map resolution in texels per side.
+    #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
+    shadow_resolution: u32,
+    /// Atlas resolution of the .cssm baked in memory for the methods that need one (32 to 1024).
+    #[arg(long, default_value_t = 64)]
+    atlas: u32,
+    /// Cube-map face resolution of that bake (8 to 128).
+    #[arg(long, default_value_t = 32)]
+    cube: u32,
+    /// Directory of the report (created; only the report's own files in it are replaced).
+    #[arg(long)]
+    out: PathBuf,
+    /// Reuse OUT/SCENE-reference.exr when its sidecar SCENE-reference.json records the same
+    /// scene files, size, samples, bounces and component, instead of path tracing again.
+    #[arg(long)]
+    reference_cache: bool,
+}
+
+/// One `--method` of `cssm report error`, checked by the method table.
+pub struct Variant {
+    /// The spec as the user wrote it, spaces trimmed (`lightcuts:bounces=2`).
+    pub spec: String,
+    /// The method.
+    pub method: &'static MethodEntry,
+    /// The options the spec set, and `--bounces` / `--samples` where it did not.
+    pub values: OptionValues,
+    /// Every option of the method, checked.
+    pub resolved: Resolved,
+}
+
+/// `cssm report error`, checked.
+pub struct ErrorConfig {
+    /// Scene directories; empty: the built-in scenes.
+    pub scenes: Vec<PathBuf>,
+    /// The variants, in the order given.
+    pub variants: Vec<Variant>,
+    /// Image size, exposure (a multiplier) and shadow-map resolution, checked.
+    pub frame: runtime::frame::FrameSettings,
+    /// The reference's options (`samples`, `bounces`), checked by its table entry.
+    pub reference: Resolved,
+    /// Which light the images hold.
+    pub component: Component,
+    /// The in-memory bake of the methods that need a `.cssm`.
+    pub bake: bake::BakeOptions,
+    /// Report directory.
+    pub out: PathBuf,
+    /// `--reference-cache`.
+    pub reference_cache: bool,
+}
+
+impl ErrorArgs {
+    /// Every spec parsed and resolved against the method table, the reference's options, the
+    /// frame settings and the bake options checked; an error names the spec or the flag.
+    pub fn config(self) -> Result<ErrorConfig, String> {
+        let reference_entry = runtime::method::find("reference").map_err(|e| e.to_string())?;
+        for (name, value) in [("samples", self.samples), ("bounces", self.bounces)] {
+            if let Some(spec) = reference_entry.option(name) {
+                spec.check(OptionValue::Count(value))
+                    .map_err(|e| format!("--{e}"))?;
+            }
+        }
+        let mut values = OptionValues::default();
+        values.set("samples", OptionValue::Count(self.samples));
+        values.set("bounces", OptionValue::Count(self.bounces));
+        let reference = reference_entry
+            .resolve(&values)
+            .map_err(|e| e.to_string())?;
+        let mut variants: Vec<Variant> = Vec::new();
+        for text in &self.methods {
+            let variant = parse_variant(text, self.bounces, self.samples)?;
+            if let Some(other) = variants.iter().find(|v| v.spec == variant.spec) {
+                return Err(format!("--method {}: given twice", other.spec));
+            }
+            variants.push(variant);
+        }
+        let frame = runtime::frame::FrameSettings {
+            width: self.size.0,
+            height: self.size.1,
+            exposure: self.exposure.exp2(),
+            shadow_resolution: self.shadow_resolution,
+        };
+        frame.check().map_err(|e| e.to_string())?;
+        let bake = bake::BakeOptions {
+            atlas_resolution: self.atlas,
+            cube_resolution: self.cube,
+            ..Default::default()
+        };
+        bake.check().map_err(|e| cssm::flag_error(&e))?;
+        Ok(ErrorConfig {
+            scenes: self.scenes,
+            variants,
+            frame,
+            reference,
+            component: self.component,
+            bake,
+            out: self.out,
+            reference_cache: self.reference_cache,
+        })
+    }
+}
+
+/// `NAME` or `NAME:OPTION=VALUE,OPTION=VALUE`, checked against the method table; `bounces` and
+/// `samples` filled from the flags where the method has them and the spec does not set them.
+/// Errors name the spec.
+fn parse_variant(text: &str, bounces: u32, samples: u32) -> Result<Variant, String> {
+    let fail = |message: String| format!("--method {text}: {message}");
+    let (name, options) = match text.split_once(':') {
+        Some((name, options)) => (name.trim(), Some(options)),
+        None => (text.trim(), None),
+    };
+    let method = runtime::method::find(name).map_err(|e| fail(e.to_string()))?;
+    let mut values = OptionValues::default();
+    let mut given = Vec::new();
+    for part in options.into_iter().flat_map(|o| o.split(',')) {
+        let (key, value) = part
+            .split_once('=')
+            .ok_or_else(|| fail(format!("'{}' is not OPTION=VALUE", part.trim())))?;
+        let (key, value) = (key.trim(), value.trim());
+        let spec = method.option(key).ok_or_else(|| {
+            let known: Vec<&str> = method.options.iter().map(|o| o.name).collect();
+            fail(format!(
+                "method {method} has no option '{key}' (its options: {})",
+                if known.is_empty() {
+                    "none".into()
+                } else {
+                    known.join(", ")
+                }
+            ))
+        })?;
+        if values.get(spec.name).is_some() {
+            return Err(fail(format!("option '{key}' is given twice")));
+        }
+        values.set(spec.name, spec.parse(value).map_err(fail)?);
+        given.push(format!("{key}={value}"));
+    }
+    for (option, value) in [("bounces", bounces), ("samples", samples)] {
+        if method.option(option).is_some() && values.get(option).is_none() {
+            values.set(option, OptionValue::Count(value));
+        }
+    }
+    let resolved = method.resolve(&values).map_err(|e| fail(e.to_string()))?;
+    let spec = if given.is_empty() {
+        method.name.to_string()
+    } else {
+        format!("{}:{}", method.name, given.join(","))
+    };
+    Ok(Variant {
+        spec,
+        method,
+        values,
+        resolved,
+    })
 }
 
 /// `cssm render --help`'s text after the options: the method table, then examples.
@@ -524,5 +733,37 @@ mod tests {
         ] {
             assert_eq!(bake_config(&args).err().as_deref(), Some(message));
         }
+    }
+
+    /// A spec's options are parsed by the method's table, the flags fill `bounces` and
+    /// `samples` where the spec leaves them, and the spec is kept as written, trimmed.
+    #[test]
+    fn method_specs_parse_against_the_table() {
+        let v = super::parse_variant(" lightcuts : threshold=0.5 , jitter=on", 2, 64).unwrap();
+        assert_eq!(v.spec, "lightcuts:threshold=0.5,jitter=on");
+        assert_eq!(v.resolved.count("bounces"), 2);
+        assert_eq!(v.resolved.number("threshold"), 0.5);
+        assert!(v.resolved.switch("jitter"));
+        let v = super::parse_variant("reference:bounces=3", 1, 64).unwrap();
+        assert_eq!(
+            (v.resolved.count("bounces"), v.resolved.count("samples")),
+            (3, 64)
+        );
+        assert_eq!(
+            super::parse_variant("direct", 1, 64).unwrap().spec,
+            "direct"
+        );
+        let err = super::parse_variant("direct:bounces=2", 1, 64)
+            .err()
+            .unwrap();
+        assert!(err.starts_with("--method direct:bounces=2: "), "{err}");
+        let err = super::parse_variant("hrc:bounces=1,bounces=2", 1, 64)
+            .err()
+            .unwrap();
+        assert!(err.contains("given twice"), "{err}");
+        let err = super::parse_variant("hrc:threshold=x", 1, 64)
+            .err()
+            .unwrap();
+        assert!(err.contains("threshold x must be a number"), "{err}");
     }
 }

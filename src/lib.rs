@@ -6,7 +6,8 @@
 //! - [`raycast`]: exact CPU ray casts, surface sampling and the seeded generator (the reference);
 //! - [`bake`]: atlas, traversals, depth cube maps, compression, accuracy check;
 //! - [`runtime`]: the GPU runtime on wgpu (loaders, visibility queries in WGSL, rendering).
-//! - [`report`]: the compression report (`cssm report compression`), measured against the paper.
+//! - [`report`]: the compression report (`cssm report compression`), measured against the paper,
+//!   and the methods' error against the path tracer (`cssm report error`).
 //! - [`summary`]: what `cssm bake`, `cssm inspect` and `cssm check` print, as text or JSON.
 //!
 //! ```no_run

@@ -1,8 +1,9 @@
 //! The `cssm` command line: a thin layer over the `cssm-formats`, `cssm-bake` and
 //! `cssm-runtime` libraries. [`cli`] holds the clap definitions and turns each command's
 //! arguments into a config of library types, checked by the libraries; `bake_cmd`,
-//! `check_cmd` and `render` run the commands, `inspect` and the reports are here. What
-//! `bake`, `inspect` and `check` print, text or `--json`, is [`cssm::summary`].
+//! `check_cmd`, `render` and `error_cmd` (`cssm report error`) run the commands, `inspect`
+//! and the other reports are here. What `bake`, `inspect` and `check` print, text or
+//! `--json`, is [`cssm::summary`].
 //!
 //! Exit codes: 0 success, 1 a check ran and failed its threshold, 2 an error.
 
@@ -14,6 +15,7 @@ use std::{
 mod bake_cmd;
 mod check_cmd;
 mod cli;
+mod error_cmd;
 mod render;
 
 use clap::Parser;
@@ -30,6 +32,7 @@ fn main() -> ExitCode {
         Command::Report(ReportCommand::Compression(args)) => run_report(args),
         Command::Report(ReportCommand::Heads(args)) => run_heads(args),
         Command::Report(ReportCommand::Church(args)) => run_church(args),
+        Command::Report(ReportCommand::Error(args)) => args.config().and_then(error_cmd::run_error),
     };
     match result {
         Ok(code) => code,

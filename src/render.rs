@@ -203,14 +203,24 @@ fn save_image(
 }
 
 /// The tone-mapped image as PNG.
-fn save_png(path: &Path, image: &readback::Image) -> Result<(), String> {
-    let img = ::image::RgbaImage::from_raw(image.width, image.height, image.display.clone())
+pub(crate) fn save_png(path: &Path, image: &readback::Image) -> Result<(), String> {
+    save_rgba_png(path, image.width, image.height, image.display.clone())
+}
+
+/// RGBA8 pixels of `width` x `height` as PNG.
+pub(crate) fn save_rgba_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgba: Vec<u8>,
+) -> Result<(), String> {
+    let img = ::image::RgbaImage::from_raw(width, height, rgba)
         .ok_or_else(|| format!("{}: the display image has the wrong size", path.display()))?;
     save_image(path, img.into(), ::image::ImageFormat::Png)
 }
 
 /// The linear radiance as OpenEXR (32-bit float RGBA).
-fn save_exr(path: &Path, image: &readback::Image) -> Result<(), String> {
+pub(crate) fn save_exr(path: &Path, image: &readback::Image) -> Result<(), String> {
     let data: Vec<f32> = image.radiance.iter().flatten().copied().collect();
     let img = ::image::Rgba32FImage::from_raw(image.width, image.height, data)
         .ok_or_else(|| format!("{}: the radiance image has the wrong size", path.display()))?;

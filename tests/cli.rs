@@ -330,6 +330,7 @@ fn help_explains_every_command() {
         vec!["report", "compression", "--help"],
         vec!["report", "heads", "--help"],
         vec!["report", "church", "--help"],
+        vec!["report", "error", "--help"],
     ] {
         let o = cssm(&cmd);
         let text = String::from_utf8_lossy(&o.stdout);
@@ -682,4 +683,192 @@ fn facing_second_layer_compresses_better_at_the_same_accuracy() {
     // The same pairs for both, most of them exchanging light in a closed box.
     assert_eq!(any["exchanging_pairs"], facing["exchanging_pairs"]);
     assert!(any["exchanging_pairs"].as_u64().unwrap() > 25_000, "{any}");
+}
+
+/// Reads `error.csv` into (scene, method) -> column -> value.
+fn error_csv(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    lines
+        .map(|line| {
+            // Quoted fields (specs with commas, the device) hold no quotes here.
+            let mut fields = Vec::new();
+            let mut rest = line;
+            while !rest.is_empty() || fields.len() < header.len() {
+                if let Some(stripped) = rest.strip_prefix('"') {
+                    let end = stripped.find('"').unwrap();
+                    fields.push(stripped[..end].to_string());
+                    rest = stripped[end + 1..].strip_prefix(',').unwrap_or("");
+                } else {
+                    let (field, tail) = rest.split_once(',').unwrap_or((rest, ""));
+                    fields.push(field.to_string());
+                    rest = tail;
+                }
+                if fields.len() == header.len() {
+                    break;
+                }
+            }
+            assert_eq!(fields.len(), header.len(), "{line}");
+            header.iter().cloned().zip(fields).collect()
+        })
+        .collect()
+}
+
+/// `cssm report error` end to end, tiny (16x12, 16 paths per pixel) on the built-in scenes: the
+/// files are written; `direct` has no indirect light (relative RMSE 1, bias -1); the path
+/// tracer as a method, with other seeds than the reference, is within the reference's noise
+/// (about sqrt(2) times its noise floor); a CSSM method gets its .cssm baked in memory, and
+/// `--reference-cache` reuses the reference.
+#[test]
+fn error_report_small() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("report");
+    let o = cssm(&[
+        "report",
+        "error",
+        "--method",
+        "direct",
+        "--method",
+        "reference",
+        "--size",
+        "16x12",
+        "--samples",
+        "16",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("| cornell-box | direct |"), "{stdout}");
+    for scene in ["cornell-box", "cornell-glossy"] {
+        for file in [
+            "reference.png",
+            "reference.exr",
+            "reference.json",
+            "direct.png",
+            "reference-method.png",
+            "strip.png",
+        ] {
+            assert!(
+                out.join(format!("{scene}-{file}")).is_file(),
+                "{scene}-{file}"
+            );
+        }
+        let strip = image::open(out.join(format!("{scene}-strip.png"))).unwrap();
+        assert_eq!((strip.width(), strip.height()), (3 * 16 + 2 * 2, 12));
+    }
+    let md = std::fs::read_to_string(out.join("error.md")).unwrap();
+    assert!(md.contains("| scene | method | relative RMSE |"), "{md}");
+    let rows = error_csv(&out.join("error.csv"));
+    assert_eq!(rows.len(), 6, "a noise floor and two variants per scene");
+    let number = |scene: &str, method: &str, column: &str| -> f64 {
+        let row = rows
+            .iter()
+            .find(|r| r["scene"] == scene && r["method"] == method)
+            .unwrap_or_else(|| panic!("no row {scene} {method}"));
+        row[column]
+            .parse()
+            .unwrap_or_else(|_| panic!("{scene} {method} {column}: '{}'", row[column]))
+    };
+    for scene in ["cornell-box", "cornell-glossy"] {
+        assert!((number(scene, "direct", "relative_rmse") - 1.0).abs() < 1e-9);
+        assert!((number(scene, "direct", "bias") + 1.0).abs() < 1e-9);
+        let floor = number(scene, "reference-noise-floor", "relative_rmse");
+        let rmse = number(scene, "reference", "relative_rmse");
+        assert!(floor > 0.0, "{scene}: {floor}");
+        assert!(
+            rmse > 0.7 * floor && rmse < 2.5 * floor,
+            "{scene}: reference as a method {rmse}, noise floor {floor}"
+        );
+        assert!(number(scene, "reference", "bias").abs() < 0.5);
+        assert!(number(scene, "reference", "mean_flip") < number(scene, "direct", "mean_flip"));
+    }
+
+    // A CSSM method, baked in memory; the reference from the cache.
+    let o = cssm(&[
+        "report",
+        "error",
+        "--scene",
+        cornell().to_str().unwrap(),
+        "--method",
+        "lightcuts:bounces=1",
+        "--size",
+        "16x12",
+        "--samples",
+        "16",
+        "--atlas",
+        "32",
+        "--cube",
+        "8",
+        "--reference-cache",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("reusing"), "{}", stderr(&o));
+    assert!(out.join("cornell-box-lightcuts-bounces-1.png").is_file());
+    let rows = error_csv(&out.join("error.csv"));
+    let lightcuts = rows
+        .iter()
+        .find(|r| r["method"] == "lightcuts:bounces=1")
+        .unwrap();
+    let rmse: f64 = lightcuts["relative_rmse"].parse().unwrap();
+    assert!(rmse > 0.0 && rmse < 1.0, "{rmse}");
+    assert!(!lightcuts["device"].is_empty());
+}
+
+#[test]
+fn error_report_refuses_bad_methods_and_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("report");
+    for (spec, needles) in [
+        ("radiosity", vec!["--method radiosity", "unknown method"]),
+        (
+            "lightcuts:colour=red",
+            vec!["--method lightcuts:colour=red", "no option 'colour'"],
+        ),
+        (
+            "lightcuts:bounces=99",
+            vec!["--method lightcuts:bounces=99", "out of range"],
+        ),
+        (
+            "lightcuts:bounces",
+            vec!["--method lightcuts:bounces", "OPTION=VALUE"],
+        ),
+    ] {
+        let o = cssm(&[
+            "report",
+            "error",
+            "--method",
+            spec,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{spec}: {}", stderr(&o));
+        for needle in needles {
+            assert!(stderr(&o).contains(needle), "{spec}: {}", stderr(&o));
+        }
+        assert!(!out.exists(), "{spec}: nothing is written");
+    }
+    let o = cssm(&["report", "error", "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "--method is required");
+
+    let file = dir.path().join("notes.txt");
+    std::fs::write(&file, "keep me").unwrap();
+    let o = cssm(&[
+        "report",
+        "error",
+        "--method",
+        "direct",
+        "--size",
+        "16x12",
+        "--samples",
+        "4",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a directory"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
 }

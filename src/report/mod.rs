@@ -14,8 +14,13 @@
 //! memory, `VmHWM`, which it reads before exiting), followed by `cssm check --json` on the file
 //! (agreement with exact ray casts on random surface point pairs, §3.2.2). The ratio that counts
 //! is uncompressed / GPU-resident size, as in the paper; the file ratio is a column beside it.
+//!
+//! `cssm report error` measures each method's image against the reference path tracer's: the
+//! figures are [`error`], the files beside the images [`error_write`].
 
 pub mod church;
+pub mod error;
+pub mod error_write;
 pub mod heads;
 pub mod paper;
 mod write;
