@@ -11,13 +11,18 @@ prepare)
     cargo build --release
     cargo bench --bench gpu_queries --no-run 2>&1 | tail -1
     cargo bench --bench frame_time --no-run 2>&1 | tail -1
+    cargo bench --bench rsm_time --no-run 2>&1 | tail -1
     bench=$(ls -t target/release/deps/gpu_queries-* | grep -v '\.d$' | head -1)
     frame_bench=$(ls -t target/release/deps/frame_time-* | grep -v '\.d$' | head -1)
+    rsm_bench=$(ls -t target/release/deps/rsm_time-* | grep -v '\.d$' | head -1)
     (cd ../shared/tools/gpu-limit && cargo build --release)
     mkdir -p .carry/scenes
     cp target/release/cssm "$bench" ../shared/tools/gpu-limit/target/release/gpu-limit .carry/
     mv ".carry/$(basename "$bench")" .carry/gpu_queries
     cp "$frame_bench" .carry/frame_time
+    cp "$rsm_bench" .carry/rsm_time
+    mkdir -p .carry/scenes/sibenik-view && cp reports/scenes/sibenik/scene.toml .carry/scenes/sibenik-view/
+    sed -i 's|mesh = .*|mesh = "../sibenik/sibenik.obj"|' .carry/scenes/sibenik-view/scene.toml
     cp -r ../shared/scenes/sibenik .carry/scenes/ 2>/dev/null || echo "no sibenik: its rows will be skipped"
     # GI scenes (Table 1: 128x128 texels): the Cornell box and the heads baked here; the church
     # is baked on the device (16 cores), its atlas needing 256.
@@ -45,6 +50,14 @@ measure)
         .carry/cssm render --size "$size" --timings --out "$out/direct-$size.png" \
             | tee "$out/runtime-direct-$size.txt"
     done
+    # RSM with and without the micro linear buffer (issue 17; target: 1 ms at 1280x720 with
+    # visibility), static and moving light, GPU ms per pass.
+    .carry/rsm_time --size 1280x720 --frames 20 --out "$out/runtime-rsm-cornell.md" \
+        | tee "$out/runtime-rsm-cornell.txt"
+    if [ -d .carry/scenes/sibenik ]; then
+        .carry/rsm_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
+            --out "$out/runtime-rsm-sibenik.md" | tee "$out/runtime-rsm-sibenik.txt"
+    fi
     # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
     # lightmap, 1 and 2 bounces, 640x480.
     if [ -d .carry/scenes/sibenik ]; then

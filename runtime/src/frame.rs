@@ -3,7 +3,8 @@
 //!
 //! Once, and again whenever a light or an object moves (`prepare`):
 //!
-//! 1. `common::shadow_map` — one depth map per spot light (§4.7)
+//! 1. `common::shadow_map` — one depth map per spot light (§4.7), and in the same raster the
+//!    reflective shadow map when a method reads [`Slot::Rsm`] (`rsm`)
 //! 2. the method's view-independent passes ([`crate::method::GiMethod::prepare`]); for `hrc`,
 //!    `lightmap` and `lightcuts` ([`crate::radiosity::AtlasGi`]):
 //!    1. `direct::AtlasDirect` — direct light into the atlas texels
@@ -16,7 +17,9 @@
 //! 4. `direct::ScreenDirect` — direct light per pixel (spot lights, PCF shadows)
 //! 5. the method's per-frame passes ([`crate::method::GiMethod::encode`]):
 //!    `lightmap::AtlasLookup` (`hrc`: nearest texel, `lightmap`: bicubic) or
-//!    `lightcuts::FinalGather` (`lightcuts`: the last, glossy bounce per pixel, §4.4)
+//!    `lightcuts::FinalGather` (`lightcuts`: the last, glossy bounce per pixel, §4.4), or
+//!    `rsm`'s sampling at a reduced resolution, the shared `common::filters` (edge-aware blur,
+//!    joint bilateral up-sampling) and its resolve
 //! 6. `common::compose` — direct + indirect, or either alone (`--component`)
 //! 7. `common::tonemap` — exposure, ACES, sRGB, into the caller's target
 //!

@@ -528,6 +528,26 @@ pub fn upsample(low: &[Vec4], layers: u32, guide: &CpuGuide, options: &FilterOpt
     out
 }
 
+/// The filters' passes as a method declares them ([`crate::method::MethodEntry::passes`]):
+/// the blur over the reduced light, then the up-sampling to the G-buffer's resolution.
+pub const PASSES: [crate::frame::PassInfo; 2] = {
+    use crate::frame::{PassInfo, Slot, Stage};
+    [
+        PassInfo {
+            name: "edge-aware blur",
+            stage: Stage::Frame,
+            reads: &[Slot::Reduced, Slot::GBuffer, Slot::View],
+            writes: &[Slot::Reduced],
+        },
+        PassInfo {
+            name: "upsample",
+            stage: Stage::Frame,
+            reads: &[Slot::Reduced, Slot::GBuffer, Slot::View],
+            writes: &[Slot::Upsampled],
+        },
+    ]
+};
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -798,23 +818,3 @@ mod tests {
         assert!(edge.check().is_ok());
     }
 }
-
-/// The filters' passes as a method declares them ([`crate::method::MethodEntry::passes`]):
-/// the blur over the reduced light, then the up-sampling to the G-buffer's resolution.
-pub const PASSES: [crate::frame::PassInfo; 2] = {
-    use crate::frame::{PassInfo, Slot, Stage};
-    [
-        PassInfo {
-            name: "edge-aware blur",
-            stage: Stage::Frame,
-            reads: &[Slot::Reduced, Slot::GBuffer, Slot::View],
-            writes: &[Slot::Reduced],
-        },
-        PassInfo {
-            name: "upsample",
-            stage: Stage::Frame,
-            reads: &[Slot::Reduced, Slot::GBuffer, Slot::View],
-            writes: &[Slot::Upsampled],
-        },
-    ]
-};

@@ -87,12 +87,15 @@ pub fn gather(
     let radius = params.radius * scale;
     for (rsm, light) in rsms.iter().zip(lights) {
         let view_proj = glam::Mat4::from_cols_array_2d(&light.view_proj);
+        // The paths' origin: the receiver's projection, the map's nearest point for a
+        // receiver beside the light's view, the map's centre for one behind the light.
         let clip = view_proj * r.position.extend(1.0);
-        if clip.w <= 0.0 {
-            continue;
-        }
-        let ndc = clip.truncate() / clip.w;
-        let projection = Vec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
+        let projection = if clip.w > 0.0 {
+            let ndc = Vec2::new(clip.x, clip.y) / clip.w;
+            Vec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5).clamp(Vec2::ZERO, Vec2::ONE)
+        } else {
+            Vec2::splat(0.5)
+        };
         let n_side = rsm.resolution as f32;
         let light_position = Vec3::from(light.position);
         let axis = Vec3::from(light.direction);

@@ -84,12 +84,15 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         let samples = f32(params.path_samples);
         for (var li = 0u; li < view.light_count; li++) {
             let light = lights[li];
+            // The receiver's projection into the RSM, the paths' origin: for a receiver the
+            // map does not see (beside or behind the light), the nearest point of the map, or
+            // its centre (our extension: the thesis' receivers all lie in the light's view).
             let clip = light.view_proj * vec4f(x, 1.0);
-            if clip.w <= 0.0 {
-                continue;
+            var projection = vec2f(0.5);
+            if clip.w > 0.0 {
+                let ndc = clip.xy / clip.w;
+                projection = clamp(vec2f(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5), vec2f(0.0), vec2f(1.0));
             }
-            let ndc = clip.xyz / clip.w;
-            let projection = vec2f(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
             let side = light.shadow_resolution;
             for (var j = 0u; j < params.paths; j++) {
                 // Algorithm 6: the micro linear buffer, reset for every path.
