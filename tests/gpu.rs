@@ -10,6 +10,8 @@ mod filters;
 mod methods;
 #[path = "gpu/rsm.rs"]
 mod rsm;
+#[path = "gpu/voxelize.rs"]
+mod voxelize;
 
 use cssm_bake::BakeOptions;
 use cssm_formats::{

@@ -451,7 +451,8 @@ impl SceneGpu {
         let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("scene vertices"),
             contents: bytemuck::cast_slice(&vertices),
-            usage: wgpu::BufferUsages::VERTEX,
+            // Storage too: the voxeliser reads the triangles in a compute pass.
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
         });
         let (cpu_materials, cpu_textures) = cpu_materials(scene)?;
         let materials = storage_buffer(device, "materials", bytemuck::cast_slice(&cpu_materials));

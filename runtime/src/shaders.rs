@@ -140,11 +140,13 @@ pub enum Shader {
     RsmSampling,
     /// `rsm/resolve.wgsl`, the filtered RSM light reflected towards the eye.
     RsmResolve,
+    /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
+    Voxelize,
 }
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 16] = [
+    pub const ALL: [Shader; 17] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -161,6 +163,7 @@ impl Shader {
         Shader::Bvh,
         Shader::RsmSampling,
         Shader::RsmResolve,
+        Shader::Voxelize,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -182,6 +185,7 @@ impl Shader {
             Shader::Bvh => "bvh segments",
             Shader::RsmSampling => "rsm sampling",
             Shader::RsmResolve => "rsm resolve",
+            Shader::Voxelize => "voxelize",
         }
     }
 
@@ -247,6 +251,10 @@ impl Shader {
             Shader::RsmSampling => (
                 "runtime/src/rsm/sample.wgsl",
                 include_str!("rsm/sample.wgsl"),
+            ),
+            Shader::Voxelize => (
+                "runtime/src/common/voxelize.wgsl",
+                include_str!("common/voxelize.wgsl"),
             ),
             Shader::RsmResolve => (
                 "runtime/src/rsm/resolve.wgsl",
