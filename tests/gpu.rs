@@ -8,6 +8,8 @@ use std::sync::OnceLock;
 mod filters;
 #[path = "gpu/methods.rs"]
 mod methods;
+#[path = "gpu/octree.rs"]
+mod octree;
 #[path = "gpu/rsm.rs"]
 mod rsm;
 #[path = "gpu/voxelize.rs"]

@@ -5,7 +5,7 @@
 //! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
 //! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
 //! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`,
-//! `cssm::lowres`) and a module
+//! `cssm::lowres`, `cssm::voxel`) and a module
 //! imports what it uses (`#import cssm::visibility::{cssm_texels, cssm_visibility_texel}`).
 //!
 //! The workgroup sizes are defined once, here ([`WORKGROUP_1D`], [`WORKGROUP_2D`]): the WGSL
@@ -33,7 +33,7 @@ pub const WORKGROUP_2D: u32 = 8;
 /// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
 /// the shadow lookup, the light model, the CSSM visibility query, the light transfer, the
 /// low-res pixel's representative pixel.
-const LIBRARIES: [(&str, &str); 7] = [
+const LIBRARIES: [(&str, &str); 8] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -58,6 +58,10 @@ const LIBRARIES: [(&str, &str); 7] = [
     (
         "runtime/src/common/lowres.wgsl",
         include_str!("common/lowres.wgsl"),
+    ),
+    (
+        "runtime/src/common/voxel.wgsl",
+        include_str!("common/voxel.wgsl"),
     ),
 ];
 
@@ -142,11 +146,14 @@ pub enum Shader {
     RsmResolve,
     /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
     Voxelize,
+    /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
+    /// (`flag`, `allocate`, `next_level`).
+    Octree,
 }
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 17] = [
+    pub const ALL: [Shader; 18] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -164,6 +171,7 @@ impl Shader {
         Shader::RsmSampling,
         Shader::RsmResolve,
         Shader::Voxelize,
+        Shader::Octree,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -186,6 +194,7 @@ impl Shader {
             Shader::RsmSampling => "rsm sampling",
             Shader::RsmResolve => "rsm resolve",
             Shader::Voxelize => "voxelize",
+            Shader::Octree => "octree",
         }
     }
 
@@ -251,6 +260,10 @@ impl Shader {
             Shader::RsmSampling => (
                 "runtime/src/rsm/sample.wgsl",
                 include_str!("rsm/sample.wgsl"),
+            ),
+            Shader::Octree => (
+                "runtime/src/vct/octree.wgsl",
+                include_str!("vct/octree.wgsl"),
             ),
             Shader::Voxelize => (
                 "runtime/src/common/voxelize.wgsl",

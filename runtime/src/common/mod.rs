@@ -1,7 +1,7 @@
 //! GPU pieces every technique shares, each defined once: the camera, the G-buffer, the
-//! spot-light shadow map, tone mapping, pass timing, read-back, bind-group shorthands, and the
-//! edge-aware blur and up-sampling of indirect light computed at reduced resolution, and the
-//! conservative voxelisation of the scene the voxel techniques start from.
+//! spot-light shadow map (and its reflective shadow map), tone mapping, pass timing, read-back,
+//! bind-group shorthands, the edge-aware blur and up-sampling of indirect light computed at
+//! reduced resolution, and the conservative voxelisation the voxel techniques start from.
 
 pub mod camera;
 pub mod compose;

@@ -401,8 +401,15 @@ mod tests {
                 ("tiles_per_side", offset_of!(VoxelParams, tiles_per_side)),
             ],
         );
+        // The fragment is the `cssm::voxel` library's, parsed alone.
+        let library: String = include_str!("voxel.wgsl")
+            .lines()
+            .filter(|l| !l.starts_with("#define_import_path"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let library = naga::front::wgsl::parse_str(&library).expect("voxel.wgsl parses");
         crate::shaders::tests::check_struct(
-            &module,
+            &library,
             "VoxelFragment",
             size_of::<VoxelFragment>(),
             &[

@@ -10,6 +10,7 @@
 
 #import cssm::types::Material
 #import cssm::albedo::albedo_sample
+#import cssm::voxel::VoxelFragment
 
 struct VoxelParams {
     origin: vec3f,
@@ -18,16 +19,6 @@ struct VoxelParams {
     triangle_count: u32,
     capacity: u32,
     tiles_per_side: u32,
-}
-
-struct VoxelFragment {
-    // x | y << 10 | z << 20
-    coord: u32,
-    // pack4x8unorm(albedo, 1)
-    albedo: u32,
-    // pack4x8snorm(normal, 0)
-    normal: u32,
-    triangle: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: VoxelParams;
