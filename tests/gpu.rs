@@ -1153,47 +1153,53 @@ fn renderer_updates_match_a_fresh_renderer() {
         },
         ..Default::default()
     };
-    let direct = method::find("direct").unwrap();
-    let new = |scene: &Scene, w, h| {
-        Renderer::new(
-            &gpu.device,
-            &gpu.queue,
-            scene,
-            None,
-            direct,
-            &Default::default(),
-            &settings(w, h),
-        )
-        .expect("renderer")
-    };
-    let mut renderer = new(&scene_a, 64, 48);
-    render_image(&mut renderer, 1).expect("first frame");
-    renderer.resize(48, 40).unwrap();
-    renderer.set_camera(&camera).unwrap();
-    renderer.set_light(0, &scene_b.lights[0]).unwrap();
-    renderer
-        .set_object_transform(1, scene_b.objects[1].transform)
-        .unwrap();
-    let updated = render_image(&mut renderer, 1).expect("updated frame");
-    let fresh = render_image(&mut new(&moved, 48, 40), 1).expect("fresh frame");
-    let (rmse, largest) = image_difference(&updated, &fresh);
-    eprintln!("updated renderer vs fresh: relative RMSE {rmse:.2e}, largest {largest:.2e}");
-    // The block is drawn at motion * loaded position instead of at its loaded position: the
-    // same point up to rounding, which can move a silhouette pixel.
-    assert!(rmse < 1e-2, "relative RMSE {rmse}");
-    // And the errors of the updates.
-    assert!(renderer.resize(0, 10).is_err());
-    assert!(renderer.set_light(7, &scene_b.lights[0]).is_err());
-    assert!(
+    // `direct` (the shared passes) and `rsm` (the RSM raster, reduced-resolution buffers and
+    // filters that follow a resize, a light and an object).
+    for name in ["direct", "rsm"] {
+        let entry = method::find(name).unwrap();
+        let new = |scene: &Scene, w, h| {
+            Renderer::new(
+                &gpu.device,
+                &gpu.queue,
+                scene,
+                None,
+                entry,
+                &Default::default(),
+                &settings(w, h),
+            )
+            .expect("renderer")
+        };
+        let mut renderer = new(&scene_a, 64, 48);
+        render_image(&mut renderer, 1).expect("first frame");
+        renderer.resize(48, 40).unwrap();
+        renderer.set_camera(&camera).unwrap();
+        renderer.set_light(0, &scene_b.lights[0]).unwrap();
         renderer
-            .set_object_transform(2, glam::Affine3A::IDENTITY)
-            .is_err()
-    );
-    let singular = glam::Affine3A::from_scale(glam::Vec3::ZERO);
-    assert!(renderer.set_object_transform(1, singular).is_err());
-    let mut bad = camera.clone();
-    bad.target = bad.position;
-    assert!(renderer.set_camera(&bad).is_err());
+            .set_object_transform(1, scene_b.objects[1].transform)
+            .unwrap();
+        let updated = render_image(&mut renderer, 1).expect("updated frame");
+        let fresh = render_image(&mut new(&moved, 48, 40), 1).expect("fresh frame");
+        let (rmse, largest) = image_difference(&updated, &fresh);
+        eprintln!(
+            "{name}: updated renderer vs fresh: relative RMSE {rmse:.2e}, largest {largest:.2e}"
+        );
+        // The block is drawn at motion * loaded position instead of at its loaded position: the
+        // same point up to rounding, which can move a silhouette pixel.
+        assert!(rmse < 1e-2, "{name}: relative RMSE {rmse}");
+        // And the errors of the updates.
+        assert!(renderer.resize(0, 10).is_err());
+        assert!(renderer.set_light(7, &scene_b.lights[0]).is_err());
+        assert!(
+            renderer
+                .set_object_transform(2, glam::Affine3A::IDENTITY)
+                .is_err()
+        );
+        let singular = glam::Affine3A::from_scale(glam::Vec3::ZERO);
+        assert!(renderer.set_object_transform(1, singular).is_err());
+        let mut bad = camera.clone();
+        bad.target = bad.position;
+        assert!(renderer.set_camera(&bad).is_err());
+    }
 }
 
 /// A light moved under `lightmap` runs the radiosity again: the image equals a renderer built
