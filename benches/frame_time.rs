@@ -19,34 +19,14 @@ use std::{path::PathBuf, time::Instant};
 use cssm::{bake, formats, runtime};
 use runtime::{Gpu, Renderer, RendererSettings, frame::FrameSettings, method};
 
-fn arg(args: &[String], name: &str) -> Option<String> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .cloned()
-}
+#[path = "common/mod.rs"]
+mod common;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// Records one frame into `target`, submits it and waits for the GPU.
-fn frame(gpu: &Gpu, renderer: &mut Renderer, target: &wgpu::TextureView) {
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    renderer.render(&mut encoder, target);
-    gpu.queue.submit([encoder.finish()]);
-    gpu.wait().expect("frame");
-}
+use common::{arg, frame, median};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let (width, height) = arg(&args, "--size")
-        .and_then(|s| {
-            let (w, h) = s.split_once('x')?;
-            Some((w.parse().ok()?, h.parse().ok()?))
-        })
-        .unwrap_or((640u32, 480u32));
+    let (width, height) = common::size(&args, (640, 480));
     let frames: usize = arg(&args, "--frames")
         .and_then(|s| s.parse().ok())
         .unwrap_or(5);

@@ -22,34 +22,14 @@ use runtime::{
     method::{self, OptionValue, OptionValues},
 };
 
-fn arg(args: &[String], name: &str) -> Option<String> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .cloned()
-}
+#[path = "common/mod.rs"]
+mod common;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// Records one frame into `target`, submits it and waits for the GPU.
-fn frame(gpu: &Gpu, renderer: &mut Renderer, target: &wgpu::TextureView) {
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    renderer.render(&mut encoder, target);
-    gpu.queue.submit([encoder.finish()]);
-    gpu.wait().expect("frame");
-}
+use common::{arg, frame, median};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let (width, height) = arg(&args, "--size")
-        .and_then(|s| {
-            let (w, h) = s.split_once('x')?;
-            Some((w.parse().ok()?, h.parse().ok()?))
-        })
-        .unwrap_or((1280u32, 720u32));
+    let (width, height) = common::size(&args, (1280, 720));
     let frames: usize = arg(&args, "--frames")
         .and_then(|s| s.parse().ok())
         .unwrap_or(5);
@@ -103,8 +83,8 @@ fn main() {
             let mut passes = Vec::new();
             let times: Vec<f64> = (0..frames.max(1))
                 .map(|_| {
-                    if moving {
-                        renderer.set_light(0, &scene.lights[0]).expect("light");
+                    if let (true, Some(light)) = (moving, scene.lights.first()) {
+                        renderer.set_light(0, light).expect("light");
                     }
                     let start = Instant::now();
                     frame(&gpu, &mut renderer, &view);

@@ -144,7 +144,8 @@ fn filters_match_cpu_twin() {
                 radius,
                 ..Default::default()
             };
-            let filter = EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options);
+            let filter = EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options)
+                .expect("filter");
             let (worst, timings) = run_and_compare(ctx, &filter, &cpu_guide, seed);
             seed += 1;
             eprintln!(
@@ -166,7 +167,8 @@ fn filters_match_cpu_twin() {
 
     // After a resize, the filter follows the new G-buffer.
     let options = FilterOptions::default();
-    let mut filter = EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options);
+    let mut filter =
+        EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options).expect("filter");
     renderer.resize(21, 13).expect("resize");
     render_image(&mut renderer, 1).expect("frame");
     let ctx = renderer.context();

@@ -166,20 +166,21 @@ impl EdgeAwareFilter {
     /// Buffers for `layers` planes at the G-buffer's size reduced by `options.factor`, the
     /// guide read from `gbuffer` and the eye from the frame's `view` uniform.
     ///
-    /// # Panics
-    /// Options that [`FilterOptions::check`] refuses (a technique checks them where it resolves
-    /// its options), or no layer.
+    /// # Errors
+    /// Options that [`FilterOptions::check`] refuses, or no layer.
     pub fn new(
         device: &wgpu::Device,
         gbuffer: &GBuffer,
         view: &wgpu::Buffer,
         layers: u32,
         options: FilterOptions,
-    ) -> Self {
-        if let Err(e) = options.check() {
-            panic!("EdgeAwareFilter::new: {e}");
+    ) -> Result<Self, RuntimeError> {
+        options.check()?;
+        if layers == 0 {
+            return Err(RuntimeError::Unsupported(
+                "an edge-aware filter of no layer".into(),
+            ));
         }
-        assert!(layers >= 1, "EdgeAwareFilter::new: no layer");
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
         let bind_layout = layout::bind_group_layout(
@@ -202,7 +203,7 @@ impl EdgeAwareFilter {
         let blur_y = pipeline("edge-aware blur y", "blur_y");
         let upsample = pipeline("upsample", "upsample");
         let sized = Self::bind(device, &bind_layout, gbuffer, view, layers, &options);
-        Self {
+        Ok(Self {
             options,
             layers,
             bind_layout,
@@ -210,7 +211,7 @@ impl EdgeAwareFilter {
             blur_y,
             upsample,
             sized,
-        }
+        })
     }
 
     fn bind(

@@ -181,6 +181,20 @@ pub fn radiance_texture(device: &wgpu::Device, label: &str, size: wgpu::Extent3d
     })
 }
 
+/// A colour attachment of `view` cleared to transparent black and stored: the raster passes'
+/// targets (G-buffer, reflective shadow map).
+pub fn cleared_colour(view: &wgpu::TextureView) -> Option<wgpu::RenderPassColorAttachment<'_>> {
+    Some(wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+            store: wgpu::StoreOp::Store,
+        },
+    })
+}
+
 /// A shader module from WGSL source.
 pub fn shader(device: &wgpu::Device, label: &str, source: String) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {

@@ -429,20 +429,7 @@ impl ShadowMaps {
                     .collect(),
                 None => Vec::new(),
             };
-            let colour: Vec<Option<wgpu::RenderPassColorAttachment>> = rsm_views
-                .iter()
-                .map(|view| {
-                    Some(wgpu::RenderPassColorAttachment {
-                        view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })
-                })
-                .collect();
+            let colour: Vec<_> = rsm_views.iter().map(layout::cleared_colour).collect();
             let mut pass = frame
                 .encoder
                 .begin_render_pass(&wgpu::RenderPassDescriptor {

@@ -283,7 +283,7 @@ impl Voxelizer {
     ///
     /// # Errors
     /// A grid [`VoxelGrid::check`] refuses, a capacity of 0 or one beyond the device's largest
-    /// storage binding.
+    /// storage binding, more triangles than one dispatch holds.
     pub fn new(
         device: &wgpu::Device,
         scene: &SceneGpu,
@@ -301,6 +301,15 @@ impl Voxelizer {
             )));
         }
         let triangle_count = scene.vertex_count / 3;
+        // One invocation per triangle along x: a dispatch's dimension is bounded.
+        let max_groups = device.limits().max_compute_workgroups_per_dimension;
+        if shaders::groups_1d(triangle_count) > max_groups {
+            return Err(RuntimeError::Unsupported(format!(
+                "voxelising {triangle_count} triangles: the device dispatches at most {} \
+                 triangles at once",
+                max_groups as u64 * shaders::WORKGROUP_1D as u64
+            )));
+        }
         let tiles_per_side = grid.resolution.div_ceil(TILE);
         let params = VoxelParams {
             origin: grid.origin.to_array(),

@@ -415,9 +415,8 @@ impl RsmMethod {
     fn build(setup: &MethodSetup) -> Result<Box<dyn GiMethod>, RuntimeError> {
         let ctx = setup.ctx;
         let options = RsmOptions::from_resolved(setup.options);
-        let filter_options = options.filter();
-        filter_options.check()?;
-        let filter = EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, filter_options);
+        let filter =
+            EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options.filter())?;
         let sampling = Sampling::new(ctx, &options, &filter)?;
         let resolve = Resolve::new(ctx, &filter);
         Ok(Box::new(Self {

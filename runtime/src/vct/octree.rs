@@ -66,7 +66,7 @@ impl OctreeBuild {
     ///
     /// # Errors
     /// A grid whose resolution is not a power of two, a pool of no tile or beyond the device's
-    /// largest storage binding.
+    /// largest storage binding, a fragment list longer than one dispatch flags.
     pub fn new(
         device: &wgpu::Device,
         voxelizer: &Voxelizer,
@@ -82,6 +82,15 @@ impl OctreeBuild {
         if tile_capacity < 2 || bytes > device.limits().max_storage_buffer_binding_size {
             return Err(RuntimeError::Unsupported(format!(
                 "an octree node pool of {tile_capacity} tiles ({bytes} bytes)"
+            )));
+        }
+        // The flag pass runs one invocation per fragment along x.
+        let max_groups = device.limits().max_compute_workgroups_per_dimension;
+        if shaders::groups_1d(voxelizer.capacity) > max_groups {
+            return Err(RuntimeError::Unsupported(format!(
+                "an octree over {} voxel fragments: one dispatch flags at most {}",
+                voxelizer.capacity,
+                max_groups as u64 * shaders::WORKGROUP_1D as u64
             )));
         }
         let max_level = max_level(resolution);
