@@ -167,16 +167,7 @@ pub fn triangle_box_overlap(v: [Vec3; 3], h: f32) -> bool {
 /// Barycentric coordinates of `p`'s projection onto the plane of (`a`, `b`, `c`), clamped to the
 /// triangle and renormalised (`voxelize.wgsl`: `barycentric`).
 pub fn clamped_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
-    let (v0, v1, v2) = (b - a, c - a, p - a);
-    let (d00, d01, d11) = (v0.dot(v0), v0.dot(v1), v1.dot(v1));
-    let (d20, d21) = (v2.dot(v0), v2.dot(v1));
-    let denom = d00 * d11 - d01 * d01;
-    if denom == 0.0 {
-        return Vec3::X;
-    }
-    let y = (d11 * d20 - d01 * d21) / denom;
-    let z = (d00 * d21 - d01 * d20) / denom;
-    let w = Vec3::new(1.0 - y - z, y, z).max(Vec3::ZERO);
+    let w = Vec3::from(crate::direct::cpu::barycentric(p, a, b, c)).max(Vec3::ZERO);
     w / (w.x + w.y + w.z)
 }
 
