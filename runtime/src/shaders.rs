@@ -5,7 +5,7 @@
 //! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
 //! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
 //! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`,
-//! `cssm::lowres`, `cssm::voxel`) and a module
+//! `cssm::lowres`, `cssm::voxel`, `cssm::svo`) and a module
 //! imports what it uses (`#import cssm::visibility::{cssm_texels, cssm_visibility_texel}`).
 //!
 //! The workgroup sizes are defined once, here ([`WORKGROUP_1D`], [`WORKGROUP_2D`]): the WGSL
@@ -32,8 +32,8 @@ pub const WORKGROUP_2D: u32 = 8;
 /// The libraries the modules import (`#import cssm::...`), each defining its import path:
 /// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
 /// the shadow lookup, the light model, the CSSM visibility query, the light transfer, the
-/// low-res pixel's representative pixel.
-const LIBRARIES: [(&str, &str); 8] = [
+/// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads.
+const LIBRARIES: [(&str, &str); 9] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -63,10 +63,14 @@ const LIBRARIES: [(&str, &str); 8] = [
         "runtime/src/common/voxel.wgsl",
         include_str!("common/voxel.wgsl"),
     ),
+    ("runtime/src/vct/svo.wgsl", include_str!("vct/svo.wgsl")),
 ];
 
 /// Bind group of the CSSM library in the runtime's own modules (group 0 is each pass's own).
 pub const CSSM_GROUP: u32 = 1;
+
+/// Bind group of the sparse voxel octree library (`cssm::svo`) in the modules that read it.
+pub const SVO_GROUP: u32 = 1;
 
 /// The shader definitions every module is composed with: the workgroup sizes
 /// (`#{WORKGROUP_1D}`, `#{WORKGROUP_2D}`) and the CSSM library's bind group (`#{CSSM_GROUP}`).
@@ -75,6 +79,7 @@ fn shader_defs(cssm_group: u32) -> HashMap<String, ShaderDefValue> {
         ("WORKGROUP_1D".into(), ShaderDefValue::UInt(WORKGROUP_1D)),
         ("WORKGROUP_2D".into(), ShaderDefValue::UInt(WORKGROUP_2D)),
         ("CSSM_GROUP".into(), ShaderDefValue::UInt(cssm_group)),
+        ("SVO_GROUP".into(), ShaderDefValue::UInt(SVO_GROUP)),
     ])
 }
 
@@ -149,11 +154,13 @@ pub enum Shader {
     /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
     /// (`flag`, `allocate`, `next_level`).
     Octree,
+    /// `vct/radiance.wgsl` with `vct/svo.wgsl`: light injection, leaves, MIP-mapping, bricks.
+    VoxelRadiance,
 }
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 18] = [
+    pub const ALL: [Shader; 19] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -172,6 +179,7 @@ impl Shader {
         Shader::RsmResolve,
         Shader::Voxelize,
         Shader::Octree,
+        Shader::VoxelRadiance,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -195,6 +203,7 @@ impl Shader {
             Shader::RsmResolve => "rsm resolve",
             Shader::Voxelize => "voxelize",
             Shader::Octree => "octree",
+            Shader::VoxelRadiance => "voxel radiance",
         }
     }
 
@@ -264,6 +273,10 @@ impl Shader {
             Shader::Octree => (
                 "runtime/src/vct/octree.wgsl",
                 include_str!("vct/octree.wgsl"),
+            ),
+            Shader::VoxelRadiance => (
+                "runtime/src/vct/radiance.wgsl",
+                include_str!("vct/radiance.wgsl"),
             ),
             Shader::Voxelize => (
                 "runtime/src/common/voxelize.wgsl",

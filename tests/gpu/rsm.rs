@@ -19,7 +19,12 @@ use glam::{Mat4, Vec3, Vec4};
 use super::{cornell, gpu};
 
 /// A renderer of `rsm` with `values` on `scene` at `width` x `height`, one frame rendered.
-fn rsm_renderer(scene: &Scene, values: &OptionValues, size: (u32, u32), shadow: u32) -> Renderer {
+pub(super) fn rsm_renderer(
+    scene: &Scene,
+    values: &OptionValues,
+    size: (u32, u32),
+    shadow: u32,
+) -> Renderer {
     let gpu = gpu();
     let settings = RendererSettings {
         frame: FrameSettings {
@@ -54,7 +59,7 @@ fn vec4s(bytes: &[u8]) -> Vec<Vec4> {
 }
 
 /// The RSM of every light as read back, and the lights as the GPU has them.
-fn read_rsm(renderer: &Renderer) -> (Vec<cpu::CpuRsm>, Vec<GpuSpotLight>) {
+pub(super) fn read_rsm(renderer: &Renderer) -> (Vec<cpu::CpuRsm>, Vec<GpuSpotLight>) {
     let ctx = renderer.context();
     let shadows = &ctx.shadows;
     let rsm = shadows.rsm.as_ref().expect("rsm has an RSM");

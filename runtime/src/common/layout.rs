@@ -83,14 +83,50 @@ pub fn storage_texture(
     format: wgpu::TextureFormat,
     visibility: ShaderStages,
 ) -> BindGroupLayoutEntry {
+    storage_texture_of(binding, format, wgpu::TextureViewDimension::D2, visibility)
+}
+
+/// A write-only storage texture of `format` and `dimension`.
+pub fn storage_texture_of(
+    binding: u32,
+    format: wgpu::TextureFormat,
+    dimension: wgpu::TextureViewDimension,
+    visibility: ShaderStages,
+) -> BindGroupLayoutEntry {
     entry(
         binding,
         visibility,
         BindingType::StorageTexture {
             access: wgpu::StorageTextureAccess::WriteOnly,
             format,
-            view_dimension: wgpu::TextureViewDimension::D2,
+            view_dimension: dimension,
         },
+    )
+}
+
+/// A filterable float texture (read with `textureSample*` through a filtering sampler).
+pub fn filterable_texture(
+    binding: u32,
+    dimension: wgpu::TextureViewDimension,
+    visibility: ShaderStages,
+) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: dimension,
+            multisampled: false,
+        },
+    )
+}
+
+/// A filtering sampler.
+pub fn filtering_sampler(binding: u32, visibility: ShaderStages) -> BindGroupLayoutEntry {
+    entry(
+        binding,
+        visibility,
+        BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
     )
 }
 

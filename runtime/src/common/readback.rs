@@ -45,7 +45,8 @@ fn map_and_copy(
     Ok(data)
 }
 
-/// Reads a 2D texture (one layer, mip 0) as tightly packed rows of `bytes_per_pixel`.
+/// Reads a texture's mip 0 (every layer of an array, every slice of a 3D texture) as tightly
+/// packed rows of `bytes_per_pixel`, layer after layer.
 pub fn read_texture(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
@@ -53,10 +54,11 @@ pub fn read_texture(
     bytes_per_pixel: u32,
 ) -> Result<Vec<u8>, RuntimeError> {
     let (w, h) = (texture.width(), texture.height());
+    let layers = texture.depth_or_array_layers() as u64;
     let row = w * bytes_per_pixel;
     let padded =
         row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-    let size = padded as u64 * h as u64;
+    let size = padded as u64 * h as u64 * layers;
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback texture"),
         size,
@@ -78,8 +80,8 @@ pub fn read_texture(
     );
     queue.submit([encoder.finish()]);
     let data = map_and_copy(device, &staging, size)?;
-    let mut out = Vec::with_capacity((row * h) as usize);
-    for y in 0..h as usize {
+    let mut out = Vec::with_capacity(row as usize * h as usize * layers as usize);
+    for y in 0..h as usize * layers as usize {
         let start = y * padded as usize;
         out.extend_from_slice(&data[start..start + row as usize]);
     }

@@ -48,6 +48,12 @@ pub struct OctreeBuild {
     pub nodes: wgpu::Buffer,
     /// `[tiles allocated, first node of the last level, end of it, 1 after an overflow]`.
     pub state: wgpu::Buffer,
+    /// The cell of every occupied node at its level, `x | y << 10 | z << 20`.
+    pub node_cells: wgpu::Buffer,
+    /// Per tile, `[parent's cell, parent's level]` (tile 0, the root's, none).
+    pub tile_cells: wgpu::Buffer,
+    /// Per level, `[first node, end]`: the tiles a level's allocation made are contiguous.
+    pub levels: wgpu::Buffer,
     /// Tiles the pool holds.
     pub tile_capacity: u32,
     /// Levels below the root.
@@ -110,6 +116,19 @@ impl OctreeBuild {
                 | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        let storage = |label, size| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let node_cells = storage("octree node cells", bytes);
+        let tile_cells = storage("octree tile cells", tile_capacity as u64 * 8);
+        let levels = storage("octree levels", (max_level as u64 + 1) * 8);
         let dispatch = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("octree dispatch"),
             size: 12,
@@ -125,10 +144,15 @@ impl OctreeBuild {
             layout::storage(2, true, c),
             layout::storage(3, false, c),
             layout::storage(4, false, c),
+            layout::storage(5, false, c),
+            layout::storage(6, false, c),
         ];
         let bind_layout = layout::bind_group_layout(device, "octree", &entries);
-        let dispatch_layout =
-            layout::bind_group_layout(device, "octree dispatch", &[layout::storage(0, false, c)]);
+        let dispatch_layout = layout::bind_group_layout(
+            device,
+            "octree dispatch",
+            &[layout::storage(0, false, c), layout::storage(1, false, c)],
+        );
         let module = Shader::Octree.create(device);
         let pipeline = |entry, layouts: &[&wgpu::BindGroupLayout]| {
             layout::compute_pipeline_entry(device, "octree", &module, entry, layouts)
@@ -140,7 +164,7 @@ impl OctreeBuild {
             device,
             "octree dispatch",
             &dispatch_layout,
-            &[dispatch.as_entire_binding()],
+            &[dispatch.as_entire_binding(), levels.as_entire_binding()],
         );
         // One uniform per level (levels 0 to max_level: the last flags the leaves).
         let bind_groups = (0..=max_level)
@@ -165,6 +189,8 @@ impl OctreeBuild {
                         voxelizer.fragments.as_entire_binding(),
                         nodes.as_entire_binding(),
                         state.as_entire_binding(),
+                        node_cells.as_entire_binding(),
+                        tile_cells.as_entire_binding(),
                     ],
                 )
             })
@@ -172,6 +198,9 @@ impl OctreeBuild {
         Ok(Self {
             nodes,
             state,
+            node_cells,
+            tile_cells,
+            levels,
             tile_capacity,
             max_level,
             dispatch,
@@ -191,6 +220,8 @@ impl OctreeBuild {
         // Tile 0 holds the root; level 0 is node 0 alone, one workgroup of allocation.
         queue.write_buffer(&self.state, 0, bytemuck::cast_slice(&[1u32, 0, 1, 0]));
         queue.write_buffer(&self.dispatch, 0, bytemuck::cast_slice(&[1u32, 1, 1]));
+        // Level 0 is the root alone; next_level records the others.
+        queue.write_buffer(&self.levels, 0, bytemuck::cast_slice(&[0u32, 1]));
         let fragment_groups = shaders::groups_1d(self.fragment_capacity);
         let mut pass = frame.compute_pass("octree build");
         for (level, group) in self.bind_groups.iter().enumerate() {
@@ -207,6 +238,22 @@ impl OctreeBuild {
             pass.dispatch_workgroups(1, 1, 1);
         }
     }
+}
+
+/// The node holding the leaf cell `cell` at `level` in a node pool read back, walking down from
+/// the root (`svo.wgsl::svo_node`); `None` where that part of space is empty.
+pub fn node_index(nodes: &[u32], cell: [u32; 3], level: u32, max_level: u32) -> Option<usize> {
+    let mut node = 0usize;
+    for l in 0..level {
+        let word = *nodes.get(node)?;
+        if word == 0 {
+            return None;
+        }
+        let shift = max_level - 1 - l;
+        let octant = (0..3).map(|k| ((cell[k] >> shift) & 1) << k).sum::<u32>();
+        node = (word & !FLAG) as usize * 8 + octant as usize;
+    }
+    (*nodes.get(node)? != 0).then_some(node)
 }
 
 /// The cells of the occupied nodes of each level, root first.
@@ -301,6 +348,10 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(occupied_cells(&[fragment], 2), levels);
+        assert_eq!(node_index(&nodes, [3, 2, 1], 2, 2), Some(16 + 5));
+        assert_eq!(node_index(&nodes, [3, 2, 1], 1, 2), Some(8 + 3));
+        assert_eq!(node_index(&nodes, [3, 2, 0], 2, 2), None);
+        assert_eq!(node_index(&nodes, [0, 0, 0], 1, 2), None);
         nodes[8 + 3] = 1; // a cycle back to tile 1
         assert!(walk(&nodes, 2).is_err());
     }

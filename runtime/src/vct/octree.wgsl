@@ -5,7 +5,9 @@
 //
 // The node pool holds tiles of 2x2x2 nodes (§4.1); node 0 is the root (the rest of tile 0 is
 // unused). A node's word is 0 (empty), FLAG (occupied, not yet subdivided: a leaf at the last
-// level) or the index of its children's tile.
+// level) or the index of its children's tile. Beside the pool the build records what the
+// radiance passes need (vct/radiance.wgsl): every occupied node's cell, every tile's parent cell
+// and level, and every level's range of nodes.
 
 #import cssm::voxel::{VoxelFragment, fragment_cell}
 
@@ -24,9 +26,15 @@ struct OctreeParams {
 @group(0) @binding(3) var<storage, read_write> nodes: array<atomic<u32>>;
 // [0] tiles allocated, [1] first node of the level, [2] end of the level, [3] 1 after an overflow.
 @group(0) @binding(4) var<storage, read_write> state: array<atomic<u32>, 4>;
+// The cell of every occupied node at its level, x | y << 10 | z << 20.
+@group(0) @binding(5) var<storage, read_write> node_cells: array<u32>;
+// Per tile: its parent's cell and level (tile 0, the root's, has none).
+@group(0) @binding(6) var<storage, read_write> tile_cells: array<vec2u>;
 // Workgroups of the next allocation pass (an indirect dispatch): bound only with `next_level`,
 // so that `allocate` reads it as its indirect arguments alone.
 @group(1) @binding(0) var<storage, read_write> dispatch: array<u32, 3>;
+// Per level: its first node and the end of its range.
+@group(1) @binding(1) var<storage, read_write> levels: array<vec2u>;
 
 const FLAG: u32 = 0x80000000u;
 
@@ -54,9 +62,13 @@ fn flag(@builtin(global_invocation_id) id: vec3u) {
         return;
     }
     let f = fragments[id.x];
-    let node = node_at_level(fragment_cell(f));
+    let cell = fragment_cell(f);
+    let node = node_at_level(cell);
     if node != 0xffffffffu {
         atomicOr(&nodes[node], FLAG);
+        // Every fragment of the node writes the same word.
+        let c = cell >> vec3u(params.max_level - params.level);
+        node_cells[node] = c.x | (c.y << 10u) | (c.z << 20u);
     }
 }
 
@@ -77,6 +89,7 @@ fn allocate(@builtin(global_invocation_id) id: vec3u) {
         return;
     }
     atomicStore(&nodes[node], tile);
+    tile_cells[tile] = vec2u(node_cells[node], params.level);
 }
 
 // 3. The next level is the tiles this allocation made: its range and its dispatch.
@@ -90,6 +103,7 @@ fn next_level(@builtin(global_invocation_id) id: vec3u) {
     let end = 8u * tiles;
     atomicStore(&state[1], first);
     atomicStore(&state[2], end);
+    levels[params.level + 1u] = vec2u(first, end);
     dispatch[0] = (end - first + WORKGROUP - 1u) / WORKGROUP;
     dispatch[1] = 1u;
     dispatch[2] = 1u;

@@ -1,0 +1,476 @@
+//! Light into the sparse voxel octree (Crassin et al. 2011 §4.1, §4.2.3, §8.2): the brick pool
+//! and the reads of the octree every pass shares ([`Svo`], `svo.wgsl`), and the passes that fill
+//! it after the octree's build ([`VoxelRadiance`], `radiance.wgsl`):
+//!
+//! 1. `plan`: the indirect arguments of the passes below from the build's level ranges, and the
+//!    fixed point of the flux;
+//! 2. `inject`: every texel of every spot light's RSM adds its reflected flux into the leaf
+//!    holding its surface point (§8.2: the light-view pass that splats photons into the
+//!    leaves, here the RSM raster the shadow maps already draw), integer atomics;
+//! 3. `leaves`: an occupied leaf is opaque and holds its surface's radiance, flux over pi
+//!    over the voxel's face;
+//! 4. `mip`, coarsest last: every subdivided node the mean of its eight children (§4.2.3);
+//! 5. `fill bricks`: every tile's 5x5x5 brick, the vertex-centred values of its 2x2x2 nodes
+//!    (§4.1's 3³ bricks with their shared borders), the mean of the cells touching each
+//!    vertex, so the hardware's trilinear filter inside a brick interpolates the level's
+//!    voxel-centred values exactly as a dense mipmapped grid would.
+//!
+//! What the paper does otherwise: its MIP-mapping weighs the children's 3³ brick voxels by a
+//! Gaussian (§4.2.3) where this takes the box filter of a mipmapped grid, which makes the
+//! sparse octree and a dense pyramid of the same values ([`super::cpu::Pyramid`]) sample alike
+//! and the CPU twin exact; its bricks are per node and found through neighbour pointers where
+//! these are per tile and their border cells looked up from the root.
+
+use wgpu::util::DeviceExt;
+
+use crate::{
+    RuntimeError,
+    common::{layout, shadow_map::ShadowMaps, voxelize::VoxelGrid},
+    frame::FrameEncoder,
+    shaders::{self, Shader},
+};
+
+use super::octree::OctreeBuild;
+
+/// Texels per side of a tile's brick: 2x2x2 nodes of 3x3x3 vertex-centred texels sharing their
+/// borders.
+pub const BRICK: u32 = 5;
+
+/// Format of the brick pool: half floats, filterable, writable from a compute pass.
+pub const BRICK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+
+/// `svo.wgsl`'s `SvoParams`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SvoParams {
+    /// World position of the grid's corner.
+    pub origin: [f32; 3],
+    /// Leaf voxels per world unit.
+    pub inv_voxel: f32,
+    /// Levels below the root.
+    pub max_level: u32,
+    /// Leaf voxels per side.
+    pub resolution: u32,
+    /// Bricks per row and per slice of rows in the pool.
+    pub bricks_per_side: u32,
+    /// World size of a leaf voxel.
+    pub voxel: f32,
+}
+
+impl SvoParams {
+    /// The parameters of `grid` and a pool of `bricks_per_side`.
+    pub fn new(grid: &VoxelGrid, bricks_per_side: u32) -> Self {
+        Self {
+            origin: grid.origin.to_array(),
+            inv_voxel: 1.0 / grid.voxel,
+            max_level: super::octree::max_level(grid.resolution),
+            resolution: grid.resolution,
+            bricks_per_side,
+            voxel: grid.voxel,
+        }
+    }
+
+    /// The first texel of `tile`'s brick in the pool (`svo_brick_origin`).
+    pub fn brick_origin(&self, tile: u32) -> [u32; 3] {
+        let b = self.bricks_per_side;
+        [tile % b, (tile / b) % b, tile / (b * b)].map(|c| c * BRICK)
+    }
+}
+
+/// The smallest `b` with `b³ >= tiles`: bricks per side of a pool holding `tiles`.
+fn bricks_per_side(tiles: u32) -> u32 {
+    let mut b = 1u64;
+    while b * b * b < tiles as u64 {
+        b += 1;
+    }
+    b as u32
+}
+
+/// The brick pool and the octree's reads (`cssm::svo`): its parameters, the node pool, the
+/// bricks and their sampler.
+pub struct Svo {
+    /// The parameters as uploaded.
+    pub params: SvoParams,
+    /// [`BRICK_FORMAT`] 3D texture of every tile's brick.
+    pub bricks: wgpu::Texture,
+    /// Bindings 0 and 1 (parameters, nodes): the passes that fill the bricks.
+    pub nodes_layout: wgpu::BindGroupLayout,
+    /// The group of [`Self::nodes_layout`].
+    pub nodes_group: wgpu::BindGroup,
+    /// Bindings 0 to 3 (also the bricks and a trilinear sampler): the passes that sample.
+    pub sample_layout: wgpu::BindGroupLayout,
+    /// The group of [`Self::sample_layout`].
+    pub sample_group: wgpu::BindGroup,
+}
+
+impl Svo {
+    /// The pool of `octree`'s tiles on `grid`.
+    ///
+    /// # Errors
+    /// A pool larger than the device's 3D textures.
+    pub fn new(
+        device: &wgpu::Device,
+        octree: &OctreeBuild,
+        grid: &VoxelGrid,
+    ) -> Result<Self, RuntimeError> {
+        let per_side = bricks_per_side(octree.tile_capacity);
+        let slices = octree.tile_capacity.div_ceil(per_side * per_side);
+        let size = wgpu::Extent3d {
+            width: per_side * BRICK,
+            height: per_side * BRICK,
+            depth_or_array_layers: slices * BRICK,
+        };
+        let limit = device.limits().max_texture_dimension_3d;
+        if size.width > limit || size.depth_or_array_layers > limit {
+            return Err(RuntimeError::Unsupported(format!(
+                "a brick pool of {} tiles ({}x{}x{} texels): the device's 3D textures are at \
+                 most {limit} per side",
+                octree.tile_capacity, size.width, size.height, size.depth_or_array_layers
+            )));
+        }
+        let bricks = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("svo bricks"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: BRICK_FORMAT,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let params = SvoParams::new(grid, per_side);
+        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("svo params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("svo bricks"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        let all = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
+        let nodes_entries = [layout::uniform(0, all), layout::storage(1, true, all)];
+        let nodes_layout = layout::bind_group_layout(device, "svo nodes", &nodes_entries);
+        let sample_entries = [
+            nodes_entries[0],
+            nodes_entries[1],
+            layout::filterable_texture(2, wgpu::TextureViewDimension::D3, all),
+            layout::filtering_sampler(3, all),
+        ];
+        let sample_layout = layout::bind_group_layout(device, "svo sample", &sample_entries);
+        let nodes_group = layout::bind_group(
+            device,
+            "svo nodes",
+            &nodes_layout,
+            &[
+                params_buffer.as_entire_binding(),
+                octree.nodes.as_entire_binding(),
+            ],
+        );
+        let view = bricks.create_view(&Default::default());
+        let sample_group = layout::bind_group(
+            device,
+            "svo sample",
+            &sample_layout,
+            &[
+                params_buffer.as_entire_binding(),
+                octree.nodes.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&view),
+                wgpu::BindingResource::Sampler(&sampler),
+            ],
+        );
+        Ok(Self {
+            params,
+            bricks,
+            nodes_layout,
+            nodes_group,
+            sample_layout,
+            sample_group,
+        })
+    }
+
+    /// Bytes of the node pool (nodes, their cells, the tiles' cells) and of the brick pool.
+    pub fn pool_bytes(&self, octree: &OctreeBuild) -> (u64, u64) {
+        let tiles = octree.tile_capacity as u64;
+        let size = self.bricks.size();
+        let texels = size.width as u64 * size.height as u64 * size.depth_or_array_layers as u64;
+        (tiles * (32 + 32 + 8), texels * 8)
+    }
+}
+
+/// `radiance.wgsl`'s `RadianceParams`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct RadianceParams {
+    level: u32,
+    light_count: u32,
+    tile_capacity: u32,
+    padding: u32,
+}
+
+/// The passes from the RSM into the bricks.
+pub struct VoxelRadiance {
+    /// Per node: reflected flux in fixed point, `[r, g, b, unused]`.
+    pub flux: wgpu::Buffer,
+    /// Per node: `[radiance times opacity, opacity]`.
+    pub values: wgpu::Buffer,
+    /// `[flux units per W, radiance per flux unit]` as `plan` computed them.
+    pub constants: wgpu::Buffer,
+    args: wgpu::Buffer,
+    plan: wgpu::ComputePipeline,
+    inject: wgpu::ComputePipeline,
+    leaves: wgpu::ComputePipeline,
+    mip: wgpu::ComputePipeline,
+    fill_bricks: wgpu::ComputePipeline,
+    plan_groups: [wgpu::BindGroup; 2],
+    level_groups: Vec<wgpu::BindGroup>,
+    max_level: u32,
+    rsm_size: (u32, u32, u32),
+}
+
+impl VoxelRadiance {
+    /// The passes over `octree`'s pool into `svo`'s bricks, from `shadows`' RSM.
+    ///
+    /// # Errors
+    /// Shadow maps without their RSM.
+    pub fn new(
+        device: &wgpu::Device,
+        octree: &OctreeBuild,
+        svo: &Svo,
+        shadows: &ShadowMaps,
+    ) -> Result<Self, RuntimeError> {
+        let rsm = shadows.rsm.as_ref().ok_or_else(|| {
+            RuntimeError::Unsupported("voxel light injection needs the shadow maps' RSM".into())
+        })?;
+        let nodes = octree.tile_capacity as u64 * 8;
+        let buffer = |label, size, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let storage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC;
+        let flux = buffer("svo flux", nodes * 16, storage);
+        let values = buffer("svo values", nodes * 16, storage);
+        let constants = buffer("svo constants", 8, storage);
+        let max_level = octree.max_level;
+        let args = buffer(
+            "svo dispatch",
+            (max_level as u64 + 2) * 16,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+        );
+        let c = wgpu::ShaderStages::COMPUTE;
+        let array = wgpu::TextureViewDimension::D2Array;
+        let entries = [
+            layout::uniform(0, c),
+            layout::storage(1, true, c),
+            layout::storage(2, true, c),
+            layout::storage(3, true, c),
+            layout::storage(4, true, c),
+            layout::texture(5, array, c),
+            layout::texture(6, array, c),
+            layout::texture(7, array, c),
+            layout::storage(8, false, c),
+            layout::storage(9, false, c),
+            layout::storage_texture_of(10, BRICK_FORMAT, wgpu::TextureViewDimension::D3, c),
+        ];
+        let level_layout = layout::bind_group_layout(device, "svo radiance", &entries);
+        // `plan` writes the constants the others read: its own groups, without them.
+        let plan_layout =
+            layout::bind_group_layout(device, "svo plan", &[entries[0], entries[1], entries[4]]);
+        let plan_out_layout = layout::bind_group_layout(
+            device,
+            "svo plan out",
+            &[
+                layout::storage(0, true, c),
+                layout::storage(1, false, c),
+                layout::storage(2, false, c),
+            ],
+        );
+        let module = Shader::VoxelRadiance.create(device);
+        let pipeline = |entry, layouts: &[&wgpu::BindGroupLayout]| {
+            layout::compute_pipeline_entry(device, "svo radiance", &module, entry, layouts)
+        };
+        let plan = pipeline("plan", &[&plan_layout, &svo.nodes_layout, &plan_out_layout]);
+        let inject = pipeline("inject", &[&level_layout, &svo.nodes_layout]);
+        let leaves = pipeline("leaves", &[&level_layout, &svo.nodes_layout]);
+        let mip = pipeline("mip", &[&level_layout, &svo.nodes_layout]);
+        let fill_bricks = pipeline("fill_bricks", &[&level_layout, &svo.nodes_layout]);
+        let params = |level| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("svo radiance params"),
+                contents: bytemuck::bytes_of(&RadianceParams {
+                    level,
+                    light_count: shadows.light_count,
+                    tile_capacity: octree.tile_capacity,
+                    padding: 0,
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        };
+        let plan_params = params(0);
+        let plan_groups = [
+            // Bindings 0, 1 and 4 of the level passes' layout.
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("svo plan"),
+                layout: &plan_layout,
+                entries: &[
+                    (0, plan_params.as_entire_binding()),
+                    (1, octree.levels.as_entire_binding()),
+                    (4, octree.state.as_entire_binding()),
+                ]
+                .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource }),
+            }),
+            layout::bind_group(
+                device,
+                "svo plan out",
+                &plan_out_layout,
+                &[
+                    shadows.lights.as_entire_binding(),
+                    args.as_entire_binding(),
+                    constants.as_entire_binding(),
+                ],
+            ),
+        ];
+        let rsm_views = rsm.views();
+        let bricks_view = svo.bricks.create_view(&Default::default());
+        let level_groups = (0..=max_level)
+            .map(|level| {
+                let params = params(level);
+                let mut resources = vec![
+                    params.as_entire_binding(),
+                    octree.levels.as_entire_binding(),
+                    octree.tile_cells.as_entire_binding(),
+                    constants.as_entire_binding(),
+                    octree.state.as_entire_binding(),
+                ];
+                resources.extend(rsm_views.iter().map(wgpu::BindingResource::TextureView));
+                resources.extend([
+                    flux.as_entire_binding(),
+                    values.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&bricks_view),
+                ]);
+                layout::bind_group(device, "svo radiance", &level_layout, &resources)
+            })
+            .collect();
+        let rsm_size = (
+            rsm.position.width(),
+            rsm.position.height(),
+            shadows.light_count,
+        );
+        Ok(Self {
+            flux,
+            values,
+            constants,
+            args,
+            plan,
+            inject,
+            leaves,
+            mip,
+            fill_bricks,
+            plan_groups,
+            level_groups,
+            max_level,
+            rsm_size,
+        })
+    }
+
+    /// Records the passes, after the octree's build and the RSM's raster.
+    pub fn run(&self, frame: &mut FrameEncoder, svo: &Svo) {
+        frame.encoder.clear_buffer(&self.flux, 0, None);
+        frame.encoder.clear_buffer(&self.values, 0, None);
+        let max = self.max_level as usize;
+        {
+            let mut pass = frame.compute_pass("svo inject");
+            pass.set_pipeline(&self.plan);
+            pass.set_bind_group(0, &self.plan_groups[0], &[]);
+            pass.set_bind_group(1, &svo.nodes_group, &[]);
+            pass.set_bind_group(2, &self.plan_groups[1], &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&self.inject);
+            pass.set_bind_group(0, &self.level_groups[max], &[]);
+            let (w, h, layers) = self.rsm_size;
+            let (x, y) = shaders::groups_2d((w, h));
+            pass.dispatch_workgroups(x, y, layers);
+        }
+        let mut pass = frame.compute_pass("svo mip");
+        pass.set_bind_group(1, &svo.nodes_group, &[]);
+        pass.set_pipeline(&self.leaves);
+        pass.set_bind_group(0, &self.level_groups[max], &[]);
+        pass.dispatch_workgroups_indirect(&self.args, 16 * max as u64);
+        pass.set_pipeline(&self.mip);
+        for level in (1..max).rev() {
+            pass.set_bind_group(0, &self.level_groups[level], &[]);
+            pass.dispatch_workgroups_indirect(&self.args, 16 * level as u64);
+        }
+        drop(pass);
+        let mut pass = frame.compute_pass("svo bricks");
+        pass.set_bind_group(1, &svo.nodes_group, &[]);
+        pass.set_pipeline(&self.fill_bricks);
+        pass.set_bind_group(0, &self.level_groups[max], &[]);
+        pass.dispatch_workgroups_indirect(&self.args, 16 * (max as u64 + 1));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn params_layouts_match_wgsl() {
+        use std::mem::{offset_of, size_of};
+        let module = crate::shaders::tests::module(Shader::VoxelRadiance);
+        crate::shaders::tests::check_struct(
+            &module,
+            "RadianceParams",
+            size_of::<RadianceParams>(),
+            &[
+                ("level", offset_of!(RadianceParams, level)),
+                ("light_count", offset_of!(RadianceParams, light_count)),
+                ("tile_capacity", offset_of!(RadianceParams, tile_capacity)),
+            ],
+        );
+        // SvoParams is the `cssm::svo` library's, parsed alone.
+        let library: String = include_str!("svo.wgsl")
+            .lines()
+            .filter(|l| !l.starts_with("#define_import_path"))
+            .map(|l| format!("{}\n", l.replace("#{SVO_GROUP}", "1")))
+            .collect();
+        let library = naga::front::wgsl::parse_str(&library).expect("svo.wgsl parses");
+        crate::shaders::tests::check_struct(
+            &library,
+            "SvoParams",
+            size_of::<SvoParams>(),
+            &[
+                ("origin", offset_of!(SvoParams, origin)),
+                ("inv_voxel", offset_of!(SvoParams, inv_voxel)),
+                ("max_level", offset_of!(SvoParams, max_level)),
+                ("resolution", offset_of!(SvoParams, resolution)),
+                ("bricks_per_side", offset_of!(SvoParams, bricks_per_side)),
+                ("voxel", offset_of!(SvoParams, voxel)),
+            ],
+        );
+    }
+
+    #[test]
+    fn the_pool_holds_every_tile() {
+        assert_eq!(bricks_per_side(1), 1);
+        assert_eq!(bricks_per_side(8), 2);
+        assert_eq!(bricks_per_side(9), 3);
+        let params = SvoParams {
+            bricks_per_side: 3,
+            ..bytemuck::Zeroable::zeroed()
+        };
+        assert_eq!(params.brick_origin(0), [0, 0, 0]);
+        assert_eq!(params.brick_origin(4), [5, 5, 0]);
+        assert_eq!(params.brick_origin(26), [10, 10, 10]);
+    }
+}

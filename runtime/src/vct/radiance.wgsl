@@ -1,0 +1,239 @@
+// Light into the sparse voxel octree (Crassin et al. 2011): the spot lights' reflected flux
+// splatted into the leaves from the RSM raster (§8.2), the leaves' radiance, MIP-mapping up
+// the octree (§4.2.3) and the tiles' bricks (§4.1). CPU twin: vct/cpu.rs (`inject`,
+// `Pyramid::from_leaves`, `Pyramid::vertex`); test `tests/gpu/vct.rs`.
+//
+// A voxel's value is (radiance times opacity, opacity). An occupied leaf is opaque and holds
+// the radiance its surface reflects, flux over pi over the voxel's face; a node at a coarser
+// level holds the mean of its eight children (an empty child counts as zero), the box filter
+// of a mipmapped dense grid, so a cone's sample is the same sparse or dense (the paper's 3³
+// Gaussian over the children's vertex-centred bricks weighs the parent's own cell more).
+
+#import cssm::types::SpotLight
+#import cssm::svo::{svo, svo_nodes, svo_node, svo_brick_origin, SVO_FLAG, SVO_BRICK}
+
+const WORKGROUP: u32 = #{WORKGROUP_1D}u;
+const PI: f32 = 3.14159265358979;
+// Fixed point of the flux sums: the total flux of every light bounded by 2^30 units, so no
+// leaf's sum overflows 32 bits (atomics are integer).
+const FLUX_UNITS: f32 = 1073741824.0;
+
+struct RadianceParams {
+    // The level a `mip` pass fills.
+    level: u32,
+    light_count: u32,
+    tile_capacity: u32,
+    padding: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: RadianceParams;
+// [first node, end] per level (vct/octree.wgsl).
+@group(0) @binding(1) var<storage, read> levels: array<vec2u>;
+// Per tile: its parent's cell and level.
+@group(0) @binding(2) var<storage, read> tile_cells: array<vec2u>;
+// [flux units per W, radiance per flux unit], from `plan`.
+@group(0) @binding(3) var<storage, read> constants: array<f32, 2>;
+// The octree build's state: [0] the tiles allocated.
+@group(0) @binding(4) var<storage, read> state: array<u32, 4>;
+@group(0) @binding(5) var rsm_position: texture_2d_array<f32>;
+@group(0) @binding(6) var rsm_normal: texture_2d_array<f32>;
+@group(0) @binding(7) var rsm_flux: texture_2d_array<f32>;
+// Per node: reflected flux in fixed point, rgb and a spare word.
+@group(0) @binding(8) var<storage, read_write> flux: array<atomic<u32>>;
+// Per node: (radiance times opacity, opacity).
+@group(0) @binding(9) var<storage, read_write> values: array<vec4f>;
+@group(0) @binding(10) var bricks: texture_storage_3d<rgba16float, write>;
+
+// `plan` alone: the indirect arguments of the level passes and the bricks, and the constants.
+@group(2) @binding(0) var<storage, read> plan_lights: array<SpotLight>;
+@group(2) @binding(1) var<storage, read_write> plan_args: array<vec4u>;
+@group(2) @binding(2) var<storage, read_write> plan_constants: array<f32, 2>;
+
+// Workgroups `groups` as a 2D dispatch (each dimension at most 32,768).
+fn split(groups: u32) -> vec4u {
+    if groups == 0u {
+        return vec4u(0u, 1u, 1u, 0u);
+    }
+    let x = min(groups, 32768u);
+    return vec4u(x, (groups + x - 1u) / x, 1u, 0u);
+}
+
+fn linear_group(group: vec3u, count: vec3u) -> u32 {
+    return group.y * count.x + group.x;
+}
+
+// The flux the lights' cones can send at most: the intensity's largest component times the
+// cone's solid angle (`cpu::flux_bound`).
+fn flux_bound() -> f32 {
+    var total = 0.0;
+    for (var i = 0u; i < params.light_count; i++) {
+        let l = plan_lights[i];
+        let peak = max(l.intensity.x, max(l.intensity.y, l.intensity.z));
+        total += peak * (2.0 * PI * (1.0 - l.cos_cutoff));
+    }
+    return max(total, 1e-30);
+}
+
+@compute @workgroup_size(#{WORKGROUP_1D})
+fn plan(@builtin(local_invocation_index) local: u32) {
+    if local != 0u {
+        return;
+    }
+    for (var level = 0u; level <= svo.max_level; level++) {
+        let range = levels[level];
+        plan_args[level] = split((range.y - range.x + WORKGROUP - 1u) / WORKGROUP);
+    }
+    plan_args[svo.max_level + 1u] = split(min(state[0], params.tile_capacity));
+    // Two bits to spare: an RSM's texels can sum to a little more than the cone.
+    let scale = FLUX_UNITS / flux_bound();
+    plan_constants[0] = scale;
+    plan_constants[1] = 1.0 / (scale * PI * svo.voxel * svo.voxel);
+}
+
+fn leaf_of(p: vec3f) -> u32 {
+    let q = floor((p - svo.origin) * svo.inv_voxel);
+    if any(q < vec3f(0.0)) || any(q >= vec3f(f32(svo.resolution))) {
+        return 0xffffffffu;
+    }
+    return svo_node(vec3u(q), svo.max_level);
+}
+
+// 1. Every RSM texel's flux into the leaf holding its surface point, nudged a quarter voxel
+// towards the light first, so a surface on a voxel boundary lights the voxel on the lit side.
+@compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
+fn inject(@builtin(global_invocation_id) id: vec3u) {
+    let size = textureDimensions(rsm_position);
+    if id.x >= size.x || id.y >= size.y || id.z >= params.light_count {
+        return;
+    }
+    let at = vec2i(id.xy);
+    let layer = i32(id.z);
+    let position = textureLoad(rsm_position, at, layer, 0);
+    let f = textureLoad(rsm_flux, at, layer, 0).rgb;
+    if position.w <= 0.0 || all(f <= vec3f(0.0)) {
+        return;
+    }
+    let normal = textureLoad(rsm_normal, at, layer, 0).xyz;
+    var leaf = leaf_of(position.xyz + normal * (0.25 * svo.voxel));
+    if leaf == 0xffffffffu {
+        leaf = leaf_of(position.xyz);
+    }
+    if leaf == 0xffffffffu {
+        return;
+    }
+    let units = vec3u(f * constants[0]);
+    atomicAdd(&flux[leaf * 4u], units.x);
+    atomicAdd(&flux[leaf * 4u + 1u], units.y);
+    atomicAdd(&flux[leaf * 4u + 2u], units.z);
+}
+
+// 2. Every leaf: opaque, with its flux's radiance.
+@compute @workgroup_size(#{WORKGROUP_1D})
+fn leaves(
+    @builtin(workgroup_id) group: vec3u,
+    @builtin(num_workgroups) count: vec3u,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let range = levels[svo.max_level];
+    let node = range.x + linear_group(group, count) * WORKGROUP + local;
+    if node >= range.y || svo_nodes[node] != SVO_FLAG {
+        return;
+    }
+    let units = vec3f(
+        f32(atomicLoad(&flux[node * 4u])),
+        f32(atomicLoad(&flux[node * 4u + 1u])),
+        f32(atomicLoad(&flux[node * 4u + 2u])),
+    );
+    values[node] = vec4f(units * constants[1], 1.0);
+}
+
+// 3. Every subdivided node of `params.level`: the mean of its children (the empty ones zero).
+@compute @workgroup_size(#{WORKGROUP_1D})
+fn mip(
+    @builtin(workgroup_id) group: vec3u,
+    @builtin(num_workgroups) count: vec3u,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let range = levels[params.level];
+    let node = range.x + linear_group(group, count) * WORKGROUP + local;
+    if node >= range.y {
+        return;
+    }
+    let word = svo_nodes[node];
+    if word == 0u || word == SVO_FLAG {
+        return;
+    }
+    let first = (word & ~SVO_FLAG) * 8u;
+    var sum = vec4f(0.0);
+    for (var o = 0u; o < 8u; o++) {
+        sum += values[first + o];
+    }
+    values[node] = sum * 0.125;
+}
+
+// The 4x4x4 cells around a tile's 2x2x2 (one more each side), at the tile's level.
+var<workgroup> around: array<vec4f, 64>;
+
+// The cells touching a brick texel's vertex along one axis: an odd texel is a cell's centre
+// (one cell), an even one lies between two. Indices into `around`'s axis (0 to 3).
+fn axis_cells(texel: u32) -> vec2u {
+    if (texel & 1u) == 1u {
+        return vec2u((texel + 1u) / 2u);
+    }
+    return vec2u(texel / 2u, texel / 2u + 1u);
+}
+
+// 4. Every tile's brick, one workgroup per tile: the level's values of the tile's cells and
+// their neighbours (looked up from the root), then each texel the mean of the cells touching
+// its vertex: the trilinear interpolation of the level's voxel-centred values at the vertex.
+@compute @workgroup_size(#{WORKGROUP_1D})
+fn fill_bricks(
+    @builtin(workgroup_id) group: vec3u,
+    @builtin(num_workgroups) count: vec3u,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let tile = linear_group(group, count);
+    let tiles = min(state[0], params.tile_capacity);
+    // Workgroup-uniform: every invocation of the group returns or none does.
+    if tile == 0u || tile >= tiles {
+        return;
+    }
+    let parent = tile_cells[tile];
+    let level = parent.y + 1u;
+    let packed = parent.x;
+    let parent_cell = vec3i(
+        i32(packed & 1023u),
+        i32((packed >> 10u) & 1023u),
+        i32(packed >> 20u),
+    );
+    let offset = vec3i(i32(local & 3u), i32((local >> 2u) & 3u), i32(local >> 4u)) - 1;
+    let cell = 2 * parent_cell + offset;
+    let side = i32(1u << level);
+    var value = vec4f(0.0);
+    if all(cell >= vec3i(0)) && all(cell < vec3i(side)) {
+        let node = svo_node(vec3u(cell) << vec3u(svo.max_level - level), level);
+        if node != 0xffffffffu {
+            value = values[node];
+        }
+    }
+    around[local] = value;
+    workgroupBarrier();
+    let origin = svo_brick_origin(tile);
+    for (var t = local; t < SVO_BRICK * SVO_BRICK * SVO_BRICK; t += WORKGROUP) {
+        let texel = vec3u(t % 5u, (t / 5u) % 5u, t / 25u);
+        let cx = axis_cells(texel.x);
+        let cy = axis_cells(texel.y);
+        let cz = axis_cells(texel.z);
+        var sum = vec4f(0.0);
+        var n = 0.0;
+        for (var k = cz.x; k <= cz.y; k++) {
+            for (var j = cy.x; j <= cy.y; j++) {
+                for (var i = cx.x; i <= cx.y; i++) {
+                    sum += around[i + 4u * j + 16u * k];
+                    n += 1.0;
+                }
+            }
+        }
+        textureStore(bricks, origin + texel, sum / n);
+    }
+}

@@ -1,0 +1,133 @@
+#define_import_path cssm::svo
+
+// Reading the sparse voxel octree (Crassin et al. 2011): the node lookup from the root (§4.1),
+// the quadrilinear sample in the bricks (§5.1) and a cone's front-to-back accumulation (§5).
+// CPU twin: vct/cpu.rs (`Pyramid::sample`, `Pyramid::sample_lod`, `trace_cone`), the same
+// arithmetic over a dense pyramid of the same values; test `tests/gpu/vct.rs`.
+//
+// Positions are in leaf voxels from the grid's origin. A tile's brick holds its 2x2x2 nodes'
+// values at the 5x5x5 corners, edge and face centres and centres of the nodes (vertex-centred,
+// §4.1: 3x3x3 per node, the borders shared), so a trilinear sample of the brick is the
+// trilinear interpolation of the level's voxel-centred values inside the tile's parent cell.
+// A cell whose parent is empty has no brick and reads as empty.
+
+struct SvoParams {
+    // World position of the grid's corner.
+    origin: vec3f,
+    // Leaf voxels per world unit.
+    inv_voxel: f32,
+    max_level: u32,
+    resolution: u32,
+    // Bricks per row and per slice of rows in the brick pool.
+    bricks_per_side: u32,
+    // World size of a leaf voxel.
+    voxel: f32,
+}
+
+@group(#{SVO_GROUP}) @binding(0) var<uniform> svo: SvoParams;
+// The node pool (vct/octree.wgsl): 0 empty, FLAG a leaf, else the tile of the children.
+@group(#{SVO_GROUP}) @binding(1) var<storage, read> svo_nodes: array<u32>;
+// The brick pool, 5x5x5 texels per tile, and its trilinear sampler.
+@group(#{SVO_GROUP}) @binding(2) var svo_bricks: texture_3d<f32>;
+@group(#{SVO_GROUP}) @binding(3) var svo_sampler: sampler;
+
+const SVO_NONE: u32 = 0xffffffffu;
+const SVO_FLAG: u32 = 0x80000000u;
+// Texels per side of a tile's brick.
+const SVO_BRICK: u32 = 5u;
+// A cone advances by this fraction of its diameter per sample (§5.1).
+const SVO_STEP: f32 = 0.5;
+// Samples per cone at most (llvmpipe stops loops of more than 65,535 iterations).
+const SVO_MAX_SAMPLES: u32 = 4096u;
+
+// The octant of `cell`'s bit `shift` (x | y << 1 | z << 2).
+fn svo_octant(cell: vec3u, shift: u32) -> u32 {
+    let bit = (cell >> vec3u(shift)) & vec3u(1u);
+    return bit.x | (bit.y << 1u) | (bit.z << 2u);
+}
+
+// The node holding the leaf cell `cell` at `level` (0 the root), or SVO_NONE where that part
+// of space is empty.
+fn svo_node(cell: vec3u, level: u32) -> u32 {
+    var node = 0u;
+    for (var l = 0u; l < level; l++) {
+        let word = svo_nodes[node];
+        if word == 0u {
+            return SVO_NONE;
+        }
+        node = (word & ~SVO_FLAG) * 8u + svo_octant(cell, svo.max_level - 1u - l);
+    }
+    if svo_nodes[node] == 0u {
+        return SVO_NONE;
+    }
+    return node;
+}
+
+// The first texel of tile `tile`'s brick in the pool.
+fn svo_brick_origin(tile: u32) -> vec3u {
+    let b = svo.bricks_per_side;
+    return SVO_BRICK * vec3u(tile % b, (tile / b) % b, tile / (b * b));
+}
+
+// Level `level` (1 to max_level) at `p`: premultiplied radiance and opacity.
+fn svo_sample(p: vec3f, level: u32) -> vec4f {
+    if any(p < vec3f(0.0)) || any(p >= vec3f(f32(svo.resolution))) {
+        return vec4f(0.0);
+    }
+    let parent = svo_node(vec3u(p), level - 1u);
+    if parent == SVO_NONE {
+        return vec4f(0.0);
+    }
+    let tile = svo_nodes[parent] & ~SVO_FLAG;
+    // The parent cell's side in leaves is a power of two: the division is exact.
+    let size = f32(1u << (svo.max_level + 1u - level));
+    let local = fract(p / size);
+    let texel = vec3f(svo_brick_origin(tile)) + 0.5 + 4.0 * local;
+    let dims = vec3f(textureDimensions(svo_bricks));
+    return textureSampleLevel(svo_bricks, svo_sampler, texel / dims, 0.0);
+}
+
+// The quadrilinear sample (§5.1): levels floor(level) and the next finer, interpolated by the
+// fraction. `level` in [1, max_level].
+fn svo_sample_lod(p: vec3f, level: f32) -> vec4f {
+    let coarse = u32(floor(level));
+    let f = level - floor(level);
+    let a = svo_sample(p, coarse);
+    if f <= 0.0 || coarse >= svo.max_level {
+        return a;
+    }
+    return mix(a, svo_sample(p, coarse + 1u), f);
+}
+
+// A cone from `origin` along the unit `dir`, its radius `tan_half` times the distance, from
+// distance `start` (leaf voxels) to the grid's diagonal or until opaque: front-to-back
+// accumulation of the samples' radiance and opacity (§5), each sample's opacity corrected for
+// a step shorter than its voxel. Returns (radiance, opacity).
+fn svo_cone(origin: vec3f, dir: vec3f, tan_half: f32, start: f32) -> vec4f {
+    let max_level = f32(svo.max_level);
+    let end = f32(svo.resolution) * 1.7320508;
+    var radiance = vec3f(0.0);
+    var alpha = 0.0;
+    var t = start;
+    for (var i = 0u; i < SVO_MAX_SAMPLES; i++) {
+        if t >= end || alpha >= 0.99 {
+            break;
+        }
+        let diameter = max(2.0 * t * tan_half, 1.0);
+        let level = clamp(max_level - log2(diameter), 1.0, max_level);
+        let s = svo_sample_lod(origin + t * dir, level);
+        let step = SVO_STEP * diameter;
+        if s.a > 0.0 {
+            // The sample's opacity is its voxel's, `size` leaves deep; the step is shorter.
+            let size = exp2(max_level - level);
+            var a = 1.0;
+            if s.a < 1.0 {
+                a = 1.0 - pow(1.0 - s.a, step / size);
+            }
+            radiance += (1.0 - alpha) * a * (s.rgb / s.a);
+            alpha += (1.0 - alpha) * a;
+        }
+        t += step;
+    }
+    return vec4f(radiance, alpha);
+}
