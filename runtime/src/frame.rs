@@ -68,6 +68,8 @@ pub enum Slot {
     TexelIrradiance,
     /// Indirect light at a reduced resolution, before the shared filters (`common::filters`).
     Reduced,
+    /// The sparse voxel octree of the scene and the light in its bricks (`vct`).
+    Voxels,
     /// The reduced indirect light filtered and up-sampled to the G-buffer's resolution.
     Upsampled,
     /// Indirect radiance per pixel: a method's output.

@@ -59,8 +59,6 @@ pub mod method;
 pub mod radiosity;
 mod renderer;
 pub mod shaders;
-/// Voxel cone tracing (Crassin et al. 2011), in progress: the sparse voxel octree's structure.
-pub mod vct;
 pub mod visibility;
 
 /// Declares each method's module (its folder under `runtime/src/`) and lists its entries in
@@ -79,6 +77,7 @@ method_table! {
     lightmap => [HRC, LIGHTMAP],
     lightcuts => [METHOD],
     rsm => [METHOD],
+    vct => [METHOD],
     reference => [METHOD],
 }
 

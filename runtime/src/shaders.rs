@@ -156,11 +156,14 @@ pub enum Shader {
     Octree,
     /// `vct/radiance.wgsl` with `vct/svo.wgsl`: light injection, leaves, MIP-mapping, bricks.
     VoxelRadiance,
+    /// `vct/trace.wgsl` with `vct/svo.wgsl`: the cones per pixel (`main`) and the test's
+    /// probe (`probe`).
+    ConeTrace,
 }
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 19] = [
+    pub const ALL: [Shader; 20] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -180,6 +183,7 @@ impl Shader {
         Shader::Voxelize,
         Shader::Octree,
         Shader::VoxelRadiance,
+        Shader::ConeTrace,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -204,6 +208,7 @@ impl Shader {
             Shader::Voxelize => "voxelize",
             Shader::Octree => "octree",
             Shader::VoxelRadiance => "voxel radiance",
+            Shader::ConeTrace => "vct trace",
         }
     }
 
@@ -278,6 +283,7 @@ impl Shader {
                 "runtime/src/vct/radiance.wgsl",
                 include_str!("vct/radiance.wgsl"),
             ),
+            Shader::ConeTrace => ("runtime/src/vct/trace.wgsl", include_str!("vct/trace.wgsl")),
             Shader::Voxelize => (
                 "runtime/src/common/voxelize.wgsl",
                 include_str!("common/voxelize.wgsl"),

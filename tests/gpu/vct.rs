@@ -4,22 +4,28 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
+use cssm_formats::Scene;
 use cssm_runtime::{
+    Renderer,
     common::{
         readback::{read_buffer, read_texture},
         timestamps::PassTimer,
         voxelize::VoxelFragment,
     },
     frame::FrameEncoder,
+    gpu_types::GpuMaterial,
     method::OptionValues,
     vct::{
         SparseVoxels,
-        cpu::{self, Pyramid, RsmTexel},
+        cpu::{self, Pyramid, Receiver, RsmTexel},
         octree::{FLAG, node_index},
         radiance::BRICK,
+        trace::{ConeProbe, ConeTrace, Probe, TraceParams},
     },
 };
 use glam::{Vec3, Vec4};
+
+use cssm_raycast::SplitMix64;
 
 use super::{cornell, gpu, rsm::read_rsm, rsm::rsm_renderer};
 
@@ -36,12 +42,20 @@ fn close(got: Vec4, want: Vec4, relative: f32) -> bool {
 
 #[test]
 fn voxel_light_matches_cpu_twin() {
+    for anisotropic in [false, true] {
+        voxel_light(anisotropic);
+    }
+}
+
+fn voxel_light(anisotropic: bool) {
     let gpu = gpu();
     let (scene, _) = cornell();
     let renderer = rsm_renderer(scene, &OptionValues::default(), (16, 16), 256);
     let ctx = renderer.context();
     let resolution = 32;
-    let voxels = SparseVoxels::new(ctx, scene.bounds(), resolution).expect("voxels");
+    let voxels =
+        SparseVoxels::new(ctx, scene.bounds(), resolution, anisotropic, true).expect("voxels");
+    let faces = voxels.svo.params.faces;
     let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     voxels.run(
@@ -66,11 +80,13 @@ fn voxel_light_matches_cpu_twin() {
     assert_eq!(state[3], 0, "the pool overflowed");
     let tile_cells = words(&read(&octree.tile_cells, octree.tile_capacity as u64 * 8));
     let flux = words(&read(&voxels.radiance.flux, node_words * 16));
-    let values: Vec<Vec4> =
-        bytemuck::cast_slice::<u8, [f32; 4]>(&read(&voxels.radiance.values, node_words * 16))
-            .iter()
-            .map(|&v| Vec4::from(v))
-            .collect();
+    let values: Vec<Vec4> = bytemuck::cast_slice::<u8, [f32; 4]>(&read(
+        &voxels.radiance.values,
+        node_words * 16 * faces as u64,
+    ))
+    .iter()
+    .map(|&v| Vec4::from(v))
+    .collect();
     let constants: Vec<f32> = bytemuck::cast_slice(&read(&voxels.radiance.constants, 8)).to_vec();
     let max_level = octree.max_level;
     let params = voxels.svo.params;
@@ -87,11 +103,12 @@ fn voxel_light_matches_cpu_twin() {
         "{approx:?} {constants:?}"
     );
     let occupied: BTreeSet<[u32; 3]> = fragments.iter().map(|f| f.cell()).collect();
-    let texels = maps.iter().flat_map(|m| {
+    let texels = maps.iter().zip(&lights).flat_map(|(m, light)| {
         (0..m.position.len()).map(|i| RsmTexel {
             position: m.position[i],
             normal: m.normal[i].truncate(),
             flux: m.flux[i].truncate(),
+            area: cpu::texel_area(light, m.position[i].truncate(), m.normal[i].truncate()),
         })
     });
     let sums = cpu::inject(&params, texels, &occupied, constants[0]);
@@ -100,10 +117,10 @@ fn voxel_light_matches_cpu_twin() {
         .flat_map(|m| m.flux.iter())
         .map(|f| f.x + f.y + f.z)
         .sum();
-    let total_units: f64 = sums.values().flatten().map(|&u| u as f64).sum();
+    let total_units: f64 = sums.values().flat_map(|s| &s[..3]).map(|&u| u as f64).sum();
     let injected = (total_units / constants[0] as f64) as f32;
     eprintln!(
-        "voxel light at {resolution}³: {count} fragments, {} leaves, {} lit, {} tiles; \
+        "voxel light at {resolution}³ ({faces} faces): {count} fragments, {} leaves, {} lit, {} tiles; \
          {injected:.4} of {total_rsm:.4} W of RSM flux injected",
         occupied.len(),
         sums.len(),
@@ -117,25 +134,35 @@ fn voxel_light_matches_cpu_twin() {
     for &cell in &occupied {
         let node = node_index(&nodes, cell, max_level, max_level).expect("a leaf per voxel");
         assert_eq!(nodes[node], FLAG);
-        let got = [flux[4 * node], flux[4 * node + 1], flux[4 * node + 2]];
+        let got: [u32; 4] = flux[4 * node..4 * node + 4].try_into().unwrap();
         let want = sums.get(&cell).copied().unwrap_or_default();
-        assert_eq!(got, want, "flux of leaf {cell:?}");
-        leaves.insert(cell, Vec3::from(want.map(|u| u as f32)) * constants[1]);
+        assert_eq!(got[..3], want[..3], "flux of leaf {cell:?}");
+        // The area's arithmetic (a square root, a division) may differ in the last bits.
+        let area_off = (got[3] as f64 - want[3] as f64).abs() / (want[3] as f64).max(1.0);
+        assert!(
+            area_off < 1e-4,
+            "area of leaf {cell:?}: {} against {}",
+            got[3],
+            want[3]
+        );
+        leaves.insert(cell, cpu::leaf_radiance(got, constants[1]));
     }
 
     // 2. Every occupied node's value against the dense pyramid.
-    let pyramid = Pyramid::from_leaves(max_level, &leaves);
+    let pyramid = Pyramid::from_leaves(max_level, faces, &leaves);
     let cells = cssm_runtime::vct::octree::occupied_cells(&fragments, max_level);
     for level in 1..=max_level {
         for &cell in &cells[level as usize] {
             let leaf = cell.map(|c| c << (max_level - level));
             let node = node_index(&nodes, leaf, level, max_level).expect("an occupied node");
-            let want = pyramid.cell(level, cell.map(i64::from));
-            assert!(
-                close(values[node], want, 1e-5),
-                "level {level} cell {cell:?}: {} against {want}",
-                values[node]
-            );
+            for face in 0..faces {
+                let got = values[node * faces as usize + face as usize];
+                let want = pyramid.cell(level, cell.map(i64::from), face);
+                assert!(
+                    close(got, want, 1e-5),
+                    "level {level} cell {cell:?} face {face}: {got} against {want}"
+                );
+            }
         }
     }
 
@@ -160,20 +187,221 @@ fn voxel_light_matches_cpu_twin() {
                 &[packed, level],
                 "tile {tile}'s parent"
             );
-            let origin = params.brick_origin(tile);
-            for t in 0..BRICK.pow(3) {
-                let texel = [t % BRICK, (t / BRICK) % BRICK, t / (BRICK * BRICK)];
-                let at = [0, 1, 2].map(|k| (origin[k] + texel[k]) as usize);
-                let got = texels[at[0] + w * (at[1] + h * at[2])];
-                let vertex = [0, 1, 2].map(|k| 4 * cell[k] as i64 + texel[k] as i64);
-                let want = pyramid.vertex(level + 1, vertex);
-                assert!(
-                    close(got, want, 2e-3),
-                    "tile {tile} texel {texel:?}: {got} against {want}"
-                );
-                checked += 1;
+            for face in 0..faces {
+                let origin = params.brick_origin(tile * faces + face);
+                for t in 0..BRICK.pow(3) {
+                    let texel = [t % BRICK, (t / BRICK) % BRICK, t / (BRICK * BRICK)];
+                    let at = [0, 1, 2].map(|k| (origin[k] + texel[k]) as usize);
+                    let got = texels[at[0] + w * (at[1] + h * at[2])];
+                    let vertex = [0, 1, 2].map(|k| 4 * cell[k] as i64 + texel[k] as i64);
+                    let want = pyramid.vertex(level + 1, vertex, face);
+                    assert!(
+                        close(got, want, 2e-3),
+                        "tile {tile} face {face} texel {texel:?}: {got} against {want}"
+                    );
+                    checked += 1;
+                }
             }
         }
     }
-    assert_eq!(checked as u32, (state[0] - 1) * BRICK.pow(3));
+    assert_eq!(checked as u32, (state[0] - 1) * BRICK.pow(3) * faces);
+}
+
+/// A renderer of `rsm` on `scene` at `size` (its G-buffer and RSM drawn) and the scene's
+/// sparse voxel octree at 32³, built, its cones' opacity `correct`ed or not.
+fn voxelised(
+    scene: &Scene,
+    size: (u32, u32),
+    anisotropic: bool,
+    correct: bool,
+) -> (Renderer, SparseVoxels) {
+    let gpu = gpu();
+    let renderer = rsm_renderer(scene, &OptionValues::default(), size, 256);
+    let ctx = renderer.context();
+    let voxels = SparseVoxels::new(ctx, scene.bounds(), 32, anisotropic, correct).expect("voxels");
+    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    voxels.run(
+        ctx,
+        &mut FrameEncoder {
+            encoder: &mut encoder,
+            timer: &mut timer,
+            index: 0,
+        },
+    );
+    gpu.queue.submit([encoder.finish()]);
+    gpu.wait().expect("the passes run");
+    (renderer, voxels)
+}
+
+/// The dense pyramid of the octree's leaves as the GPU has them (`voxel_light_matches_cpu_twin`
+/// holds them to the twin's injection).
+fn gpu_pyramid(voxels: &SparseVoxels) -> Pyramid {
+    let gpu = gpu();
+    let read = |buffer, size| read_buffer(&gpu.device, &gpu.queue, buffer, 0, size).unwrap();
+    let octree = &voxels.octree;
+    let max_level = octree.max_level;
+    let node_words = octree.tile_capacity as u64 * 8;
+    let nodes = words(&read(&octree.nodes, node_words * 4));
+    let flux = words(&read(&voxels.radiance.flux, node_words * 16));
+    let constants: Vec<f32> = bytemuck::cast_slice(&read(&voxels.radiance.constants, 8)).to_vec();
+    let side = 1u32 << max_level;
+    let mut leaves = BTreeMap::new();
+    for z in 0..side {
+        for y in 0..side {
+            for x in 0..side {
+                if let Some(node) = node_index(&nodes, [x, y, z], max_level, max_level) {
+                    let sums: [u32; 4] = flux[4 * node..4 * node + 4].try_into().unwrap();
+                    leaves.insert([x, y, z], cpu::leaf_radiance(sums, constants[1]));
+                }
+            }
+        }
+    }
+    Pyramid::from_leaves(max_level, voxels.svo.params.faces, &leaves)
+}
+
+/// Cones through the Cornell box's octree on the GPU against the same cones through the dense
+/// pyramid of the GPU's leaves: radiance and opacity, narrow to wide, from points inside the
+/// box in every direction.
+#[test]
+fn cones_match_cpu_twin() {
+    for (anisotropic, correct) in [(false, true), (true, false), (true, true)] {
+        cones(anisotropic, correct);
+    }
+}
+
+fn cones(anisotropic: bool, correct: bool) {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let (_renderer, voxels) = voxelised(scene, (16, 16), anisotropic, correct);
+    let pyramid = gpu_pyramid(&voxels);
+    let mut rng = SplitMix64(18);
+    let mut unit = || rng.next_f64() as f32;
+    let probes: Vec<Probe> = (0..96)
+        .map(|i| {
+            let origin = Vec3::new(4.0, 4.0, 4.0) + Vec3::new(unit(), unit(), unit()) * 24.0;
+            let dir = Vec3::new(unit(), unit(), unit()) * 2.0 - 1.0;
+            let tan_half = [0.02, 0.15, 0.577, 1.2][i % 4];
+            Probe::new(origin, dir, tan_half, 1.0)
+        })
+        .collect();
+    let probe = ConeProbe::new(&gpu.device, &voxels.svo);
+    let got = probe
+        .trace(&gpu.device, &gpu.queue, &voxels.svo, &probes)
+        .expect("probes");
+    let want: Vec<Vec4> = probes
+        .iter()
+        .map(|p| {
+            let (o, d) = (Vec3::from(p.origin), Vec3::from(p.dir));
+            cpu::trace_cone(&pyramid, o, d, p.tan_half, p.start, correct)
+        })
+        .collect();
+    let peak = want.iter().map(|w| w.max_element()).fold(0.0f32, f32::max);
+    let lit = want
+        .iter()
+        .filter(|w| w.truncate().max_element() > 0.0)
+        .count();
+    assert!(lit > probes.len() / 2, "most cones see light: {lit}");
+    let mut worst = 0.0f32;
+    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+        let off = (*g - *w).abs();
+        let radiance = off.truncate().max_element() / (w.truncate().max_element() + 0.01 * peak);
+        worst = worst.max(radiance);
+        assert!(
+            radiance < 0.02 && off.w < 0.01,
+            "cone {i} ({:?}): GPU {g} against CPU {w}",
+            probes[i]
+        );
+    }
+    eprintln!(
+        "{} cones at 32³ ({} faces, opacity corrected {correct}): worst radiance off by \
+         {worst:.2e}",
+        probes.len(),
+        pyramid.faces
+    );
+}
+
+/// The per-pixel pass on the glossy Cornell box (diffuse cones and the mirror cone of the
+/// glossy floor) against `cpu::shade` on the G-buffer read back.
+#[test]
+fn cone_tracing_matches_cpu_twin() {
+    let gpu = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-glossy");
+    let scene = Scene::load(&dir).expect("scene");
+    let size = (24, 18);
+    let (renderer, voxels) = voxelised(&scene, size, true, false);
+    let ctx = renderer.context();
+    let trace = TraceParams::new(12, 10f32.to_radians(), 2.0);
+    let pass = ConeTrace::new(ctx, &voxels.svo, trace);
+    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    pass.run(
+        &mut FrameEncoder {
+            encoder: &mut encoder,
+            timer: &mut timer,
+            index: 0,
+        },
+        &voxels.svo,
+    );
+    gpu.queue.submit([encoder.finish()]);
+    gpu.wait().expect("the pass runs");
+    let pixels = (size.0 * size.1) as u64;
+    let vec4s = |bytes: Vec<u8>| -> Vec<Vec4> {
+        bytemuck::cast_slice::<u8, [f32; 4]>(&bytes)
+            .iter()
+            .map(|&v| Vec4::from(v))
+            .collect()
+    };
+    let got = vec4s(read_buffer(&gpu.device, &gpu.queue, &pass.indirect, 0, 16 * pixels).unwrap());
+    let texture = |t| vec4s(read_texture(&gpu.device, &gpu.queue, t, 16).unwrap());
+    let (position, normal, albedo) = (
+        texture(&ctx.gbuffer.position),
+        texture(&ctx.gbuffer.normal),
+        texture(&ctx.gbuffer.albedo),
+    );
+    let material_bytes = std::mem::size_of::<GpuMaterial>() as u64 * scene.materials.len() as u64;
+    let materials: Vec<GpuMaterial> = bytemuck::cast_slice(
+        &read_buffer(
+            &gpu.device,
+            &gpu.queue,
+            &ctx.scene.materials,
+            0,
+            material_bytes,
+        )
+        .unwrap(),
+    )
+    .to_vec();
+    let pyramid = gpu_pyramid(&voxels);
+    let mut want = Vec::new();
+    let mut glossy = 0;
+    for i in 0..pixels as usize {
+        if position[i].w <= 0.0 {
+            want.push(Vec3::ZERO);
+            continue;
+        }
+        let m = materials[normal[i].w as usize];
+        glossy += usize::from(m.ks.iter().any(|&k| k > 0.0));
+        let receiver = Receiver {
+            position: position[i].truncate(),
+            normal: normal[i].truncate(),
+            albedo: albedo[i].truncate(),
+            ks: Vec3::from(m.ks),
+            ns: m.ns,
+            eye: ctx.camera.eye,
+        };
+        want.push(cpu::shade(&pyramid, &voxels.svo.params, &trace, &receiver));
+    }
+    assert!(glossy > 0, "the glossy floor is in view");
+    let peak = want.iter().map(|w| w.max_element()).fold(0.0f32, f32::max);
+    assert!(peak > 0.0);
+    let mut worst = 0.0f32;
+    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+        let off = (g.truncate() - *w).abs().max_element() / (w.max_element() + 0.01 * peak);
+        worst = worst.max(off);
+        assert!(off < 0.02, "pixel {i}: GPU {g} against CPU {w}");
+    }
+    eprintln!(
+        "cone tracing {}x{}: {glossy} glossy pixels, worst off by {worst:.2e}",
+        size.0, size.1
+    );
 }

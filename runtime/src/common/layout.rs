@@ -164,6 +164,28 @@ pub fn bind_group(
     })
 }
 
+/// A bind group of `resources` at the given bindings, for an entry point that uses some of a
+/// module's bindings only.
+pub fn bind_group_at(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: &[(u32, wgpu::BindingResource)],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = resources
+        .iter()
+        .map(|(binding, resource)| wgpu::BindGroupEntry {
+            binding: *binding,
+            resource: resource.clone(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
 /// A compute pipeline running the entry point `main` of `module` with `layouts` at groups
 /// 0, 1, ...
 pub fn compute_pipeline(

@@ -7,8 +7,8 @@
 //! 2. `inject`: every texel of every spot light's RSM adds its reflected flux into the leaf
 //!    holding its surface point (§8.2: the light-view pass that splats photons into the
 //!    leaves, here the RSM raster the shadow maps already draw), integer atomics;
-//! 3. `leaves`: an occupied leaf is opaque and holds its surface's radiance, flux over pi
-//!    over the voxel's face;
+//! 3. `leaves`: an occupied leaf is opaque and holds its lit surface's radiance, its texels'
+//!    flux over pi over the area they cover;
 //! 4. `mip`, coarsest last: every subdivided node the mean of its eight children (§4.2.3);
 //! 5. `fill bricks`: every tile's 5x5x5 brick, the vertex-centred values of its 2x2x2 nodes
 //!    (§4.1's 3³ bricks with their shared borders), the mean of the cells touching each
@@ -55,11 +55,17 @@ pub struct SvoParams {
     pub bricks_per_side: u32,
     /// World size of a leaf voxel.
     pub voxel: f32,
+    /// Bricks per tile: 1 isotropic, 6 anisotropic (one per direction of view, §9).
+    pub faces: u32,
+    /// 1: a cone's sample has its opacity corrected for a step shorter than its voxel (§5).
+    pub correct_opacity: u32,
+    /// Unused.
+    pub padding: [u32; 2],
 }
 
 impl SvoParams {
-    /// The parameters of `grid` and a pool of `bricks_per_side`.
-    pub fn new(grid: &VoxelGrid, bricks_per_side: u32) -> Self {
+    /// The parameters of `grid`, `faces` bricks per tile and a pool of `bricks_per_side`.
+    pub fn new(grid: &VoxelGrid, faces: u32, bricks_per_side: u32) -> Self {
         Self {
             origin: grid.origin.to_array(),
             inv_voxel: 1.0 / grid.voxel,
@@ -67,15 +73,22 @@ impl SvoParams {
             resolution: grid.resolution,
             bricks_per_side,
             voxel: grid.voxel,
+            faces,
+            correct_opacity: 0,
+            padding: [0; 2],
         }
     }
 
-    /// The first texel of `tile`'s brick in the pool (`svo_brick_origin`).
-    pub fn brick_origin(&self, tile: u32) -> [u32; 3] {
+    /// The first texel of brick `brick` (`tile * faces + face`) in the pool
+    /// (`svo_brick_origin`).
+    pub fn brick_origin(&self, brick: u32) -> [u32; 3] {
         let b = self.bricks_per_side;
-        [tile % b, (tile / b) % b, tile / (b * b)].map(|c| c * BRICK)
+        [brick % b, (brick / b) % b, brick / (b * b)].map(|c| c * BRICK)
     }
 }
+
+/// Faces of view of an anisotropic voxel: +x, -x, +y, -y, +z, -z.
+pub const FACES: u32 = 6;
 
 /// The smallest `b` with `b³ >= tiles`: bricks per side of a pool holding `tiles`.
 fn bricks_per_side(tiles: u32) -> u32 {
@@ -104,7 +117,8 @@ pub struct Svo {
 }
 
 impl Svo {
-    /// The pool of `octree`'s tiles on `grid`.
+    /// The pool of `octree`'s tiles on `grid`, [`FACES`] bricks per tile when `anisotropic`,
+    /// else one; cones read it with the opacity correction of §5 when `correct_opacity`.
     ///
     /// # Errors
     /// A pool larger than the device's 3D textures.
@@ -112,9 +126,15 @@ impl Svo {
         device: &wgpu::Device,
         octree: &OctreeBuild,
         grid: &VoxelGrid,
+        anisotropic: bool,
+        correct_opacity: bool,
     ) -> Result<Self, RuntimeError> {
-        let per_side = bricks_per_side(octree.tile_capacity);
-        let slices = octree.tile_capacity.div_ceil(per_side * per_side);
+        let faces = if anisotropic { FACES } else { 1 };
+        let count = octree.tile_capacity.checked_mul(faces).ok_or_else(|| {
+            RuntimeError::Unsupported(format!("{} tiles of bricks", octree.tile_capacity))
+        })?;
+        let per_side = bricks_per_side(count);
+        let slices = count.div_ceil(per_side * per_side);
         let size = wgpu::Extent3d {
             width: per_side * BRICK,
             height: per_side * BRICK,
@@ -123,9 +143,9 @@ impl Svo {
         let limit = device.limits().max_texture_dimension_3d;
         if size.width > limit || size.depth_or_array_layers > limit {
             return Err(RuntimeError::Unsupported(format!(
-                "a brick pool of {} tiles ({}x{}x{} texels): the device's 3D textures are at \
-                 most {limit} per side",
-                octree.tile_capacity, size.width, size.height, size.depth_or_array_layers
+                "a brick pool of {count} bricks ({}x{}x{} texels): the device's 3D textures \
+                 are at most {limit} per side",
+                size.width, size.height, size.depth_or_array_layers
             )));
         }
         let bricks = device.create_texture(&wgpu::TextureDescriptor {
@@ -140,7 +160,10 @@ impl Svo {
                 | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         });
-        let params = SvoParams::new(grid, per_side);
+        let params = SvoParams {
+            correct_opacity: u32::from(correct_opacity),
+            ..SvoParams::new(grid, faces, per_side)
+        };
         let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("svo params"),
             contents: bytemuck::bytes_of(&params),
@@ -214,9 +237,9 @@ struct RadianceParams {
 
 /// The passes from the RSM into the bricks.
 pub struct VoxelRadiance {
-    /// Per node: reflected flux in fixed point, `[r, g, b, unused]`.
+    /// Per node in fixed point: `[r, g, b]` reflected flux and the area it fell on.
     pub flux: wgpu::Buffer,
-    /// Per node: `[radiance times opacity, opacity]`.
+    /// Per node and face (at `node * faces + face`): `[radiance times opacity, opacity]`.
     pub values: wgpu::Buffer,
     /// `[flux units per W, radiance per flux unit]` as `plan` computed them.
     pub constants: wgpu::Buffer,
@@ -259,7 +282,11 @@ impl VoxelRadiance {
             | wgpu::BufferUsages::COPY_DST
             | wgpu::BufferUsages::COPY_SRC;
         let flux = buffer("svo flux", nodes * 16, storage);
-        let values = buffer("svo values", nodes * 16, storage);
+        let values = buffer(
+            "svo values",
+            nodes * 16 * svo.params.faces as u64,
+            storage,
+        );
         let constants = buffer("svo constants", 8, storage);
         let max_level = octree.max_level;
         let args = buffer(
@@ -281,6 +308,7 @@ impl VoxelRadiance {
             layout::storage(8, false, c),
             layout::storage(9, false, c),
             layout::storage_texture_of(10, BRICK_FORMAT, wgpu::TextureViewDimension::D3, c),
+            layout::storage(11, true, c),
         ];
         let level_layout = layout::bind_group_layout(device, "svo radiance", &entries);
         // `plan` writes the constants the others read: its own groups, without them.
@@ -319,16 +347,16 @@ impl VoxelRadiance {
         let plan_params = params(0);
         let plan_groups = [
             // Bindings 0, 1 and 4 of the level passes' layout.
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("svo plan"),
-                layout: &plan_layout,
-                entries: &[
+            layout::bind_group_at(
+                device,
+                "svo plan",
+                &plan_layout,
+                &[
                     (0, plan_params.as_entire_binding()),
                     (1, octree.levels.as_entire_binding()),
                     (4, octree.state.as_entire_binding()),
-                ]
-                .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource }),
-            }),
+                ],
+            ),
             layout::bind_group(
                 device,
                 "svo plan out",
@@ -357,6 +385,7 @@ impl VoxelRadiance {
                     flux.as_entire_binding(),
                     values.as_entire_binding(),
                     wgpu::BindingResource::TextureView(&bricks_view),
+                    shadows.lights.as_entire_binding(),
                 ]);
                 layout::bind_group(device, "svo radiance", &level_layout, &resources)
             })
@@ -456,6 +485,8 @@ mod tests {
                 ("resolution", offset_of!(SvoParams, resolution)),
                 ("bricks_per_side", offset_of!(SvoParams, bricks_per_side)),
                 ("voxel", offset_of!(SvoParams, voxel)),
+                ("faces", offset_of!(SvoParams, faces)),
+                ("correct_opacity", offset_of!(SvoParams, correct_opacity)),
             ],
         );
     }

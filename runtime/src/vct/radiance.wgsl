@@ -3,11 +3,16 @@
 // the octree (§4.2.3) and the tiles' bricks (§4.1). CPU twin: vct/cpu.rs (`inject`,
 // `Pyramid::from_leaves`, `Pyramid::vertex`); test `tests/gpu/vct.rs`.
 //
-// A voxel's value is (radiance times opacity, opacity). An occupied leaf is opaque and holds
-// the radiance its surface reflects, flux over pi over the voxel's face; a node at a coarser
-// level holds the mean of its eight children (an empty child counts as zero), the box filter
-// of a mipmapped dense grid, so a cone's sample is the same sparse or dense (the paper's 3³
-// Gaussian over the children's vertex-centred bricks weighs the parent's own cell more).
+// A voxel's value is (radiance times opacity, opacity), per face of view (`svo.faces`: 1, or 6
+// for anisotropic voxels, §9). An occupied leaf is opaque and holds the radiance its lit
+// surface reflects, the same from every side: the flux of its texels over pi and over the
+// surface area they cover (a texel's solid angle from the light spread over the surface), so
+// a surface at a slant to the grid, which touches more voxels per area, keeps its radiance. A coarser node holds
+// the box filter of its eight children (an empty child counts as zero): isotropic, their mean;
+// anisotropic, per face, the children composited front to back along the face's axis in
+// each of the four columns, then the columns' mean (§9), so a wall seen face on stays opaque
+// at every level. A cone's sample is thus the same sparse or dense (the paper's 3³ Gaussian
+// over the children's vertex-centred bricks weighs the parent's own cell more).
 
 #import cssm::types::SpotLight
 #import cssm::svo::{svo, svo_nodes, svo_node, svo_brick_origin, SVO_FLAG, SVO_BRICK}
@@ -17,6 +22,12 @@ const PI: f32 = 3.14159265358979;
 // Fixed point of the flux sums: the total flux of every light bounded by 2^30 units, so no
 // leaf's sum overflows 32 bits (atomics are integer).
 const FLUX_UNITS: f32 = 1073741824.0;
+// Fixed point of the area sums: units per leaf voxel face, so a texel far smaller than a voxel
+// still counts thousands of units and a leaf holds 256 faces of area before its sum overflows
+// (a slanted texel counts at most 1 / MIN_COS times its size).
+const AREA_UNITS: f32 = 16777216.0;
+// The slant at which a texel's area stops growing (1 / 0.05 its area face on).
+const MIN_COS: f32 = 0.05;
 
 struct RadianceParams {
     // The level a `mip` pass fills.
@@ -38,11 +49,12 @@ struct RadianceParams {
 @group(0) @binding(5) var rsm_position: texture_2d_array<f32>;
 @group(0) @binding(6) var rsm_normal: texture_2d_array<f32>;
 @group(0) @binding(7) var rsm_flux: texture_2d_array<f32>;
-// Per node: reflected flux in fixed point, rgb and a spare word.
+// Per node in fixed point: reflected flux rgb, and the area of surface the flux fell on.
 @group(0) @binding(8) var<storage, read_write> flux: array<atomic<u32>>;
-// Per node: (radiance times opacity, opacity).
+// Per node and face: (radiance times opacity, opacity), at node * faces + face.
 @group(0) @binding(9) var<storage, read_write> values: array<vec4f>;
 @group(0) @binding(10) var bricks: texture_storage_3d<rgba16float, write>;
+@group(0) @binding(11) var<storage, read> lights: array<SpotLight>;
 
 // `plan` alone: the indirect arguments of the level passes and the bricks, and the constants.
 @group(2) @binding(0) var<storage, read> plan_lights: array<SpotLight>;
@@ -87,6 +99,7 @@ fn plan(@builtin(local_invocation_index) local: u32) {
     // Two bits to spare: an RSM's texels can sum to a little more than the cone.
     let scale = FLUX_UNITS / flux_bound();
     plan_constants[0] = scale;
+    // Radiance per flux unit over a leaf voxel's face of area: flux over pi over area.
     plan_constants[1] = 1.0 / (scale * PI * svo.voxel * svo.voxel);
 }
 
@@ -125,6 +138,20 @@ fn inject(@builtin(global_invocation_id) id: vec3u) {
     atomicAdd(&flux[leaf * 4u], units.x);
     atomicAdd(&flux[leaf * 4u + 1u], units.y);
     atomicAdd(&flux[leaf * 4u + 2u], units.z);
+    let area = texel_area(lights[id.z], position.xyz, normal) * svo.inv_voxel * svo.inv_voxel;
+    atomicAdd(&flux[leaf * 4u + 3u], u32(area * AREA_UNITS + 0.5));
+}
+
+// The surface area an RSM texel covers: its solid angle from the light (`texel_solid_angle` on
+// the axis, cos³ off it) times the squared distance over the cosine of incidence
+// (`cpu::texel_area`).
+fn texel_area(light: SpotLight, p: vec3f, normal: vec3f) -> f32 {
+    let to_surface = p - light.position;
+    let d2 = dot(to_surface, to_surface);
+    let dir = to_surface * inverseSqrt(d2);
+    let cos_axis = dot(dir, light.direction);
+    let cos_in = max(-dot(normal, dir), MIN_COS);
+    return light.texel_solid_angle * cos_axis * cos_axis * cos_axis * d2 / cos_in;
 }
 
 // 2. Every leaf: opaque, with its flux's radiance.
@@ -144,7 +171,14 @@ fn leaves(
         f32(atomicLoad(&flux[node * 4u + 1u])),
         f32(atomicLoad(&flux[node * 4u + 2u])),
     );
-    values[node] = vec4f(units * constants[1], 1.0);
+    let area = atomicLoad(&flux[node * 4u + 3u]);
+    var radiance = vec3f(0.0);
+    if area > 0u {
+        radiance = units * (constants[1] * (AREA_UNITS / f32(area)));
+    }
+    for (var face = 0u; face < svo.faces; face++) {
+        values[node * svo.faces + face] = vec4f(radiance, 1.0);
+    }
 }
 
 // 3. Every subdivided node of `params.level`: the mean of its children (the empty ones zero).
@@ -164,11 +198,29 @@ fn mip(
         return;
     }
     let first = (word & ~SVO_FLAG) * 8u;
-    var sum = vec4f(0.0);
-    for (var o = 0u; o < 8u; o++) {
-        sum += values[first + o];
+    if svo.faces == 1u {
+        var sum = vec4f(0.0);
+        for (var o = 0u; o < 8u; o++) {
+            sum += values[first + o];
+        }
+        values[node] = sum * 0.125;
+        return;
     }
-    values[node] = sum * 0.125;
+    for (var face = 0u; face < 6u; face++) {
+        // The axis's bit; seen along +axis the child with the bit clear is in front.
+        let bit = 1u << (face / 2u);
+        let front_set = select(0u, bit, (face & 1u) == 1u);
+        var sum = vec4f(0.0);
+        for (var o = 0u; o < 8u; o++) {
+            if (o & bit) != 0u {
+                continue;
+            }
+            let front = values[(first + (o | front_set)) * 6u + face];
+            let back = values[(first + (o | (bit ^ front_set))) * 6u + face];
+            sum += front + (1.0 - front.a) * back;
+        }
+        values[node * 6u + face] = sum * 0.25;
+    }
 }
 
 // The 4x4x4 cells around a tile's 2x2x2 (one more each side), at the tile's level.
@@ -209,16 +261,25 @@ fn fill_bricks(
     let offset = vec3i(i32(local & 3u), i32((local >> 2u) & 3u), i32(local >> 4u)) - 1;
     let cell = 2 * parent_cell + offset;
     let side = i32(1u << level);
-    var value = vec4f(0.0);
+    var node = 0xffffffffu;
     if all(cell >= vec3i(0)) && all(cell < vec3i(side)) {
-        let node = svo_node(vec3u(cell) << vec3u(svo.max_level - level), level);
-        if node != 0xffffffffu {
-            value = values[node];
-        }
+        node = svo_node(vec3u(cell) << vec3u(svo.max_level - level), level);
     }
-    around[local] = value;
-    workgroupBarrier();
-    let origin = svo_brick_origin(tile);
+    for (var face = 0u; face < svo.faces; face++) {
+        var value = vec4f(0.0);
+        if node != 0xffffffffu {
+            value = values[node * svo.faces + face];
+        }
+        around[local] = value;
+        workgroupBarrier();
+        fill_brick(tile * svo.faces + face, local);
+        workgroupBarrier();
+    }
+}
+
+// One brick from `around`, every invocation of the workgroup a share of its texels.
+fn fill_brick(brick: u32, local: u32) {
+    let origin = svo_brick_origin(brick);
     for (var t = local; t < SVO_BRICK * SVO_BRICK * SVO_BRICK; t += WORKGROUP) {
         let texel = vec3u(t % 5u, (t / 5u) % 5u, t / 25u);
         let cx = axis_cells(texel.x);

@@ -10,6 +10,10 @@
 // §4.1: 3x3x3 per node, the borders shared), so a trilinear sample of the brick is the
 // trilinear interpolation of the level's voxel-centred values inside the tile's parent cell.
 // A cell whose parent is empty has no brick and reads as empty.
+//
+// Anisotropic voxels (§9, `faces` 6): every tile has six bricks, one per direction of view
+// (+x, -x, +y, -y, +z, -z), and a sample along a direction weighs the three it faces by the
+// direction's squared components. Isotropic voxels (`faces` 1): one brick.
 
 struct SvoParams {
     // World position of the grid's corner.
@@ -22,6 +26,12 @@ struct SvoParams {
     bricks_per_side: u32,
     // World size of a leaf voxel.
     voxel: f32,
+    // Bricks per tile: 1 isotropic, 6 anisotropic.
+    faces: u32,
+    // 1: a sample's opacity corrected for a step shorter than its voxel (§5); 0: as it is.
+    correct_opacity: u32,
+    padding_b: u32,
+    padding_c: u32,
 }
 
 @group(#{SVO_GROUP}) @binding(0) var<uniform> svo: SvoParams;
@@ -63,14 +73,22 @@ fn svo_node(cell: vec3u, level: u32) -> u32 {
     return node;
 }
 
-// The first texel of tile `tile`'s brick in the pool.
-fn svo_brick_origin(tile: u32) -> vec3u {
+// The first texel of brick `brick` (tile * faces + face) in the pool.
+fn svo_brick_origin(brick: u32) -> vec3u {
     let b = svo.bricks_per_side;
-    return SVO_BRICK * vec3u(tile % b, (tile / b) % b, tile / (b * b));
+    return SVO_BRICK * vec3u(brick % b, (brick / b) % b, brick / (b * b));
 }
 
-// Level `level` (1 to max_level) at `p`: premultiplied radiance and opacity.
-fn svo_sample(p: vec3f, level: u32) -> vec4f {
+// Brick `brick` at `local` in [0, 1)³ of its tile's parent cell.
+fn svo_brick(brick: u32, local: vec3f) -> vec4f {
+    let texel = vec3f(svo_brick_origin(brick)) + 0.5 + 4.0 * local;
+    let dims = vec3f(textureDimensions(svo_bricks));
+    return textureSampleLevel(svo_bricks, svo_sampler, texel / dims, 0.0);
+}
+
+// Level `level` (1 to max_level) at `p`, seen along the unit `dir`: premultiplied radiance and
+// opacity.
+fn svo_sample(p: vec3f, level: u32, dir: vec3f) -> vec4f {
     if any(p < vec3f(0.0)) || any(p >= vec3f(f32(svo.resolution))) {
         return vec4f(0.0);
     }
@@ -82,27 +100,34 @@ fn svo_sample(p: vec3f, level: u32) -> vec4f {
     // The parent cell's side in leaves is a power of two: the division is exact.
     let size = f32(1u << (svo.max_level + 1u - level));
     let local = fract(p / size);
-    let texel = vec3f(svo_brick_origin(tile)) + 0.5 + 4.0 * local;
-    let dims = vec3f(textureDimensions(svo_bricks));
-    return textureSampleLevel(svo_bricks, svo_sampler, texel / dims, 0.0);
+    if svo.faces == 1u {
+        return svo_brick(tile, local);
+    }
+    // The faces the direction looks at: +x (0) when it travels towards +x, else -x (1).
+    let first = tile * 6u;
+    let w = dir * dir;
+    let x = svo_brick(first + select(1u, 0u, dir.x >= 0.0), local);
+    let y = svo_brick(first + select(3u, 2u, dir.y >= 0.0), local);
+    let z = svo_brick(first + select(5u, 4u, dir.z >= 0.0), local);
+    return w.x * x + w.y * y + w.z * z;
 }
 
 // The quadrilinear sample (§5.1): levels floor(level) and the next finer, interpolated by the
 // fraction. `level` in [1, max_level].
-fn svo_sample_lod(p: vec3f, level: f32) -> vec4f {
+fn svo_sample_lod(p: vec3f, level: f32, dir: vec3f) -> vec4f {
     let coarse = u32(floor(level));
     let f = level - floor(level);
-    let a = svo_sample(p, coarse);
+    let a = svo_sample(p, coarse, dir);
     if f <= 0.0 || coarse >= svo.max_level {
         return a;
     }
-    return mix(a, svo_sample(p, coarse + 1u), f);
+    return mix(a, svo_sample(p, coarse + 1u, dir), f);
 }
 
 // A cone from `origin` along the unit `dir`, its radius `tan_half` times the distance, from
 // distance `start` (leaf voxels) to the grid's diagonal or until opaque: front-to-back
 // accumulation of the samples' radiance and opacity (§5), each sample's opacity corrected for
-// a step shorter than its voxel. Returns (radiance, opacity).
+// a step shorter than its voxel when `correct_opacity`. Returns (radiance, opacity).
 fn svo_cone(origin: vec3f, dir: vec3f, tan_half: f32, start: f32) -> vec4f {
     let max_level = f32(svo.max_level);
     let end = f32(svo.resolution) * 1.7320508;
@@ -115,13 +140,14 @@ fn svo_cone(origin: vec3f, dir: vec3f, tan_half: f32, start: f32) -> vec4f {
         }
         let diameter = max(2.0 * t * tan_half, 1.0);
         let level = clamp(max_level - log2(diameter), 1.0, max_level);
-        let s = svo_sample_lod(origin + t * dir, level);
+        let s = svo_sample_lod(origin + t * dir, level, dir);
         let step = SVO_STEP * diameter;
         if s.a > 0.0 {
-            // The sample's opacity is its voxel's, `size` leaves deep; the step is shorter.
-            let size = exp2(max_level - level);
-            var a = 1.0;
-            if s.a < 1.0 {
+            var a = s.a;
+            if svo.correct_opacity != 0u && s.a < 1.0 {
+                // §5: the sample's opacity is its voxel's, `size` leaves deep; the step is
+                // shorter.
+                let size = exp2(max_level - level);
                 a = 1.0 - pow(1.0 - s.a, step / size);
             }
             radiance += (1.0 - alpha) * a * (s.rgb / s.a);

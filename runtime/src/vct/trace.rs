@@ -1,0 +1,251 @@
+//! The cone tracing pass (`trace.wgsl`, Crassin et al. 2011 §5, §7): per pixel, diffuse cones
+//! around the normal and a glossy cone along the mirror direction through the octree's bricks;
+//! and [`ConeProbe`], the same accumulation for given cones, which the test holds to
+//! [`super::cpu::trace_cone`].
+
+use glam::{Vec3, Vec4};
+use wgpu::util::DeviceExt;
+
+use crate::{
+    RuntimeError,
+    common::{layout, readback::read_buffer},
+    frame::{FrameContext, FrameEncoder},
+    shaders::{self, Shader},
+};
+
+use super::radiance::Svo;
+
+/// Where a cone's first sample lies, in leaf voxels along it.
+pub const START: f32 = 1.0;
+
+/// `trace.wgsl`'s `TraceParams`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct TraceParams {
+    /// Diffuse cones, cosine-distributed over the hemisphere.
+    pub cones: u32,
+    /// tan of the diffuse cones' half angle.
+    pub tan_half: f32,
+    /// Unused.
+    pub padding_a: [u32; 2],
+    /// [`START`].
+    pub start: f32,
+    /// How far off the surface along its normal the cones start, leaf voxels.
+    pub offset: f32,
+    /// The diffuse half angle, radians.
+    pub half_angle: f32,
+    /// Unused.
+    pub padding_b: u32,
+}
+
+impl TraceParams {
+    /// `cones` diffuse cones of half angle `half_angle` (radians), their apex `offset` leaf
+    /// voxels off the surface.
+    pub fn new(cones: u32, half_angle: f32, offset: f32) -> Self {
+        Self {
+            cones,
+            tan_half: half_angle.tan(),
+            padding_a: [0; 2],
+            start: START,
+            offset,
+            half_angle,
+            padding_b: 0,
+        }
+    }
+}
+
+/// The per-pixel pass into the indirect radiance buffer.
+pub struct ConeTrace {
+    /// Indirect radiance per pixel, `vec4f`.
+    pub indirect: wgpu::Buffer,
+    params: wgpu::Buffer,
+    pipeline: wgpu::ComputePipeline,
+    bind_layout: wgpu::BindGroupLayout,
+    bind_group: wgpu::BindGroup,
+    size: (u32, u32),
+}
+
+fn trace_entries() -> [wgpu::BindGroupLayoutEntry; 7] {
+    let c = wgpu::ShaderStages::COMPUTE;
+    let d2 = wgpu::TextureViewDimension::D2;
+    [
+        layout::uniform(0, c),
+        layout::uniform(1, c),
+        layout::storage(2, true, c),
+        layout::texture(3, d2, c),
+        layout::texture(4, d2, c),
+        layout::texture(5, d2, c),
+        layout::storage(6, false, c),
+    ]
+}
+
+impl ConeTrace {
+    /// The pass with `params` over `ctx`'s G-buffer.
+    pub fn new(ctx: &FrameContext, svo: &Svo, params: TraceParams) -> Self {
+        let device = &ctx.device;
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vct trace params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bind_layout = layout::bind_group_layout(device, "vct trace", &trace_entries());
+        let module = Shader::ConeTrace.create(device);
+        let pipeline = layout::compute_pipeline(
+            device,
+            "vct trace",
+            &module,
+            &[&bind_layout, &svo.sample_layout],
+        );
+        let (indirect, bind_group) = Self::bind(ctx, &bind_layout, &params);
+        Self {
+            indirect,
+            params,
+            pipeline,
+            bind_layout,
+            bind_group,
+            size: ctx.size(),
+        }
+    }
+
+    fn bind(
+        ctx: &FrameContext,
+        bind_layout: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+    ) -> (wgpu::Buffer, wgpu::BindGroup) {
+        let (w, h) = ctx.size();
+        let indirect = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vct indirect"),
+            size: 16 * (w * h) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let views = [&ctx.gbuffer.position, &ctx.gbuffer.normal, &ctx.gbuffer.albedo]
+            .map(|t| t.create_view(&Default::default()));
+        let mut resources = vec![
+            params.as_entire_binding(),
+            ctx.view.as_entire_binding(),
+            ctx.scene.materials.as_entire_binding(),
+        ];
+        resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
+        resources.push(indirect.as_entire_binding());
+        let bind_group = layout::bind_group(&ctx.device, "vct trace", bind_layout, &resources);
+        (indirect, bind_group)
+    }
+
+    /// Rebuilds the output for `ctx`'s new size.
+    pub fn resize(&mut self, ctx: &FrameContext) {
+        (self.indirect, self.bind_group) = Self::bind(ctx, &self.bind_layout, &self.params);
+        self.size = ctx.size();
+    }
+
+    /// Records the pass.
+    pub fn run(&self, frame: &mut FrameEncoder, svo: &Svo) {
+        let mut pass = frame.compute_pass("vct trace");
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_bind_group(1, &svo.sample_group, &[]);
+        let (x, y) = shaders::groups_2d(self.size);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+}
+
+/// `trace.wgsl`'s `Probe`: a cone to trace.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Probe {
+    /// Apex, in leaf voxels from the grid's corner.
+    pub origin: [f32; 3],
+    /// Distance of the first sample, leaf voxels.
+    pub start: f32,
+    /// Unit direction.
+    pub dir: [f32; 3],
+    /// tan of the half angle.
+    pub tan_half: f32,
+}
+
+/// Traces given cones through the octree on the GPU (`trace.wgsl::probe`), for the tests.
+pub struct ConeProbe {
+    pipeline: wgpu::ComputePipeline,
+    bind_layout: wgpu::BindGroupLayout,
+}
+
+impl ConeProbe {
+    /// The probe pipeline for `svo`'s layout.
+    pub fn new(device: &wgpu::Device, svo: &Svo) -> Self {
+        let c = wgpu::ShaderStages::COMPUTE;
+        let bind_layout = layout::bind_group_layout(
+            device,
+            "vct probe",
+            &[layout::storage(7, true, c), layout::storage(8, false, c)],
+        );
+        let module = Shader::ConeTrace.create(device);
+        let pipeline = layout::compute_pipeline_entry(
+            device,
+            "vct probe",
+            &module,
+            "probe",
+            &[&bind_layout, &svo.sample_layout],
+        );
+        Self {
+            pipeline,
+            bind_layout,
+        }
+    }
+
+    /// Every cone's `(radiance, opacity)`, read back.
+    ///
+    /// # Errors
+    /// A failed read-back.
+    pub fn trace(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        svo: &Svo,
+        probes: &[Probe],
+    ) -> Result<Vec<Vec4>, RuntimeError> {
+        let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vct probes"),
+            contents: bytemuck::cast_slice(probes),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let size = 16 * probes.len().max(1) as u64;
+        let output = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vct probe results"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let group = layout::bind_group_at(
+            device,
+            "vct probe",
+            &self.bind_layout,
+            &[(7, input.as_entire_binding()), (8, output.as_entire_binding())],
+        );
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.set_bind_group(1, &svo.sample_group, &[]);
+            pass.dispatch_workgroups(shaders::groups_1d(probes.len() as u32), 1, 1);
+        }
+        queue.submit([encoder.finish()]);
+        let bytes = read_buffer(device, queue, &output, 0, size)?;
+        Ok(bytemuck::cast_slice::<u8, [f32; 4]>(&bytes)[..probes.len()]
+            .iter()
+            .map(|&v| Vec4::from(v))
+            .collect())
+    }
+}
+
+impl Probe {
+    /// A cone from `origin` along `dir` (normalised here).
+    pub fn new(origin: Vec3, dir: Vec3, tan_half: f32, start: f32) -> Self {
+        Self {
+            origin: origin.to_array(),
+            start,
+            dir: dir.normalize().to_array(),
+            tan_half,
+        }
+    }
+}

@@ -1,0 +1,117 @@
+// Voxel cone tracing per pixel (Crassin et al. 2011 §5, §7): `cones` diffuse cones over the
+// hemisphere of the G-buffer's normal, cosine-distributed (a Fibonacci spiral), so their mean
+// times the albedo is the diffuse indirect radiance; and for a glossy material one cone along
+// the mirror direction whose aperture follows the Phong exponent, times Ks. CPU twin:
+// vct/cpu.rs `shade`; `probe` traces given cones for the test against `cpu::trace_cone`.
+
+#import cssm::types::{Material, View}
+#import cssm::svo::{svo, svo_cone}
+
+struct TraceParams {
+    cones: u32,
+    // tan of the diffuse cones' half angle.
+    tan_half: f32,
+    padding_a: vec2u,
+    // Where a cone's first sample lies and how far off the surface it starts, in leaves.
+    start: f32,
+    offset: f32,
+    // The diffuse half angle, radians: the glossy cone's widest.
+    half_angle: f32,
+    padding_b: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: TraceParams;
+@group(0) @binding(1) var<uniform> view: View;
+@group(0) @binding(2) var<storage, read> materials: array<Material>;
+@group(0) @binding(3) var gb_position: texture_2d<f32>;
+@group(0) @binding(4) var gb_normal: texture_2d<f32>;
+@group(0) @binding(5) var gb_albedo: texture_2d<f32>;
+@group(0) @binding(6) var<storage, read_write> indirect: array<vec4f>;
+
+// pi (3 - sqrt 5).
+const GOLDEN_ANGLE: f32 = 2.39996323;
+
+// An orthonormal basis around the unit `n` (Duff et al. 2017), `cpu::basis`.
+fn basis(n: vec3f) -> mat3x3f {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    let t = vec3f(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    let u = vec3f(b, s + n.y * n.y * a, -n.y);
+    return mat3x3f(t, u, n);
+}
+
+// Cone `k` of `params.cones` in the normal's frame: equal areas of the unit disc projected up
+// onto the hemisphere (cosine-distributed), along a Fibonacci spiral (`cpu::cone_direction`).
+fn cone_direction(k: u32) -> vec3f {
+    let u = (f32(k) + 0.5) / f32(params.cones);
+    let r = sqrt(u);
+    let phi = GOLDEN_ANGLE * f32(k);
+    return vec3f(r * cos(phi), r * sin(phi), sqrt(1.0 - u));
+}
+
+// The tan of the glossy cone's half angle: the angle at which the Phong lobe cos^ns falls to
+// half, at most the diffuse cones' (`cpu::glossy_tan_half`).
+fn glossy_tan_half(ns: f32) -> f32 {
+    let angle = acos(pow(0.5, 1.0 / max(ns, 1.0)));
+    return tan(clamp(angle, 0.00873, params.half_angle));
+}
+
+@compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
+fn main(@builtin(global_invocation_id) id: vec3u) {
+    if id.x >= view.size.x || id.y >= view.size.y {
+        return;
+    }
+    let index = id.y * view.size.x + id.x;
+    let at = vec2i(id.xy);
+    let g = textureLoad(gb_position, at, 0);
+    if g.w <= 0.0 {
+        indirect[index] = vec4f(0.0, 0.0, 0.0, 1.0);
+        return;
+    }
+    let gn = textureLoad(gb_normal, at, 0);
+    let n = gn.xyz;
+    let material = materials[u32(gn.w)];
+    let albedo = textureLoad(gb_albedo, at, 0).rgb;
+    let origin = (g.xyz - svo.origin) * svo.inv_voxel + n * params.offset;
+    // §7: the hemisphere's irradiance over pi as the mean of cosine-distributed cones (a
+    // uniform sky of radiance L gives L).
+    let frame = basis(n);
+    var diffuse = vec3f(0.0);
+    for (var k = 0u; k < params.cones; k++) {
+        diffuse += svo_cone(origin, frame * cone_direction(k), params.tan_half, params.start).rgb;
+    }
+    var radiance = albedo * diffuse / f32(params.cones);
+    if any(material.ks > vec3f(0.0)) {
+        let v = normalize(view.eye - g.xyz);
+        let r = reflect(-v, n);
+        let cos_r = dot(n, r);
+        if cos_r > 0.0 {
+            let glossy = svo_cone(origin, r, glossy_tan_half(material.ns), params.start).rgb;
+            // The normalised Phong lobe integrates to (ns + 2) / (ns + 1) times the cosine.
+            radiance += material.ks * glossy * ((material.ns + 2.0) / (material.ns + 1.0) * cos_r);
+        }
+    }
+    indirect[index] = vec4f(radiance, 1.0);
+}
+
+// A cone to trace: origin (leaf voxels) and start distance, direction and tan of the half
+// angle.
+struct Probe {
+    origin: vec3f,
+    start: f32,
+    dir: vec3f,
+    tan_half: f32,
+}
+
+@group(0) @binding(7) var<storage, read> probes: array<Probe>;
+@group(0) @binding(8) var<storage, read_write> probe_out: array<vec4f>;
+
+@compute @workgroup_size(#{WORKGROUP_1D})
+fn probe(@builtin(global_invocation_id) id: vec3u) {
+    if id.x >= arrayLength(&probes) {
+        return;
+    }
+    let c = probes[id.x];
+    probe_out[id.x] = svo_cone(c.origin, c.dir, c.tan_half, c.start);
+}
