@@ -175,7 +175,10 @@ fn voxel_light(anisotropic: bool) {
     .map(|t| Vec4::from(t.map(|bits| half::f16::from_bits(bits).to_f32())))
     .collect();
     let (w, h) = (bricks.width() as usize, bricks.height() as usize);
+    let levels = words(&read(&octree.levels, (max_level as u64 + 1) * 8));
+    let first_leaf_tile = levels[2 * max_level as usize] / 8;
     let mut checked = 0;
+    let mut bricks_seen = BTreeSet::new();
     for level in 0..max_level {
         for &cell in &cells[level as usize] {
             let leaf = cell.map(|c| c << (max_level - level));
@@ -187,8 +190,14 @@ fn voxel_light(anisotropic: bool) {
                 &[packed, level],
                 "tile {tile}'s parent"
             );
-            for face in 0..faces {
-                let origin = params.brick_origin(tile * faces + face);
+            // A tile of leaves has one brick, the leaves the same from every side.
+            let tile_faces = if level + 1 == max_level { 1 } else { faces };
+            for face in 0..tile_faces {
+                let brick = params
+                    .brick(tile, face, level + 1, first_leaf_tile)
+                    .expect("the pool holds every brick");
+                assert!(bricks_seen.insert(brick), "brick {brick} twice");
+                let origin = params.brick_origin(brick);
                 for t in 0..BRICK.pow(3) {
                     let texel = [t % BRICK, (t / BRICK) % BRICK, t / (BRICK * BRICK)];
                     let at = [0, 1, 2].map(|k| (origin[k] + texel[k]) as usize);
@@ -204,7 +213,23 @@ fn voxel_light(anisotropic: bool) {
             }
         }
     }
-    assert_eq!(checked as u32, (state[0] - 1) * BRICK.pow(3) * faces);
+    let leaf_tiles = cells[max_level as usize - 1].len() as u32;
+    let inner_tiles = state[0] - 1 - leaf_tiles;
+    assert_eq!(
+        first_leaf_tile,
+        1 + inner_tiles,
+        "the leaves' tiles come last"
+    );
+    assert_eq!(
+        checked as u32,
+        (inner_tiles * faces + leaf_tiles) * BRICK.pow(3)
+    );
+    let (nodes_bytes, bricks_bytes, values_bytes) = voxels.svo.pool_bytes(octree);
+    let dense = (resolution as u64).pow(3) * 8 * 8 / 7 * faces as u64;
+    eprintln!(
+        "  pools: nodes {nodes_bytes} B, bricks {bricks_bytes} B, values {values_bytes} B; a \
+         dense mipmapped grid of rgba16f ({faces} faces) {dense} B"
+    );
 }
 
 /// A renderer of `rsm` on `scene` at `size` (its G-buffer and RSM drawn) and the scene's

@@ -542,7 +542,8 @@ mod tests {
             voxel: 1.0,
             faces: 1,
             correct_opacity: 0,
-            padding: [0; 2],
+            inner_bricks: 0,
+            brick_capacity: 1,
         };
         // A floor on the boundary y = 1 between two occupied layers, lit from above.
         let occupied = BTreeSet::from([[1, 0, 1], [1, 1, 1]]);

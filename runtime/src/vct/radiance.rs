@@ -59,8 +59,10 @@ pub struct SvoParams {
     pub faces: u32,
     /// 1: a cone's sample has its opacity corrected for a step shorter than its voxel (§5).
     pub correct_opacity: u32,
-    /// Unused.
-    pub padding: [u32; 2],
+    /// Anisotropic: bricks of the tiles above the leaves, six a tile, first in the pool.
+    pub inner_bricks: u32,
+    /// Bricks the pool holds.
+    pub brick_capacity: u32,
 }
 
 impl SvoParams {
@@ -75,12 +77,26 @@ impl SvoParams {
             voxel: grid.voxel,
             faces,
             correct_opacity: 0,
-            padding: [0; 2],
+            inner_bricks: 0,
+            brick_capacity: 0,
         }
     }
 
-    /// The first texel of brick `brick` (`tile * faces + face`) in the pool
-    /// (`svo_brick_origin`).
+    /// The brick of face `face` of tile `tile`, whose nodes are at `level`, where the leaves'
+    /// tiles begin at `first_leaf_tile`; `None` beyond the pool (`svo_brick_of`). Isotropic:
+    /// the tile's one; anisotropic: six a tile above the leaves, then one a tile of leaves.
+    pub fn brick(&self, tile: u32, face: u32, level: u32, first_leaf_tile: u32) -> Option<u32> {
+        let brick = if self.faces == 1 {
+            tile
+        } else if level == self.max_level {
+            self.inner_bricks + (tile - first_leaf_tile)
+        } else {
+            Some(tile * FACES + face).filter(|&b| b < self.inner_bricks)?
+        };
+        (brick < self.brick_capacity).then_some(brick)
+    }
+
+    /// The first texel of brick `brick` in the pool (`svo_brick_origin`).
     pub fn brick_origin(&self, brick: u32) -> [u32; 3] {
         let b = self.bricks_per_side;
         [brick % b, (brick / b) % b, brick / (b * b)].map(|c| c * BRICK)
@@ -106,19 +122,32 @@ pub struct Svo {
     pub params: SvoParams,
     /// [`BRICK_FORMAT`] 3D texture of every tile's brick.
     pub bricks: wgpu::Texture,
-    /// Bindings 0 and 1 (parameters, nodes): the passes that fill the bricks.
+    /// Bindings 0, 1 and 4 (parameters, nodes, levels): the passes that fill the bricks.
     pub nodes_layout: wgpu::BindGroupLayout,
     /// The group of [`Self::nodes_layout`].
     pub nodes_group: wgpu::BindGroup,
-    /// Bindings 0 to 3 (also the bricks and a trilinear sampler): the passes that sample.
+    /// Bindings 0 to 4 (also the bricks and a trilinear sampler): the passes that sample.
     pub sample_layout: wgpu::BindGroupLayout,
     /// The group of [`Self::sample_layout`].
     pub sample_group: wgpu::BindGroup,
 }
 
+/// How the brick pool is laid out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PoolLayout {
+    /// Six bricks a tile above the leaves (§9), else one a tile.
+    pub anisotropic: bool,
+    /// Anisotropic: the tiles above the leaves (tile 0, the root's, among them) the pool has
+    /// room for.
+    pub inner_tiles: u32,
+    /// Anisotropic: the tiles of leaves it has room for.
+    pub leaf_tiles: u32,
+}
+
 impl Svo {
-    /// The pool of `octree`'s tiles on `grid`, [`FACES`] bricks per tile when `anisotropic`,
-    /// else one; cones read it with the opacity correction of §5 when `correct_opacity`.
+    /// The pool of `octree`'s tiles on `grid` laid out as `pool` (isotropic: one brick per
+    /// tile of the octree's pool); cones read it with the opacity correction of §5 when
+    /// `correct_opacity`.
     ///
     /// # Errors
     /// A pool larger than the device's 3D textures.
@@ -126,13 +155,17 @@ impl Svo {
         device: &wgpu::Device,
         octree: &OctreeBuild,
         grid: &VoxelGrid,
-        anisotropic: bool,
+        pool: PoolLayout,
         correct_opacity: bool,
     ) -> Result<Self, RuntimeError> {
-        let faces = if anisotropic { FACES } else { 1 };
-        let count = octree.tile_capacity.checked_mul(faces).ok_or_else(|| {
-            RuntimeError::Unsupported(format!("{} tiles of bricks", octree.tile_capacity))
-        })?;
+        let too_many =
+            || RuntimeError::Unsupported(format!("a brick pool for {pool:?}: too many bricks"));
+        let (faces, inner_bricks, count) = if pool.anisotropic {
+            let inner = pool.inner_tiles.checked_mul(FACES).ok_or_else(too_many)?;
+            (FACES, inner, inner.checked_add(pool.leaf_tiles).ok_or_else(too_many)?)
+        } else {
+            (1, octree.tile_capacity, octree.tile_capacity)
+        };
         let per_side = bricks_per_side(count);
         let slices = count.div_ceil(per_side * per_side);
         let size = wgpu::Extent3d {
@@ -162,6 +195,8 @@ impl Svo {
         });
         let params = SvoParams {
             correct_opacity: u32::from(correct_opacity),
+            inner_bricks,
+            brick_capacity: count,
             ..SvoParams::new(grid, faces, per_side)
         };
         let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -176,22 +211,28 @@ impl Svo {
             ..Default::default()
         });
         let all = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
-        let nodes_entries = [layout::uniform(0, all), layout::storage(1, true, all)];
+        let nodes_entries = [
+            layout::uniform(0, all),
+            layout::storage(1, true, all),
+            layout::storage(4, true, all),
+        ];
         let nodes_layout = layout::bind_group_layout(device, "svo nodes", &nodes_entries);
         let sample_entries = [
             nodes_entries[0],
             nodes_entries[1],
             layout::filterable_texture(2, wgpu::TextureViewDimension::D3, all),
             layout::filtering_sampler(3, all),
+            nodes_entries[2],
         ];
         let sample_layout = layout::bind_group_layout(device, "svo sample", &sample_entries);
-        let nodes_group = layout::bind_group(
+        let nodes_group = layout::bind_group_at(
             device,
             "svo nodes",
             &nodes_layout,
             &[
-                params_buffer.as_entire_binding(),
-                octree.nodes.as_entire_binding(),
+                (0, params_buffer.as_entire_binding()),
+                (1, octree.nodes.as_entire_binding()),
+                (4, octree.levels.as_entire_binding()),
             ],
         );
         let view = bricks.create_view(&Default::default());
@@ -204,6 +245,7 @@ impl Svo {
                 octree.nodes.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&view),
                 wgpu::BindingResource::Sampler(&sampler),
+                octree.levels.as_entire_binding(),
             ],
         );
         Ok(Self {
@@ -216,12 +258,14 @@ impl Svo {
         })
     }
 
-    /// Bytes of the node pool (nodes, their cells, the tiles' cells) and of the brick pool.
-    pub fn pool_bytes(&self, octree: &OctreeBuild) -> (u64, u64) {
+    /// Bytes of the node pool (nodes, their cells, the tiles' cells), of the brick pool, and
+    /// of the per-node values and flux the radiance passes keep.
+    pub fn pool_bytes(&self, octree: &OctreeBuild) -> (u64, u64, u64) {
         let tiles = octree.tile_capacity as u64;
         let size = self.bricks.size();
         let texels = size.width as u64 * size.height as u64 * size.depth_or_array_layers as u64;
-        (tiles * (32 + 32 + 8), texels * 8)
+        let per_node = 16 * (1 + self.params.faces as u64);
+        (tiles * (32 + 32 + 8), texels * 8, tiles * 8 * per_node)
     }
 }
 

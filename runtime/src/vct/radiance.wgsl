@@ -15,7 +15,7 @@
 // over the children's vertex-centred bricks weighs the parent's own cell more).
 
 #import cssm::types::SpotLight
-#import cssm::svo::{svo, svo_nodes, svo_node, svo_brick_origin, SVO_FLAG, SVO_BRICK}
+#import cssm::svo::{svo, svo_nodes, svo_node, svo_brick_of, svo_brick_origin, SVO_FLAG, SVO_BRICK, SVO_NONE}
 
 const WORKGROUP: u32 = #{WORKGROUP_1D}u;
 const PI: f32 = 3.14159265358979;
@@ -265,14 +265,22 @@ fn fill_bricks(
     if all(cell >= vec3i(0)) && all(cell < vec3i(side)) {
         node = svo_node(vec3u(cell) << vec3u(svo.max_level - level), level);
     }
-    for (var face = 0u; face < svo.faces; face++) {
+    // A tile of leaves has one brick: a leaf is the same from every side.
+    var faces = svo.faces;
+    if level == svo.max_level {
+        faces = 1u;
+    }
+    for (var face = 0u; face < faces; face++) {
         var value = vec4f(0.0);
         if node != 0xffffffffu {
             value = values[node * svo.faces + face];
         }
         around[local] = value;
         workgroupBarrier();
-        fill_brick(tile * svo.faces + face, local);
+        let brick = svo_brick_of(tile, face, level);
+        if brick != SVO_NONE {
+            fill_brick(brick, local);
+        }
         workgroupBarrier();
     }
 }

@@ -11,9 +11,10 @@
 // trilinear interpolation of the level's voxel-centred values inside the tile's parent cell.
 // A cell whose parent is empty has no brick and reads as empty.
 //
-// Anisotropic voxels (§9, `faces` 6): every tile has six bricks, one per direction of view
-// (+x, -x, +y, -y, +z, -z), and a sample along a direction weighs the three it faces by the
-// direction's squared components. Isotropic voxels (`faces` 1): one brick.
+// Anisotropic voxels (§9, `faces` 6): every tile above the leaves has six bricks, one per
+// direction of view (+x, -x, +y, -y, +z, -z), and a sample along a direction weighs the three
+// it faces by the direction's squared components; a tile of leaves, the same from every side,
+// has one, after the others (`svo_brick_of`). Isotropic voxels (`faces` 1): one brick a tile.
 
 struct SvoParams {
     // World position of the grid's corner.
@@ -30,8 +31,10 @@ struct SvoParams {
     faces: u32,
     // 1: a sample's opacity corrected for a step shorter than its voxel (§5); 0: as it is.
     correct_opacity: u32,
-    padding_b: u32,
-    padding_c: u32,
+    // Anisotropic: the bricks of the tiles above the leaves, six a tile; the leaves' follow.
+    inner_bricks: u32,
+    // Bricks the pool holds.
+    brick_capacity: u32,
 }
 
 @group(#{SVO_GROUP}) @binding(0) var<uniform> svo: SvoParams;
@@ -40,6 +43,9 @@ struct SvoParams {
 // The brick pool, 5x5x5 texels per tile, and its trilinear sampler.
 @group(#{SVO_GROUP}) @binding(2) var svo_bricks: texture_3d<f32>;
 @group(#{SVO_GROUP}) @binding(3) var svo_sampler: sampler;
+// The octree's levels, [first node, end] (vct/octree.wgsl): the leaves' tiles are the last
+// level's.
+@group(#{SVO_GROUP}) @binding(4) var<storage, read> svo_levels: array<vec2u>;
 
 const SVO_NONE: u32 = 0xffffffffu;
 const SVO_FLAG: u32 = 0x80000000u;
@@ -73,7 +79,28 @@ fn svo_node(cell: vec3u, level: u32) -> u32 {
     return node;
 }
 
-// The first texel of brick `brick` (tile * faces + face) in the pool.
+// The brick of face `face` of tile `tile` whose nodes are at `level`, or SVO_NONE beyond the
+// pool (`SvoParams::brick`).
+fn svo_brick_of(tile: u32, face: u32, level: u32) -> u32 {
+    var brick = tile;
+    if svo.faces != 1u {
+        let first_leaf_tile = svo_levels[svo.max_level].x / 8u;
+        if level == svo.max_level {
+            brick = svo.inner_bricks + (tile - first_leaf_tile);
+        } else {
+            brick = tile * 6u + face;
+            if brick >= svo.inner_bricks {
+                return SVO_NONE;
+            }
+        }
+    }
+    if brick >= svo.brick_capacity {
+        return SVO_NONE;
+    }
+    return brick;
+}
+
+// The first texel of brick `brick` in the pool.
 fn svo_brick_origin(brick: u32) -> vec3u {
     let b = svo.bricks_per_side;
     return SVO_BRICK * vec3u(brick % b, (brick / b) % b, brick / (b * b));
@@ -81,6 +108,9 @@ fn svo_brick_origin(brick: u32) -> vec3u {
 
 // Brick `brick` at `local` in [0, 1)³ of its tile's parent cell.
 fn svo_brick(brick: u32, local: vec3f) -> vec4f {
+    if brick == SVO_NONE {
+        return vec4f(0.0);
+    }
     let texel = vec3f(svo_brick_origin(brick)) + 0.5 + 4.0 * local;
     let dims = vec3f(textureDimensions(svo_bricks));
     return textureSampleLevel(svo_bricks, svo_sampler, texel / dims, 0.0);
@@ -100,15 +130,14 @@ fn svo_sample(p: vec3f, level: u32, dir: vec3f) -> vec4f {
     // The parent cell's side in leaves is a power of two: the division is exact.
     let size = f32(1u << (svo.max_level + 1u - level));
     let local = fract(p / size);
-    if svo.faces == 1u {
-        return svo_brick(tile, local);
+    if svo.faces == 1u || level == svo.max_level {
+        return svo_brick(svo_brick_of(tile, 0u, level), local);
     }
     // The faces the direction looks at: +x (0) when it travels towards +x, else -x (1).
-    let first = tile * 6u;
     let w = dir * dir;
-    let x = svo_brick(first + select(1u, 0u, dir.x >= 0.0), local);
-    let y = svo_brick(first + select(3u, 2u, dir.y >= 0.0), local);
-    let z = svo_brick(first + select(5u, 4u, dir.z >= 0.0), local);
+    let x = svo_brick(svo_brick_of(tile, select(1u, 0u, dir.x >= 0.0), level), local);
+    let y = svo_brick(svo_brick_of(tile, select(3u, 2u, dir.y >= 0.0), level), local);
+    let z = svo_brick(svo_brick_of(tile, select(5u, 4u, dir.z >= 0.0), level), local);
     return w.x * x + w.y * y + w.z * z;
 }
 
