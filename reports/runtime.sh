@@ -12,15 +12,18 @@ prepare)
     cargo bench --bench gpu_queries --no-run 2>&1 | tail -1
     cargo bench --bench frame_time --no-run 2>&1 | tail -1
     cargo bench --bench rsm_time --no-run 2>&1 | tail -1
+    cargo bench --bench vct_time --no-run 2>&1 | tail -1
     bench=$(ls -t target/release/deps/gpu_queries-* | grep -v '\.d$' | head -1)
     frame_bench=$(ls -t target/release/deps/frame_time-* | grep -v '\.d$' | head -1)
     rsm_bench=$(ls -t target/release/deps/rsm_time-* | grep -v '\.d$' | head -1)
+    vct_bench=$(ls -t target/release/deps/vct_time-* | grep -v '\.d$' | head -1)
     (cd ../shared/tools/gpu-limit && cargo build --release)
     mkdir -p .carry/scenes
     cp target/release/cssm "$bench" ../shared/tools/gpu-limit/target/release/gpu-limit .carry/
     mv ".carry/$(basename "$bench")" .carry/gpu_queries
     cp "$frame_bench" .carry/frame_time
     cp "$rsm_bench" .carry/rsm_time
+    cp "$vct_bench" .carry/vct_time
     mkdir -p .carry/scenes/sibenik-view && cp reports/scenes/sibenik/scene.toml .carry/scenes/sibenik-view/
     sed -i 's|mesh = .*|mesh = "../sibenik/sibenik.obj"|' .carry/scenes/sibenik-view/scene.toml
     cp -r ../shared/scenes/sibenik .carry/scenes/ 2>/dev/null || echo "no sibenik: its rows will be skipped"
@@ -57,6 +60,15 @@ measure)
     if [ -d .carry/scenes/sibenik ]; then
         .carry/rsm_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
             --out "$out/runtime-rsm-sibenik.md" | tee "$out/runtime-rsm-sibenik.txt"
+    fi
+    # VCT per voxel resolution (issue 18; target: 2 ms at 1280x720 on the Cornell box), static
+    # and moving light, GPU ms per pass, and the pools' memory against a dense grid.
+    .carry/vct_time --size 1280x720 --frames 20 --resolutions 64,128,256 \
+        --out "$out/runtime-vct-cornell.md" | tee "$out/runtime-vct-cornell.txt"
+    if [ -d .carry/scenes/sibenik ]; then
+        .carry/vct_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
+            --resolutions 128,256,512 --out "$out/runtime-vct-sibenik.md" \
+            | tee "$out/runtime-vct-sibenik.txt"
     fi
     # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
     # lightmap, 1 and 2 bounces, 640x480.

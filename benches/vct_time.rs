@@ -1,0 +1,190 @@
+//! Frame time of `vct` (Crassin et al. 2011, §10) per voxel resolution, against `direct` and
+//! `rsm` measured in the same run on the same device, per pass from GPU timestamps; and the
+//! memory of the node and brick pools against a dense mipmapped grid of the same resolution.
+//!
+//! ```text
+//! cargo bench --bench vct_time -- [--size 1280x720] [--frames 5] [--scene DIR]
+//!     [--resolutions 64,128,256] [--shadow-resolution 2048] [--out FILE.md]
+//! ```
+//!
+//! Per resolution two rows: a static light (the octree built once, a frame is the G-buffer,
+//! direct light, the cones, compose and tone mapping) and a light that moves every frame (the
+//! paper's dynamic case: the RSM, voxelisation, octree build, injection, MIP-mapping and bricks
+//! every frame). Wall-clock milliseconds per frame from submit to the GPU's idle (median) and
+//! GPU milliseconds per pass of the last frame. On lavapipe only the ratios mean something;
+//! absolute GPU times count only from a real GPU (`reports/runtime.sh`).
+
+use std::{path::PathBuf, time::Instant};
+
+use cssm::{formats, runtime};
+use runtime::{
+    Gpu, Renderer, RendererSettings,
+    frame::FrameSettings,
+    method::{self, OptionValue, OptionValues},
+    vct::SparseVoxels,
+};
+
+#[path = "common/mod.rs"]
+mod common;
+
+use common::{arg, frame, median};
+
+/// Median wall-clock ms of `frames` frames after a first, and the last frame's GPU passes.
+fn time(
+    gpu: &Gpu,
+    renderer: &mut Renderer,
+    view: &wgpu::TextureView,
+    frames: usize,
+    light: Option<&formats::scene::SpotLight>,
+) -> (f64, Vec<(&'static str, f64)>) {
+    frame(gpu, renderer, view);
+    let mut passes = Vec::new();
+    let times: Vec<f64> = (0..frames.max(1))
+        .map(|_| {
+            if let Some(light) = light {
+                renderer.set_light(0, light).expect("light");
+            }
+            let start = Instant::now();
+            frame(gpu, renderer, view);
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            passes = renderer.read_timings().expect("timings");
+            ms
+        })
+        .collect();
+    (median(times), passes)
+}
+
+fn passes_cell(passes: &[(&str, f64)]) -> String {
+    if passes.is_empty() {
+        return "no timestamps".into();
+    }
+    let total: f64 = passes.iter().map(|(_, t)| t).sum();
+    let list: Vec<String> = passes.iter().map(|(n, t)| format!("{n} {t:.2}")).collect();
+    format!("{} (sum {total:.2})", list.join(", "))
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let (width, height) = common::size(&args, (1280, 720));
+    let frames: usize = arg(&args, "--frames")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    let shadow_resolution: u32 = arg(&args, "--shadow-resolution")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(runtime::common::shadow_map::DEFAULT_RESOLUTION);
+    let resolutions: Vec<u32> = arg(&args, "--resolutions")
+        .unwrap_or_else(|| "64,128,256".into())
+        .split(',')
+        .map(|r| r.parse().expect("--resolutions N,N,..."))
+        .collect();
+    let dir = arg(&args, "--scene")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
+    let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
+
+    let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
+    let scene = formats::Scene::load(&dir).unwrap_or_else(|e| panic!("{e}"));
+    let settings = RendererSettings {
+        frame: FrameSettings {
+            width,
+            height,
+            shadow_resolution,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);
+    let view = target.create_view(&Default::default());
+    let renderer = |name: &str, values: &OptionValues| {
+        let entry = method::find(name).expect("method");
+        Renderer::new(
+            &gpu.device,
+            &gpu.queue,
+            &scene,
+            None,
+            entry,
+            values,
+            &settings,
+        )
+        .expect("renderer")
+    };
+    let mut report = format!(
+        "`vct` on {} ({} triangles), {width}x{height}, RSM {shadow_resolution}², default options \
+         but the resolution, on {}; median of {frames} frames after the first.\n\n\
+         | method | light | frame ms | GPU ms per pass, last frame |\n\
+         | --- | --- | --- | --- |\n",
+        scene.name,
+        scene.triangle_materials.len(),
+        gpu.describe()
+    );
+    let light = scene.lights.first();
+    let mut baseline = Vec::new();
+    for name in ["direct", "rsm"] {
+        let mut r = renderer(name, &OptionValues::default());
+        let (ms, passes) = time(&gpu, &mut r, &view, frames, None);
+        baseline.push(ms);
+        let row = format!("| {name} | static | {ms:.1} | {} |\n", passes_cell(&passes));
+        print!("{row}");
+        report += &row;
+    }
+    let mut memory = String::from(
+        "\n| resolution | fragments | node pool MiB | brick pool MiB | values MiB | dense grid MiB |\n\
+         | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    let mut ratios = String::new();
+    for &resolution in &resolutions {
+        let mut values = OptionValues::default();
+        values.set("resolution", OptionValue::Count(resolution));
+        let mut r = renderer("vct", &values);
+        let (still, passes) = time(&gpu, &mut r, &view, frames, None);
+        let row = format!(
+            "| vct {resolution}³ | static | {still:.1} | {} |\n",
+            passes_cell(&passes)
+        );
+        print!("{row}");
+        report += &row;
+        let (moving, passes) = time(&gpu, &mut r, &view, frames, light);
+        let row = format!(
+            "| vct {resolution}³ | moving | {moving:.1} | {} |\n",
+            passes_cell(&passes)
+        );
+        print!("{row}");
+        report += &row;
+        ratios += &format!(
+            "vct {resolution}³: a static frame {:.2}x direct's, {:.2}x rsm's; a moving light's \
+             frame {:.2}x direct's.\n",
+            still / baseline[0],
+            still / baseline[1],
+            moving / baseline[0]
+        );
+        // The pools as the method sizes them (its own are inside the renderer).
+        let voxels = SparseVoxels::new(r.context(), scene.bounds(), resolution, true, false)
+            .expect("voxels");
+        let (nodes, bricks, node_values) = voxels.svo.pool_bytes(&voxels.octree);
+        // A dense grid: rgba16f leaves, and six rgba16f faces per voxel of the mip levels.
+        let cube = (resolution as u64).pow(3);
+        let dense = cube * 8 + cube / 7 * 8 * 6;
+        memory += &format!(
+            "| {resolution}³ | {} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            voxels.voxelizer.capacity,
+            mib(nodes),
+            mib(bricks),
+            mib(node_values),
+            mib(dense)
+        );
+    }
+    let tail = format!(
+        "\n{ratios}{memory}\nPools as allocated (room for half as many fragments and tiles again); \
+         *fragments* is the fragment list's capacity.\n"
+    );
+    print!("{tail}");
+    report += &tail;
+    if let Some(out) = out {
+        std::fs::write(&out, &report).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
+        println!("wrote {}", out.display());
+    }
+}
