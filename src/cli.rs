@@ -518,6 +518,7 @@ fn render_after_help() -> String {
          cssm render --method lightmap --component indirect --exr indirect.exr\n  \
          cssm render --method reference --bounces 3 --samples 1024 --exr truth.exr\n  \
          cssm render --method rsm --component indirect --set visibility=none --out rsm-no-visibility.png\n  \
+         cssm render scenes/cornell-glossy --method vct --set resolution=64 --out vct.png\n  \
          cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings",
         runtime::method::describe_methods()
     )

@@ -11,6 +11,9 @@
 //!    2. `radiosity::Radiosity` — the diffuse bounces over the hierarchy (§4.1-§4.3): gather,
 //!       then pull, per bounce
 //!
+//!    for `vct` ([`crate::vct::SparseVoxels`]): `common::voxelize`, the octree's build, the
+//!    RSM's flux into its leaves, MIP-mapping and bricks
+//!
 //! Every frame (`encode`):
 //!
 //! 3. `common::gbuffer` — position, normal, material, albedo, atlas coordinates per pixel
@@ -19,7 +22,7 @@
 //!    `lightmap::AtlasLookup` (`hrc`: nearest texel, `lightmap`: bicubic) or
 //!    `lightcuts::FinalGather` (`lightcuts`: the last, glossy bounce per pixel, §4.4), or
 //!    `rsm`'s sampling at a reduced resolution, the shared `common::filters` (edge-aware blur,
-//!    joint bilateral up-sampling) and its resolve
+//!    joint bilateral up-sampling) and its resolve, or `vct`'s cones through the octree
 //! 6. `common::compose` — direct + indirect, or either alone (`--component`)
 //! 7. `common::tonemap` — exposure, ACES, sRGB, into the caller's target
 //!

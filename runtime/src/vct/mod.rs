@@ -124,7 +124,7 @@ pub const METHOD: MethodEntry = MethodEntry {
         },
         OptionSpec {
             name: "cones",
-            help: "diffuse cones per pixel: one along the normal, the rest in a ring (§7)",
+            help: "diffuse cones per pixel, cosine-distributed over the hemisphere (§7)",
             kind: OptionKind::Count {
                 default: 16,
                 min: 1,

@@ -303,7 +303,8 @@ impl VoxelRadiance {
     /// The passes over `octree`'s pool into `svo`'s bricks, from `shadows`' RSM.
     ///
     /// # Errors
-    /// Shadow maps without their RSM.
+    /// Shadow maps without their RSM, per-node values beyond the device's largest storage
+    /// binding.
     pub fn new(
         device: &wgpu::Device,
         octree: &OctreeBuild,
@@ -325,12 +326,20 @@ impl VoxelRadiance {
         let storage = wgpu::BufferUsages::STORAGE
             | wgpu::BufferUsages::COPY_DST
             | wgpu::BufferUsages::COPY_SRC;
+        let values_bytes = nodes * 16 * svo.params.faces as u64;
+        let limit = device.limits().max_storage_buffer_binding_size;
+        if values_bytes > limit {
+            return Err(RuntimeError::Unsupported(format!(
+                "a sparse voxel octree of {} tiles at {}³ needs {} MiB of node values; the \
+                 device binds at most {} MiB: lower the resolution",
+                octree.tile_capacity,
+                svo.params.resolution,
+                values_bytes >> 20,
+                limit >> 20
+            )));
+        }
         let flux = buffer("svo flux", nodes * 16, storage);
-        let values = buffer(
-            "svo values",
-            nodes * 16 * svo.params.faces as u64,
-            storage,
-        );
+        let values = buffer("svo values", values_bytes, storage);
         let constants = buffer("svo constants", 8, storage);
         let max_level = octree.max_level;
         let args = buffer(
