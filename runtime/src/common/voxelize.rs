@@ -252,6 +252,17 @@ struct VoxelParams {
     tiles_per_side: u32,
 }
 
+/// The workgroups of a 1D pass over more items than one dispatch dimension holds (65,535
+/// workgroups) as a 2D dispatch, each dimension at most 32,768 (`voxel.wgsl::split_groups`;
+/// the pass finds its item with `split_item`).
+pub fn split_groups(groups: u32) -> (u32, u32) {
+    if groups == 0 {
+        return (0, 1);
+    }
+    let x = groups.min(32768);
+    (x, groups.div_ceil(x))
+}
+
 /// The voxelisation pass and its fragment list.
 pub struct Voxelizer {
     /// The grid.
@@ -484,6 +495,16 @@ mod tests {
     fn packing_matches_wgsl() {
         assert_eq!(pack4x8unorm(Vec4::new(0.0, 1.0, 0.5, 2.0)), 0xff_80_ff_00);
         assert_eq!(pack4x8snorm(Vec4::new(1.0, -1.0, 0.0, 0.0)), 0x00_00_81_7f);
+    }
+
+    #[test]
+    fn split_dispatches_cover_every_group_within_the_limit() {
+        assert_eq!(split_groups(0), (0, 1));
+        assert_eq!(split_groups(5), (5, 1));
+        assert_eq!(split_groups(32768), (32768, 1));
+        assert_eq!(split_groups(32769), (32768, 2));
+        let (x, y) = split_groups(1 << 24);
+        assert!(x as u64 * y as u64 >= 1 << 24 && x <= 65535 && y <= 65535);
     }
 
     #[test]

@@ -72,7 +72,7 @@ impl OctreeBuild {
     ///
     /// # Errors
     /// A grid whose resolution is not a power of two, a pool of no tile or beyond the device's
-    /// largest storage binding, a fragment list longer than one dispatch flags.
+    /// largest storage binding.
     pub fn new(
         device: &wgpu::Device,
         voxelizer: &Voxelizer,
@@ -88,15 +88,6 @@ impl OctreeBuild {
         if tile_capacity < 2 || bytes > device.limits().max_storage_buffer_binding_size {
             return Err(RuntimeError::Unsupported(format!(
                 "an octree node pool of {tile_capacity} tiles ({bytes} bytes)"
-            )));
-        }
-        // The flag pass runs one invocation per fragment along x.
-        let max_groups = device.limits().max_compute_workgroups_per_dimension;
-        if shaders::groups_1d(voxelizer.capacity) > max_groups {
-            return Err(RuntimeError::Unsupported(format!(
-                "an octree over {} voxel fragments: one dispatch flags at most {}",
-                voxelizer.capacity,
-                max_groups as u64 * shaders::WORKGROUP_1D as u64
             )));
         }
         let max_level = max_level(resolution);
@@ -222,12 +213,12 @@ impl OctreeBuild {
         queue.write_buffer(&self.dispatch, 0, bytemuck::cast_slice(&[1u32, 1, 1]));
         // Level 0 is the root alone; next_level records the others.
         queue.write_buffer(&self.levels, 0, bytemuck::cast_slice(&[0u32, 1]));
-        let fragment_groups = shaders::groups_1d(self.fragment_capacity);
+        let (x, y) = crate::common::voxelize::split_groups(shaders::groups_1d(self.fragment_capacity));
         let mut pass = frame.compute_pass("octree build");
         for (level, group) in self.bind_groups.iter().enumerate() {
             pass.set_bind_group(0, group, &[]);
             pass.set_pipeline(&self.flag);
-            pass.dispatch_workgroups(fragment_groups, 1, 1);
+            pass.dispatch_workgroups(x, y, 1);
             if level as u32 == self.max_level {
                 break;
             }

@@ -9,7 +9,7 @@
 // radiance passes need (vct/radiance.wgsl): every occupied node's cell, every tile's parent cell
 // and level, and every level's range of nodes.
 
-#import cssm::voxel::{VoxelFragment, fragment_cell}
+#import cssm::voxel::{VoxelFragment, fragment_cell, split_groups, split_item}
 
 const WORKGROUP: u32 = #{WORKGROUP_1D}u;
 
@@ -56,12 +56,17 @@ fn node_at_level(cell: vec3u) -> u32 {
 
 // 1. Every fragment flags the node that holds it at this level.
 @compute @workgroup_size(#{WORKGROUP_1D})
-fn flag(@builtin(global_invocation_id) id: vec3u) {
+fn flag(
+    @builtin(workgroup_id) group: vec3u,
+    @builtin(num_workgroups) groups: vec3u,
+    @builtin(local_invocation_index) local: u32,
+) {
     let count = min(fragment_count[0], params.fragment_capacity);
-    if id.x >= count {
+    let i = split_item(group, groups, local, WORKGROUP);
+    if i >= count {
         return;
     }
-    let f = fragments[id.x];
+    let f = fragments[i];
     let cell = fragment_cell(f);
     let node = node_at_level(cell);
     if node != 0xffffffffu {
@@ -74,8 +79,12 @@ fn flag(@builtin(global_invocation_id) id: vec3u) {
 
 // 2. Every flagged node of the level gets a tile of children.
 @compute @workgroup_size(#{WORKGROUP_1D})
-fn allocate(@builtin(global_invocation_id) id: vec3u) {
-    let node = atomicLoad(&state[1]) + id.x;
+fn allocate(
+    @builtin(workgroup_id) group: vec3u,
+    @builtin(num_workgroups) groups: vec3u,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let node = atomicLoad(&state[1]) + split_item(group, groups, local, WORKGROUP);
     if node >= atomicLoad(&state[2]) {
         return;
     }
@@ -104,7 +113,8 @@ fn next_level(@builtin(global_invocation_id) id: vec3u) {
     atomicStore(&state[1], first);
     atomicStore(&state[2], end);
     levels[params.level + 1u] = vec2u(first, end);
-    dispatch[0] = (end - first + WORKGROUP - 1u) / WORKGROUP;
-    dispatch[1] = 1u;
-    dispatch[2] = 1u;
+    let split = split_groups((end - first + WORKGROUP - 1u) / WORKGROUP);
+    dispatch[0] = split.x;
+    dispatch[1] = split.y;
+    dispatch[2] = split.z;
 }

@@ -15,6 +15,7 @@
 // over the children's vertex-centred bricks weighs the parent's own cell more).
 
 #import cssm::types::SpotLight
+#import cssm::voxel::{split_groups, split_item}
 #import cssm::svo::{svo, svo_nodes, svo_node, svo_brick_of, svo_brick_origin, SVO_FLAG, SVO_BRICK, SVO_NONE}
 
 const WORKGROUP: u32 = #{WORKGROUP_1D}u;
@@ -61,17 +62,13 @@ struct RadianceParams {
 @group(2) @binding(1) var<storage, read_write> plan_args: array<vec4u>;
 @group(2) @binding(2) var<storage, read_write> plan_constants: array<f32, 2>;
 
-// Workgroups `groups` as a 2D dispatch (each dimension at most 32,768).
+// Workgroups `groups` as indirect arguments of a 2D dispatch.
 fn split(groups: u32) -> vec4u {
-    if groups == 0u {
-        return vec4u(0u, 1u, 1u, 0u);
-    }
-    let x = min(groups, 32768u);
-    return vec4u(x, (groups + x - 1u) / x, 1u, 0u);
+    return vec4u(split_groups(groups), 0u);
 }
 
 fn linear_group(group: vec3u, count: vec3u) -> u32 {
-    return group.y * count.x + group.x;
+    return split_item(group, count, 0u, 1u);
 }
 
 // The flux the lights' cones can send at most: the intensity's largest component times the
