@@ -5,6 +5,25 @@ use std::sync::{Arc, Mutex};
 
 use crate::RuntimeError;
 
+/// The least a device must allow for every method to build: WebGPU's default limits, but 64
+/// bytes of colour attachments per sample (the G-buffer's four `Rgba32Float` targets) and 12
+/// storage buffers per stage (the radiosity gather of `hrc`, `lightmap` and `lightcuts`: the
+/// CSSM query's and its own; the other methods keep to the default 8). A caller that creates
+/// its own device asks for at least these (`tests/gpu/methods.rs` builds every method on a
+/// device of exactly these).
+///
+/// ```
+/// let limits = cssm_runtime::required_limits();
+/// assert_eq!(limits.max_storage_buffers_per_shader_stage, 12);
+/// ```
+pub fn required_limits() -> wgpu::Limits {
+    wgpu::Limits {
+        max_color_attachment_bytes_per_sample: 64,
+        max_storage_buffers_per_shader_stage: 12,
+        ..Default::default()
+    }
+}
+
 /// A device and queue with what the runtime learned about them.
 pub struct Gpu {
     /// The adapter the device was created on.

@@ -81,6 +81,6 @@ method_table! {
     reference => [METHOD],
 }
 
-pub use device::Gpu;
+pub use device::{Gpu, required_limits};
 pub use error::RuntimeError;
 pub use renderer::{Renderer, RendererSettings};

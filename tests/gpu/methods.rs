@@ -279,3 +279,60 @@ fn every_method_matches_its_golden_image() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// A user embeds the runtime with their own device: every GPU method builds and renders on a
+/// device of `required_limits` (WebGPU's defaults, 128 MiB bindings among them, but the
+/// G-buffer's 64 bytes per sample and 12 storage buffers per stage), not only on one with the
+/// adapter's; and the methods without the radiosity gather within WebGPU's default 8.
+#[test]
+fn every_gpu_method_builds_within_the_required_limits() {
+    let adapter = &gpu().adapter;
+    let device_of = |limits: wgpu::Limits| {
+        pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("required limits"),
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .expect("a device of the required limits")
+    };
+    let required = cssm_runtime::required_limits();
+    let eight = wgpu::Limits {
+        max_storage_buffers_per_shader_stage: 8,
+        ..required.clone()
+    };
+    let (scene, file) = cornell();
+    let options = RenderOptions {
+        width: 32,
+        height: 24,
+        ..Default::default()
+    };
+    let mut failures = Vec::new();
+    for (limits, names) in [
+        (required, None),
+        (eight, Some(["direct", "rsm", "vct"].as_slice())),
+    ] {
+        let storage = limits.max_storage_buffers_per_shader_stage;
+        let (device, queue) = device_of(limits);
+        let methods = METHODS
+            .iter()
+            .filter(|m| matches!(m.backend, Backend::Gpu(_)));
+        for method in methods.filter(|m| names.is_none_or(|n| n.contains(&m.name))) {
+            let values = options.values(method);
+            let built = cssm_runtime::Renderer::new(
+                &device,
+                &queue,
+                scene,
+                Some(file),
+                method,
+                &values,
+                &options.settings(),
+            )
+            .and_then(|mut r| cssm_runtime::common::readback::render_image(&mut r, 1));
+            if let Err(e) = built {
+                failures.push(format!("{} ({storage} storage buffers): {e}", method.name));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}

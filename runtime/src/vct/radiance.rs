@@ -349,9 +349,10 @@ impl VoxelRadiance {
         );
         let c = wgpu::ShaderStages::COMPUTE;
         let array = wgpu::TextureViewDimension::D2Array;
+        // Binding 1 is gone: the levels are the octree library's (group 1), so the passes stay
+        // within the 8 storage buffers per stage a default device allows.
         let entries = [
             layout::uniform(0, c),
-            layout::storage(1, true, c),
             layout::storage(2, true, c),
             layout::storage(3, true, c),
             layout::storage(4, true, c),
@@ -366,7 +367,7 @@ impl VoxelRadiance {
         let level_layout = layout::bind_group_layout(device, "svo radiance", &entries);
         // `plan` writes the constants the others read: its own groups, without them.
         let plan_layout =
-            layout::bind_group_layout(device, "svo plan", &[entries[0], entries[1], entries[4]]);
+            layout::bind_group_layout(device, "svo plan", &[entries[0], entries[3]]);
         let plan_out_layout = layout::bind_group_layout(
             device,
             "svo plan out",
@@ -399,14 +400,13 @@ impl VoxelRadiance {
         };
         let plan_params = params(0);
         let plan_groups = [
-            // Bindings 0, 1 and 4 of the level passes' layout.
+            // Bindings 0 and 4 of the level passes' layout.
             layout::bind_group_at(
                 device,
                 "svo plan",
                 &plan_layout,
                 &[
                     (0, plan_params.as_entire_binding()),
-                    (1, octree.levels.as_entire_binding()),
                     (4, octree.state.as_entire_binding()),
                 ],
             ),
@@ -427,20 +427,23 @@ impl VoxelRadiance {
             .map(|level| {
                 let params = params(level);
                 let mut resources = vec![
-                    params.as_entire_binding(),
-                    octree.levels.as_entire_binding(),
-                    octree.tile_cells.as_entire_binding(),
-                    constants.as_entire_binding(),
-                    octree.state.as_entire_binding(),
+                    (0, params.as_entire_binding()),
+                    (2, octree.tile_cells.as_entire_binding()),
+                    (3, constants.as_entire_binding()),
+                    (4, octree.state.as_entire_binding()),
                 ];
-                resources.extend(rsm_views.iter().map(wgpu::BindingResource::TextureView));
+                resources.extend(
+                    (5..)
+                        .zip(&rsm_views)
+                        .map(|(b, v)| (b, wgpu::BindingResource::TextureView(v))),
+                );
                 resources.extend([
-                    flux.as_entire_binding(),
-                    values.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&bricks_view),
-                    shadows.lights.as_entire_binding(),
+                    (8, flux.as_entire_binding()),
+                    (9, values.as_entire_binding()),
+                    (10, wgpu::BindingResource::TextureView(&bricks_view)),
+                    (11, shadows.lights.as_entire_binding()),
                 ]);
-                layout::bind_group(device, "svo radiance", &level_layout, &resources)
+                layout::bind_group_at(device, "svo radiance", &level_layout, &resources)
             })
             .collect();
         let rsm_size = (

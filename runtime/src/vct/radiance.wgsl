@@ -16,7 +16,7 @@
 
 #import cssm::types::SpotLight
 #import cssm::voxel::{split_groups, split_item}
-#import cssm::svo::{svo, svo_nodes, svo_node, svo_brick_of, svo_brick_origin, SVO_FLAG, SVO_BRICK, SVO_NONE}
+#import cssm::svo::{svo, svo_levels, svo_nodes, svo_node, svo_brick_of, svo_brick_origin, SVO_FLAG, SVO_BRICK, SVO_NONE}
 
 const WORKGROUP: u32 = #{WORKGROUP_1D}u;
 const PI: f32 = 3.14159265358979;
@@ -39,8 +39,6 @@ struct RadianceParams {
 }
 
 @group(0) @binding(0) var<uniform> params: RadianceParams;
-// [first node, end] per level (vct/octree.wgsl).
-@group(0) @binding(1) var<storage, read> levels: array<vec2u>;
 // Per tile: its parent's cell and level.
 @group(0) @binding(2) var<storage, read> tile_cells: array<vec2u>;
 // [flux units per W, radiance per flux unit], from `plan`.
@@ -89,7 +87,7 @@ fn plan(@builtin(local_invocation_index) local: u32) {
         return;
     }
     for (var level = 0u; level <= svo.max_level; level++) {
-        let range = levels[level];
+        let range = svo_levels[level];
         plan_args[level] = split((range.y - range.x + WORKGROUP - 1u) / WORKGROUP);
     }
     plan_args[svo.max_level + 1u] = split(min(state[0], params.tile_capacity));
@@ -158,7 +156,7 @@ fn leaves(
     @builtin(num_workgroups) count: vec3u,
     @builtin(local_invocation_index) local: u32,
 ) {
-    let range = levels[svo.max_level];
+    let range = svo_levels[svo.max_level];
     let node = range.x + linear_group(group, count) * WORKGROUP + local;
     if node >= range.y || svo_nodes[node] != SVO_FLAG {
         return;
@@ -185,7 +183,7 @@ fn mip(
     @builtin(num_workgroups) count: vec3u,
     @builtin(local_invocation_index) local: u32,
 ) {
-    let range = levels[params.level];
+    let range = svo_levels[params.level];
     let node = range.x + linear_group(group, count) * WORKGROUP + local;
     if node >= range.y {
         return;
