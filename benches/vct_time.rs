@@ -162,8 +162,10 @@ fn main() {
             moving / baseline[0]
         );
         // The pools as the method sizes them (its own are inside the renderer).
-        let voxels = SparseVoxels::new(r.context(), scene.bounds(), resolution, true, false)
-            .expect("voxels");
+        let cones = runtime::vct::trace::TraceParams::new(16, 7.5f32.to_radians(), 2.0);
+        let voxels =
+            SparseVoxels::new(r.context(), scene.bounds(), resolution, true, false, &cones)
+                .expect("voxels");
         let (nodes, bricks, node_values) = voxels.svo.pool_bytes(&voxels.octree);
         // A dense grid: rgba16f leaves, and six rgba16f faces per voxel of the mip levels.
         let cube = (resolution as u64).pow(3);

@@ -29,6 +29,11 @@ use cssm_raycast::SplitMix64;
 
 use super::{cornell, gpu, rsm::read_rsm, rsm::rsm_renderer};
 
+/// The diffuse cones of the bounces in these tests: few and wide, to keep the twin quick.
+fn bounce_cones() -> TraceParams {
+    TraceParams::new(6, 20f32.to_radians(), 2.0)
+}
+
 fn words(bytes: &[u8]) -> Vec<u32> {
     bytemuck::cast_slice(bytes).to_vec()
 }
@@ -53,9 +58,17 @@ fn voxel_light(anisotropic: bool) {
     let renderer = rsm_renderer(scene, &OptionValues::default(), (16, 16), 256);
     let ctx = renderer.context();
     let resolution = 32;
-    let voxels =
-        SparseVoxels::new(ctx, scene.bounds(), resolution, anisotropic, true).expect("voxels");
+    let voxels = SparseVoxels::new(
+        ctx,
+        scene.bounds(),
+        resolution,
+        anisotropic,
+        true,
+        &bounce_cones(),
+    )
+    .expect("voxels");
     let faces = voxels.svo.params.faces;
+    let bounces = 1;
     let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     voxels.run(
@@ -65,6 +78,7 @@ fn voxel_light(anisotropic: bool) {
             timer: &mut timer,
             index: 0,
         },
+        bounces,
     );
     gpu.queue.submit([encoder.finish()]);
     gpu.wait().expect("the passes run");
@@ -233,17 +247,27 @@ fn voxel_light(anisotropic: bool) {
 }
 
 /// A renderer of `rsm` on `scene` at `size` (its G-buffer and RSM drawn) and the scene's
-/// sparse voxel octree at 32³, built, its cones' opacity `correct`ed or not.
+/// sparse voxel octree at 32³, built for `bounces` bounces with [`bounce_cones`], its cones' opacity
+/// `correct`ed or not.
 fn voxelised(
     scene: &Scene,
     size: (u32, u32),
     anisotropic: bool,
     correct: bool,
+    bounces: u32,
 ) -> (Renderer, SparseVoxels) {
     let gpu = gpu();
     let renderer = rsm_renderer(scene, &OptionValues::default(), size, 256);
     let ctx = renderer.context();
-    let voxels = SparseVoxels::new(ctx, scene.bounds(), 32, anisotropic, correct).expect("voxels");
+    let voxels = SparseVoxels::new(
+        ctx,
+        scene.bounds(),
+        32,
+        anisotropic,
+        correct,
+        &bounce_cones(),
+    )
+    .expect("voxels");
     let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     voxels.run(
@@ -253,6 +277,7 @@ fn voxelised(
             timer: &mut timer,
             index: 0,
         },
+        bounces,
     );
     gpu.queue.submit([encoder.finish()]);
     gpu.wait().expect("the passes run");
@@ -298,7 +323,7 @@ fn cones_match_cpu_twin() {
 fn cones(anisotropic: bool, correct: bool) {
     let gpu = gpu();
     let (scene, _) = cornell();
-    let (_renderer, voxels) = voxelised(scene, (16, 16), anisotropic, correct);
+    let (_renderer, voxels) = voxelised(scene, (16, 16), anisotropic, correct, 1);
     let pyramid = gpu_pyramid(&voxels);
     let mut rng = SplitMix64(18);
     let mut unit = || rng.next_f64() as f32;
@@ -354,7 +379,7 @@ fn cone_tracing_matches_cpu_twin() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-glossy");
     let scene = Scene::load(&dir).expect("scene");
     let size = (24, 18);
-    let (renderer, voxels) = voxelised(&scene, size, true, false);
+    let (renderer, voxels) = voxelised(&scene, size, true, false, 1);
     let ctx = renderer.context();
     let trace = TraceParams::new(12, 10f32.to_radians(), 2.0);
     let pass = ConeTrace::new(ctx, &voxels.svo, trace);
@@ -428,5 +453,85 @@ fn cone_tracing_matches_cpu_twin() {
     eprintln!(
         "cone tracing {}x{}: {glossy} glossy pixels, worst off by {worst:.2e}",
         size.0, size.1
+    );
+}
+
+/// A second bounce on the Cornell box at 32³: every leaf's fragments summed into its surface
+/// as the twin sums them, and the leaves' radiance after the bounce (their direct light plus
+/// their albedo times what their cones gather through the first bounce's bricks) against
+/// `cpu::bounce` over the dense pyramid of the GPU's direct light.
+#[test]
+fn second_bounce_matches_cpu_twin() {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let (_renderer, voxels) = voxelised(scene, (16, 16), true, false, 2);
+    let read = |buffer, size| read_buffer(&gpu.device, &gpu.queue, buffer, 0, size).unwrap();
+    let octree = &voxels.octree;
+    let max_level = octree.max_level;
+    let node_words = octree.tile_capacity as u64 * 8;
+    let nodes = words(&read(&octree.nodes, node_words * 4));
+    let count = words(&read(&voxels.voxelizer.count, 4))[0];
+    let size = count as u64 * std::mem::size_of::<VoxelFragment>() as u64;
+    let fragments: Vec<VoxelFragment> =
+        bytemuck::cast_slice(&read(&voxels.voxelizer.fragments, size)).to_vec();
+    let surface = words(&read(&voxels.radiance.surface, node_words * 32));
+    let faces = voxels.svo.params.faces as usize;
+    let values: Vec<Vec4> = bytemuck::cast_slice::<u8, [f32; 4]>(&read(
+        &voxels.radiance.values,
+        node_words * 16 * faces as u64,
+    ))
+    .iter()
+    .map(|&v| Vec4::from(v))
+    .collect();
+    // The first bounce's pyramid: the leaves' direct light (the flux is unchanged).
+    let first = gpu_pyramid(&voxels);
+    let side = 1usize << max_level;
+    let direct: BTreeMap<[u32; 3], Vec3> = first.levels[max_level as usize]
+        .chunks(faces)
+        .enumerate()
+        .filter(|(_, v)| v[0].w > 0.0)
+        .map(|(i, v)| {
+            let cell = [i % side, (i / side) % side, i / (side * side)].map(|c| c as u32);
+            (cell, v[0].truncate())
+        })
+        .collect();
+    let sums = cpu::surface_sums(&fragments);
+    // A sample of the leaves keeps the twin quick in a debug build.
+    let sample: BTreeMap<[u32; 3], Vec3> =
+        direct.iter().step_by(5).map(|(c, v)| (*c, *v)).collect();
+    let want = cpu::bounce(&first, &sample, &sums, &bounce_cones(), false);
+    let peak = want
+        .values()
+        .map(|w| w.max_element())
+        .fold(0.0f32, f32::max);
+    let (mut worst, mut brighter) = (0.0f32, 0);
+    for (cell, w) in &want {
+        let node = node_index(&nodes, *cell, max_level, max_level).expect("a leaf");
+        assert_eq!(
+            &surface[8 * node..8 * node + 7],
+            &sums[cell][..7],
+            "surface of leaf {cell:?}"
+        );
+        let got = values[node * faces];
+        for face in 0..faces {
+            assert_eq!(
+                values[node * faces + face],
+                got,
+                "a leaf is the same from every side"
+            );
+        }
+        brighter += usize::from(w.max_element() > direct[cell].max_element());
+        let off = (got.truncate() - *w).abs().max_element() / (w.max_element() + 0.01 * peak);
+        worst = worst.max(off);
+        assert!(off < 0.02, "leaf {cell:?}: GPU {got} against CPU {w}");
+    }
+    assert!(
+        brighter > want.len() / 2,
+        "the bounce adds light: {brighter} of {}",
+        want.len()
+    );
+    eprintln!(
+        "second bounce at 32³: {} leaves checked, {brighter} brighter, worst off by {worst:.2e}",
+        want.len()
     );
 }

@@ -17,7 +17,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use glam::{Vec3, Vec4};
 
 use super::{radiance::SvoParams, trace::TraceParams};
-use crate::gpu_types::GpuSpotLight;
+use crate::{common::voxelize::VoxelFragment, gpu_types::GpuSpotLight};
 
 /// `radiance.wgsl`'s `FLUX_UNITS`: the fixed point's units for the flux bound.
 pub const FLUX_UNITS: f32 = 1_073_741_824.0;
@@ -353,6 +353,75 @@ pub fn glossy_tan_half(ns: f32, half_angle: f32) -> f32 {
     angle.clamp(0.00873, half_angle).tan()
 }
 
+/// The mean radiance of `trace.cones` cosine-distributed diffuse cones around the unit `n`
+/// from `origin` (leaf voxels): the irradiance over pi (`svo.wgsl::svo_diffuse`).
+pub fn diffuse(
+    pyramid: &Pyramid,
+    origin: Vec3,
+    n: Vec3,
+    trace: &TraceParams,
+    correct_opacity: bool,
+) -> Vec3 {
+    let [t, u, _] = basis(n);
+    let mut sum = Vec3::ZERO;
+    for k in 0..trace.cones {
+        let d = cone_direction(k, trace.cones);
+        let dir = t * d.x + u * d.y + n * d.z;
+        let cone = trace_cone(pyramid, origin, dir, trace.tan_half, trace.start, correct_opacity);
+        sum += cone.truncate();
+    }
+    sum / trace.cones as f32
+}
+
+/// Every leaf's surface from the fragments, as `radiance.wgsl::surface_of_leaves` sums it:
+/// `[albedo r, g, b (0 to 255 a fragment), fragments, normal x, y, z (-127 to 127 a fragment,
+/// two's complement), 0]`.
+pub fn surface_sums(fragments: &[VoxelFragment]) -> BTreeMap<[u32; 3], [u32; 8]> {
+    let mut sums = BTreeMap::new();
+    for f in fragments {
+        let s: &mut [u32; 8] = sums.entry(f.cell()).or_default();
+        let albedo = f.albedo.to_le_bytes();
+        let normal = f.normal.to_le_bytes().map(|b| (b as i8).max(-127) as i32 as u32);
+        for k in 0..3 {
+            s[k] = s[k].wrapping_add(albedo[k] as u32);
+            s[4 + k] = s[4 + k].wrapping_add(normal[k]);
+        }
+        s[3] += 1;
+    }
+    sums
+}
+
+/// One more bounce of the leaves (`radiance.wgsl::bounce`, §8.1): each leaf's `direct`
+/// radiance plus its albedo times what its diffuse cones gather through `pyramid` (the bounces
+/// so far), the apex `trace.offset` leaves off the voxel's centre along the fragments' mean
+/// normal; a leaf whose normals cancel gathers nothing.
+pub fn bounce(
+    pyramid: &Pyramid,
+    direct: &BTreeMap<[u32; 3], Vec3>,
+    surface: &BTreeMap<[u32; 3], [u32; 8]>,
+    trace: &TraceParams,
+    correct_opacity: bool,
+) -> BTreeMap<[u32; 3], Vec3> {
+    direct
+        .iter()
+        .map(|(cell, &light)| {
+            let Some(s) = surface.get(cell).filter(|s| s[3] > 0) else {
+                return (*cell, light);
+            };
+            let count = s[3] as f32;
+            let normal = Vec3::new(s[4] as i32 as f32, s[5] as i32 as f32, s[6] as i32 as f32);
+            if normal.dot(normal) <= count * count {
+                return (*cell, light);
+            }
+            let albedo = Vec3::new(s[0] as f32, s[1] as f32, s[2] as f32) / (255.0 * count);
+            let n = normal.normalize();
+            let origin = Vec3::from(cell.map(|c| c as f32)) + 0.5 + n * trace.offset;
+            let gathered = diffuse(pyramid, origin, n, trace, correct_opacity);
+            (*cell, light + albedo * gathered)
+        })
+        .collect()
+}
+
 /// A pixel of the G-buffer.
 #[derive(Clone, Copy, Debug)]
 pub struct Receiver {
@@ -377,15 +446,7 @@ pub fn shade(pyramid: &Pyramid, svo: &SvoParams, trace: &TraceParams, r: &Receiv
     let n = r.normal;
     let corrected = svo.correct_opacity != 0;
     let origin = (r.position - Vec3::from(svo.origin)) * svo.inv_voxel + n * trace.offset;
-    let [t, u, _] = basis(n);
-    let mut diffuse = Vec3::ZERO;
-    for k in 0..trace.cones {
-        let d = cone_direction(k, trace.cones);
-        let dir = t * d.x + u * d.y + n * d.z;
-        let cone = trace_cone(pyramid, origin, dir, trace.tan_half, trace.start, corrected);
-        diffuse += cone.truncate();
-    }
-    let mut radiance = r.albedo * diffuse / trace.cones as f32;
+    let mut radiance = r.albedo * diffuse(pyramid, origin, n, trace, corrected);
     if r.ks.cmpgt(Vec3::ZERO).any() {
         let v = (r.eye - r.position).normalize();
         let mirror = -v - 2.0 * (-v).dot(n) * n;

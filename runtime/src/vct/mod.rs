@@ -15,10 +15,13 @@
 //! time and samples the octree quadrilinearly (the two levels around its diameter, trilinear in
 //! the bricks), accumulating front to back.
 //!
-//! What it leaves out, so far: ambient occlusion (§6), a second bounce (§8.1), anisotropic
-//! voxels (§9), the octree's incremental update for moving objects (§4.2.2: everything is
-//! rebuilt). What the method itself approximates: a voxel is opaque where any surface touches
-//! it and radiates the same in every direction, so light leaks through walls thinner than a
+//! With `bounces` above 1, `svo bounce` (§8.1): the fragments' albedo and normal into their
+//! leaves, then per bounce every leaf gathers with the diffuse cones from the bricks as they
+//! are (its direct light plus its albedo times what it gathers), MIP-mapping and bricks again.
+//!
+//! What it leaves out, so far: ambient occlusion (§6), the octree's incremental update for
+//! moving objects (§4.2.2: everything is rebuilt). What the method itself approximates: a voxel
+//! is opaque where any surface touches it and radiates the same in every direction, so light leaks through walls thinner than a
 //! voxel at the level a cone samples, a surface's own coarse voxels shade it, and a cone's
 //! aperture blurs what it sees. `reports/runtime.md` measures it against the path tracer.
 //!
@@ -63,6 +66,8 @@ pub struct VctOptions {
     pub offset: f32,
     /// A sample's opacity corrected for a step shorter than its voxel (§5).
     pub correct_opacity: bool,
+    /// Diffuse bounces: 1 the direct light's, each more gathered into the leaves (§8.1).
+    pub bounces: u32,
 }
 
 impl Default for VctOptions {
@@ -81,6 +86,7 @@ impl VctOptions {
             anisotropic: options.switch("anisotropic"),
             offset: options.number("offset"),
             correct_opacity: options.switch("opacity-correction"),
+            bounces: options.count("bounces"),
         }
     }
 
@@ -113,6 +119,16 @@ pub const METHOD: MethodEntry = MethodEntry {
     summary: "voxel cone tracing over a sparse voxel octree, one bounce (Crassin et al. 2011)",
     needs_cssm: false,
     options: &[
+        OptionSpec {
+            name: "bounces",
+            help: "indirect bounces: each after the first gathers, with the diffuse cones, from \
+                   the voxels into their leaves (§8.1)",
+            kind: OptionKind::Count {
+                default: 1,
+                min: 1,
+                max: 8,
+            },
+        },
         OptionSpec {
             name: "resolution",
             help: "leaf voxels per side of the scene's bounding cube, a power of two",
@@ -194,6 +210,12 @@ pub const METHOD: MethodEntry = MethodEntry {
             writes: &[Slot::Voxels],
         },
         PassInfo {
+            name: "svo bounce",
+            stage: Stage::Prepare,
+            reads: &[Slot::Voxels],
+            writes: &[Slot::Voxels],
+        },
+        PassInfo {
             name: "vct trace",
             stage: Stage::Frame,
             reads: &[Slot::Voxels, Slot::GBuffer, Slot::Scene, Slot::View],
@@ -214,6 +236,7 @@ pub const METHOD: MethodEntry = MethodEntry {
 struct VctMethod {
     voxels: SparseVoxels,
     trace: ConeTrace,
+    bounces: u32,
 }
 
 impl VctMethod {
@@ -221,26 +244,31 @@ impl VctMethod {
         let ctx = setup.ctx;
         let options = VctOptions::from_resolved(setup.options);
         options.check()?;
+        let params = TraceParams::new(
+            options.cones,
+            options.aperture.to_radians(),
+            options.offset,
+        );
         let voxels = SparseVoxels::new(
             ctx,
             setup.scene.bounds(),
             options.resolution,
             options.anisotropic,
             options.correct_opacity,
+            &params,
         )?;
-        let params = TraceParams::new(
-            options.cones,
-            options.aperture.to_radians(),
-            options.offset,
-        );
         let trace = ConeTrace::new(ctx, &voxels.svo, params);
-        Ok(Box::new(Self { voxels, trace }))
+        Ok(Box::new(Self {
+            voxels,
+            trace,
+            bounces: options.bounces,
+        }))
     }
 }
 
 impl GiMethod for VctMethod {
     fn prepare(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
-        self.voxels.run(ctx, frame);
+        self.voxels.run(ctx, frame, self.bounces);
     }
 
     fn encode(&mut self, _ctx: &FrameContext, frame: &mut FrameEncoder) {
@@ -278,7 +306,7 @@ pub struct SparseVoxels {
 impl SparseVoxels {
     /// The octree of `ctx`'s scene (`bounds` its bounds) at `resolution` leaves per side, its
     /// voxels anisotropic (§9) or not, its cones' opacity corrected for their step (§5) or
-    /// not. The pools are sized from a first voxelisation read back
+    /// not; bounces after the first gather with `cones`. The pools are sized from a first voxelisation read back
     /// (its fragments, then the nodes they occupy at every level), with room for half as much
     /// again.
     ///
@@ -291,6 +319,7 @@ impl SparseVoxels {
         resolution: u32,
         anisotropic: bool,
         correct_opacity: bool,
+        cones: &TraceParams,
     ) -> Result<Self, RuntimeError> {
         let device = &ctx.device;
         let grid = VoxelGrid::of_scene(bounds, resolution);
@@ -333,7 +362,8 @@ impl SparseVoxels {
         };
         let octree = OctreeBuild::new(device, &voxelizer, tile_capacity)?;
         let svo = Svo::new(device, &octree, &grid, pool, correct_opacity)?;
-        let radiance = VoxelRadiance::new(device, &octree, &svo, &ctx.shadows)?;
+        let radiance =
+            VoxelRadiance::new(device, &voxelizer, &octree, &svo, &ctx.shadows, cones)?;
         Ok(Self {
             voxelizer,
             octree,
@@ -356,10 +386,11 @@ impl SparseVoxels {
         Ok(u32::from_le_bytes([count[0], count[1], count[2], count[3]]))
     }
 
-    /// Records every pass, after the shadow maps' raster (the RSM).
-    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder) {
+    /// Records every pass, after the shadow maps' raster (the RSM), for `bounces` bounces
+    /// (§8.1: each after the first gathers from the bricks into the leaves).
+    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder, bounces: u32) {
         self.voxelizer.run(frame);
         self.octree.run(frame, &ctx.queue);
-        self.radiance.run(frame, &self.svo);
+        self.radiance.run(frame, &self.svo, bounces);
     }
 }

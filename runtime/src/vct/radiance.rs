@@ -25,12 +25,16 @@ use wgpu::util::DeviceExt;
 
 use crate::{
     RuntimeError,
-    common::{layout, shadow_map::ShadowMaps, voxelize::VoxelGrid},
+    common::{
+        layout,
+        shadow_map::ShadowMaps,
+        voxelize::{VoxelGrid, Voxelizer, split_groups},
+    },
     frame::FrameEncoder,
     shaders::{self, Shader},
 };
 
-use super::octree::OctreeBuild;
+use super::{octree::OctreeBuild, trace::TraceParams};
 
 /// Texels per side of a tile's brick: 2x2x2 nodes of 3x3x3 vertex-centred texels sharing their
 /// borders.
@@ -276,7 +280,11 @@ struct RadianceParams {
     level: u32,
     light_count: u32,
     tile_capacity: u32,
-    padding: u32,
+    fragment_capacity: u32,
+    cones: u32,
+    tan_half: f32,
+    offset: f32,
+    start: f32,
 }
 
 /// The passes from the RSM into the bricks.
@@ -287,6 +295,14 @@ pub struct VoxelRadiance {
     pub values: wgpu::Buffer,
     /// `[flux units per W, radiance per flux unit]` as `plan` computed them.
     pub constants: wgpu::Buffer,
+    /// Per node: `[albedo r, g, b sums (0 to 255 a fragment), fragments, normal x, y, z sums
+    /// (-127 to 127 a fragment, two's complement), unused]`, for the bounces.
+    pub surface: wgpu::Buffer,
+    surface_pipeline: wgpu::ComputePipeline,
+    surface_group: wgpu::BindGroup,
+    bounce: wgpu::ComputePipeline,
+    bounce_group: wgpu::BindGroup,
+    fragment_groups: (u32, u32),
     args: wgpu::Buffer,
     plan: wgpu::ComputePipeline,
     inject: wgpu::ComputePipeline,
@@ -300,16 +316,19 @@ pub struct VoxelRadiance {
 }
 
 impl VoxelRadiance {
-    /// The passes over `octree`'s pool into `svo`'s bricks, from `shadows`' RSM.
+    /// The passes over `octree`'s pool (built from `voxelizer`'s fragments) into `svo`'s
+    /// bricks, from `shadows`' RSM; bounces after the first gather with `cones`.
     ///
     /// # Errors
     /// Shadow maps without their RSM, per-node values beyond the device's largest storage
     /// binding.
     pub fn new(
         device: &wgpu::Device,
+        voxelizer: &Voxelizer,
         octree: &OctreeBuild,
         svo: &Svo,
         shadows: &ShadowMaps,
+        cones: &TraceParams,
     ) -> Result<Self, RuntimeError> {
         let rsm = shadows.rsm.as_ref().ok_or_else(|| {
             RuntimeError::Unsupported("voxel light injection needs the shadow maps' RSM".into())
@@ -339,6 +358,7 @@ impl VoxelRadiance {
             )));
         }
         let flux = buffer("svo flux", nodes * 16, storage);
+        let surface = buffer("svo surface", nodes * 32, storage);
         let values = buffer("svo values", values_bytes, storage);
         let constants = buffer("svo constants", 8, storage);
         let max_level = octree.max_level;
@@ -386,6 +406,31 @@ impl VoxelRadiance {
         let leaves = pipeline("leaves", &[&level_layout, &svo.nodes_layout]);
         let mip = pipeline("mip", &[&level_layout, &svo.nodes_layout]);
         let fill_bricks = pipeline("fill_bricks", &[&level_layout, &svo.nodes_layout]);
+        // The bounces' own groups: the fragments in, and the bricks sampled (not written).
+        let surface_layout = layout::bind_group_layout(
+            device,
+            "svo surface",
+            &[
+                layout::uniform(0, c),
+                layout::storage(12, true, c),
+                layout::storage(13, true, c),
+                layout::storage(14, false, c),
+            ],
+        );
+        let bounce_layout = layout::bind_group_layout(
+            device,
+            "svo bounce",
+            &[
+                layout::uniform(0, c),
+                layout::storage(3, true, c),
+                layout::storage(8, false, c),
+                layout::storage(9, false, c),
+                layout::storage(14, false, c),
+                layout::storage(15, true, c),
+            ],
+        );
+        let surface_pipeline = pipeline("surface_of_leaves", &[&surface_layout, &svo.nodes_layout]);
+        let bounce = pipeline("bounce", &[&bounce_layout, &svo.sample_layout]);
         let params = |level| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("svo radiance params"),
@@ -393,12 +438,41 @@ impl VoxelRadiance {
                     level,
                     light_count: shadows.light_count,
                     tile_capacity: octree.tile_capacity,
-                    padding: 0,
+                    fragment_capacity: voxelizer.capacity,
+                    cones: cones.cones,
+                    tan_half: cones.tan_half,
+                    offset: cones.offset,
+                    start: cones.start,
                 }),
                 usage: wgpu::BufferUsages::UNIFORM,
             })
         };
         let plan_params = params(0);
+        let surface_group = layout::bind_group_at(
+            device,
+            "svo surface",
+            &surface_layout,
+            &[
+                (0, plan_params.as_entire_binding()),
+                (12, voxelizer.count.as_entire_binding()),
+                (13, voxelizer.fragments.as_entire_binding()),
+                (14, surface.as_entire_binding()),
+            ],
+        );
+        let bounce_group = layout::bind_group_at(
+            device,
+            "svo bounce",
+            &bounce_layout,
+            &[
+                (0, plan_params.as_entire_binding()),
+                (3, constants.as_entire_binding()),
+                (8, flux.as_entire_binding()),
+                (9, values.as_entire_binding()),
+                (14, surface.as_entire_binding()),
+                (15, octree.node_cells.as_entire_binding()),
+            ],
+        );
+        let fragment_groups = split_groups(shaders::groups_1d(voxelizer.capacity));
         let plan_groups = [
             // Bindings 0 and 4 of the level passes' layout.
             layout::bind_group_at(
@@ -455,6 +529,12 @@ impl VoxelRadiance {
             flux,
             values,
             constants,
+            surface,
+            surface_pipeline,
+            surface_group,
+            bounce,
+            bounce_group,
+            fragment_groups,
             args,
             plan,
             inject,
@@ -468,8 +548,9 @@ impl VoxelRadiance {
         })
     }
 
-    /// Records the passes, after the octree's build and the RSM's raster.
-    pub fn run(&self, frame: &mut FrameEncoder, svo: &Svo) {
+    /// Records the passes, after the octree's build and the RSM's raster: the direct light
+    /// into the bricks, then `bounces - 1` more bounces (§8.1).
+    pub fn run(&self, frame: &mut FrameEncoder, svo: &Svo, bounces: u32) {
         frame.encoder.clear_buffer(&self.flux, 0, None);
         frame.encoder.clear_buffer(&self.values, 0, None);
         let max = self.max_level as usize;
@@ -486,19 +567,52 @@ impl VoxelRadiance {
             let (x, y) = shaders::groups_2d((w, h));
             pass.dispatch_workgroups(x, y, layers);
         }
-        let mut pass = frame.compute_pass("svo mip");
+        {
+            let mut pass = frame.compute_pass("svo mip");
+            pass.set_bind_group(1, &svo.nodes_group, &[]);
+            pass.set_pipeline(&self.leaves);
+            pass.set_bind_group(0, &self.level_groups[max], &[]);
+            pass.dispatch_workgroups_indirect(&self.args, 16 * max as u64);
+            self.mip(&mut pass);
+        }
+        {
+            let mut pass = frame.compute_pass("svo bricks");
+            pass.set_bind_group(1, &svo.nodes_group, &[]);
+            self.bricks(&mut pass);
+        }
+        if bounces <= 1 {
+            return;
+        }
+        frame.encoder.clear_buffer(&self.surface, 0, None);
+        let mut pass = frame.compute_pass("svo bounce");
+        pass.set_pipeline(&self.surface_pipeline);
+        pass.set_bind_group(0, &self.surface_group, &[]);
         pass.set_bind_group(1, &svo.nodes_group, &[]);
-        pass.set_pipeline(&self.leaves);
-        pass.set_bind_group(0, &self.level_groups[max], &[]);
-        pass.dispatch_workgroups_indirect(&self.args, 16 * max as u64);
+        pass.dispatch_workgroups(self.fragment_groups.0, self.fragment_groups.1, 1);
+        for _ in 1..bounces {
+            pass.set_pipeline(&self.bounce);
+            pass.set_bind_group(0, &self.bounce_group, &[]);
+            pass.set_bind_group(1, &svo.sample_group, &[]);
+            pass.dispatch_workgroups_indirect(&self.args, 16 * max as u64);
+            pass.set_bind_group(1, &svo.nodes_group, &[]);
+            self.mip(&mut pass);
+            self.bricks(&mut pass);
+        }
+    }
+
+    /// MIP-mapping from the leaves' values up (svo's nodes group bound at 1).
+    fn mip(&self, pass: &mut wgpu::ComputePass) {
+        let max = self.max_level as usize;
         pass.set_pipeline(&self.mip);
         for level in (1..max).rev() {
             pass.set_bind_group(0, &self.level_groups[level], &[]);
             pass.dispatch_workgroups_indirect(&self.args, 16 * level as u64);
         }
-        drop(pass);
-        let mut pass = frame.compute_pass("svo bricks");
-        pass.set_bind_group(1, &svo.nodes_group, &[]);
+    }
+
+    /// Every tile's bricks from the nodes' values (svo's nodes group bound at 1).
+    fn bricks(&self, pass: &mut wgpu::ComputePass) {
+        let max = self.max_level as usize;
         pass.set_pipeline(&self.fill_bricks);
         pass.set_bind_group(0, &self.level_groups[max], &[]);
         pass.dispatch_workgroups_indirect(&self.args, 16 * (max as u64 + 1));
@@ -521,6 +635,14 @@ mod tests {
                 ("level", offset_of!(RadianceParams, level)),
                 ("light_count", offset_of!(RadianceParams, light_count)),
                 ("tile_capacity", offset_of!(RadianceParams, tile_capacity)),
+                (
+                    "fragment_capacity",
+                    offset_of!(RadianceParams, fragment_capacity),
+                ),
+                ("cones", offset_of!(RadianceParams, cones)),
+                ("tan_half", offset_of!(RadianceParams, tan_half)),
+                ("offset", offset_of!(RadianceParams, offset)),
+                ("start", offset_of!(RadianceParams, start)),
             ],
         );
         // SvoParams is the `cssm::svo` library's, parsed alone.

@@ -16,7 +16,8 @@
 
 #import cssm::types::SpotLight
 #import cssm::voxel::{split_groups, split_item}
-#import cssm::svo::{svo, svo_levels, svo_nodes, svo_node, svo_brick_of, svo_brick_origin, SVO_FLAG, SVO_BRICK, SVO_NONE}
+#import cssm::svo::{svo, svo_levels, svo_nodes, svo_node, svo_brick_of, svo_brick_origin, svo_diffuse, SVO_FLAG, SVO_BRICK, SVO_NONE}
+#import cssm::voxel::{VoxelFragment, fragment_cell}
 
 const WORKGROUP: u32 = #{WORKGROUP_1D}u;
 const PI: f32 = 3.14159265358979;
@@ -35,7 +36,12 @@ struct RadianceParams {
     level: u32,
     light_count: u32,
     tile_capacity: u32,
-    padding: u32,
+    fragment_capacity: u32,
+    // The diffuse cones of a `bounce` (vct/trace.rs `TraceParams`).
+    cones: u32,
+    tan_half: f32,
+    offset: f32,
+    start: f32,
 }
 
 @group(0) @binding(0) var<uniform> params: RadianceParams;
@@ -54,6 +60,15 @@ struct RadianceParams {
 @group(0) @binding(9) var<storage, read_write> values: array<vec4f>;
 @group(0) @binding(10) var bricks: texture_storage_3d<rgba16float, write>;
 @group(0) @binding(11) var<storage, read> lights: array<SpotLight>;
+
+// `surface` alone: the fragments into the leaves' albedo and normal.
+@group(0) @binding(12) var<storage, read> fragment_count: array<u32>;
+@group(0) @binding(13) var<storage, read> fragments: array<VoxelFragment>;
+// Per node: albedo sums (rgb, 0 to 255 a fragment), the fragments, normal sums (xyz, -127 to
+// 127 a fragment, two's complement), a spare word. `surface` writes, `bounce` reads.
+@group(0) @binding(14) var<storage, read_write> surface: array<atomic<u32>>;
+// `bounce`: every occupied node's cell (vct/octree.wgsl).
+@group(0) @binding(15) var<storage, read> node_cells: array<u32>;
 
 // `plan` alone: the indirect arguments of the level passes and the bricks, and the constants.
 @group(2) @binding(0) var<storage, read> plan_lights: array<SpotLight>;
@@ -166,10 +181,87 @@ fn leaves(
         f32(atomicLoad(&flux[node * 4u + 1u])),
         f32(atomicLoad(&flux[node * 4u + 2u])),
     );
+    let radiance = leaf_radiance(node);
+    for (var face = 0u; face < svo.faces; face++) {
+        values[node * svo.faces + face] = vec4f(radiance, 1.0);
+    }
+}
+
+// A leaf's direct radiance from its sums: flux over pi over area (`cpu::leaf_radiance`).
+fn leaf_radiance(node: u32) -> vec3f {
+    let units = vec3f(
+        f32(atomicLoad(&flux[node * 4u])),
+        f32(atomicLoad(&flux[node * 4u + 1u])),
+        f32(atomicLoad(&flux[node * 4u + 2u])),
+    );
     let area = atomicLoad(&flux[node * 4u + 3u]);
-    var radiance = vec3f(0.0);
-    if area > 0u {
-        radiance = units * (constants[1] * (AREA_UNITS / f32(area)));
+    if area == 0u {
+        return vec3f(0.0);
+    }
+    return units * (constants[1] * (AREA_UNITS / f32(area)));
+}
+
+// Every fragment's albedo and normal into its leaf, for the bounces (§8.1).
+@compute @workgroup_size(#{WORKGROUP_1D})
+fn surface_of_leaves(
+    @builtin(workgroup_id) group: vec3u,
+    @builtin(num_workgroups) count: vec3u,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let i = split_item(group, count, local, WORKGROUP);
+    if i >= min(fragment_count[0], params.fragment_capacity) {
+        return;
+    }
+    let f = fragments[i];
+    let leaf = svo_node(fragment_cell(f), svo.max_level);
+    if leaf == SVO_NONE {
+        return;
+    }
+    let albedo = vec3u(round(unpack4x8unorm(f.albedo).rgb * 255.0));
+    let normal = vec3i(round(unpack4x8snorm(f.normal).xyz * 127.0));
+    atomicAdd(&surface[leaf * 8u], albedo.x);
+    atomicAdd(&surface[leaf * 8u + 1u], albedo.y);
+    atomicAdd(&surface[leaf * 8u + 2u], albedo.z);
+    atomicAdd(&surface[leaf * 8u + 3u], 1u);
+    atomicAdd(&surface[leaf * 8u + 4u], bitcast<u32>(normal.x));
+    atomicAdd(&surface[leaf * 8u + 5u], bitcast<u32>(normal.y));
+    atomicAdd(&surface[leaf * 8u + 6u], bitcast<u32>(normal.z));
+}
+
+// One more bounce (§8.1): every leaf's radiance is its direct light plus its albedo times the
+// light its diffuse cones gather from the bricks as they are (the bounces so far), the cones'
+// apex `offset` leaves off the voxel's centre along its fragments' mean normal (`cpu::bounce`).
+@compute @workgroup_size(#{WORKGROUP_1D})
+fn bounce(
+    @builtin(workgroup_id) group: vec3u,
+    @builtin(num_workgroups) count: vec3u,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let range = svo_levels[svo.max_level];
+    let node = range.x + linear_group(group, count) * WORKGROUP + local;
+    if node >= range.y || svo_nodes[node] != SVO_FLAG {
+        return;
+    }
+    let fragments = atomicLoad(&surface[node * 8u + 3u]);
+    let sums = vec3i(
+        bitcast<i32>(atomicLoad(&surface[node * 8u + 4u])),
+        bitcast<i32>(atomicLoad(&surface[node * 8u + 5u])),
+        bitcast<i32>(atomicLoad(&surface[node * 8u + 6u])),
+    );
+    var radiance = leaf_radiance(node);
+    // Fragments whose normals cancel (both sides of a thin wall) gather nothing.
+    let normal = vec3f(sums);
+    if fragments > 0u && dot(normal, normal) > f32(fragments * fragments) {
+        let albedo = vec3f(
+            f32(atomicLoad(&surface[node * 8u])),
+            f32(atomicLoad(&surface[node * 8u + 1u])),
+            f32(atomicLoad(&surface[node * 8u + 2u])),
+        ) / (255.0 * f32(fragments));
+        let n = normalize(normal);
+        let packed = node_cells[node];
+        let cell = vec3f(vec3u(packed & 1023u, (packed >> 10u) & 1023u, packed >> 20u));
+        let origin = cell + 0.5 + n * params.offset;
+        radiance += albedo * svo_diffuse(origin, n, params.cones, params.tan_half, params.start);
     }
     for (var face = 0u; face < svo.faces; face++) {
         values[node * svo.faces + face] = vec4f(radiance, 1.0);

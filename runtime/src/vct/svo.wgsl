@@ -186,3 +186,36 @@ fn svo_cone(origin: vec3f, dir: vec3f, tan_half: f32, start: f32) -> vec4f {
     }
     return vec4f(radiance, alpha);
 }
+
+// pi (3 - sqrt 5).
+const SVO_GOLDEN_ANGLE: f32 = 2.39996323;
+
+// An orthonormal basis around the unit `n` (Duff et al. 2017), `cpu::basis`.
+fn svo_basis(n: vec3f) -> mat3x3f {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    let t = vec3f(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    let u = vec3f(b, s + n.y * n.y * a, -n.y);
+    return mat3x3f(t, u, n);
+}
+
+// Cone `k` of `cones` in the normal's frame: equal areas of the unit disc projected up onto the
+// hemisphere (cosine-distributed), along a Fibonacci spiral (`cpu::cone_direction`).
+fn svo_cone_direction(k: u32, cones: u32) -> vec3f {
+    let u = (f32(k) + 0.5) / f32(cones);
+    let r = sqrt(u);
+    let phi = SVO_GOLDEN_ANGLE * f32(k);
+    return vec3f(r * cos(phi), r * sin(phi), sqrt(1.0 - u));
+}
+
+// The mean radiance of `cones` cosine-distributed diffuse cones around `n` from `origin`: the
+// irradiance over pi (a uniform sky of radiance L gives L).
+fn svo_diffuse(origin: vec3f, n: vec3f, cones: u32, tan_half: f32, start: f32) -> vec3f {
+    let frame = svo_basis(n);
+    var sum = vec3f(0.0);
+    for (var k = 0u; k < cones; k++) {
+        sum += svo_cone(origin, frame * svo_cone_direction(k, cones), tan_half, start).rgb;
+    }
+    return sum / f32(cones);
+}

@@ -5,7 +5,7 @@
 // vct/cpu.rs `shade`; `probe` traces given cones for the test against `cpu::trace_cone`.
 
 #import cssm::types::{Material, View}
-#import cssm::svo::{svo, svo_cone}
+#import cssm::svo::{svo, svo_cone, svo_diffuse}
 
 struct TraceParams {
     cones: u32,
@@ -28,27 +28,6 @@ struct TraceParams {
 @group(0) @binding(5) var gb_albedo: texture_2d<f32>;
 @group(0) @binding(6) var<storage, read_write> indirect: array<vec4f>;
 
-// pi (3 - sqrt 5).
-const GOLDEN_ANGLE: f32 = 2.39996323;
-
-// An orthonormal basis around the unit `n` (Duff et al. 2017), `cpu::basis`.
-fn basis(n: vec3f) -> mat3x3f {
-    let s = select(-1.0, 1.0, n.z >= 0.0);
-    let a = -1.0 / (s + n.z);
-    let b = n.x * n.y * a;
-    let t = vec3f(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
-    let u = vec3f(b, s + n.y * n.y * a, -n.y);
-    return mat3x3f(t, u, n);
-}
-
-// Cone `k` of `params.cones` in the normal's frame: equal areas of the unit disc projected up
-// onto the hemisphere (cosine-distributed), along a Fibonacci spiral (`cpu::cone_direction`).
-fn cone_direction(k: u32) -> vec3f {
-    let u = (f32(k) + 0.5) / f32(params.cones);
-    let r = sqrt(u);
-    let phi = GOLDEN_ANGLE * f32(k);
-    return vec3f(r * cos(phi), r * sin(phi), sqrt(1.0 - u));
-}
 
 // The tan of the glossy cone's half angle: the angle at which the Phong lobe cos^ns falls to
 // half, at most the diffuse cones' (`cpu::glossy_tan_half`).
@@ -76,12 +55,7 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     let origin = (g.xyz - svo.origin) * svo.inv_voxel + n * params.offset;
     // §7: the hemisphere's irradiance over pi as the mean of cosine-distributed cones (a
     // uniform sky of radiance L gives L).
-    let frame = basis(n);
-    var diffuse = vec3f(0.0);
-    for (var k = 0u; k < params.cones; k++) {
-        diffuse += svo_cone(origin, frame * cone_direction(k), params.tan_half, params.start).rgb;
-    }
-    var radiance = albedo * diffuse / f32(params.cones);
+    var radiance = albedo * svo_diffuse(origin, n, params.cones, params.tan_half, params.start);
     if any(material.ks > vec3f(0.0)) {
         let v = normalize(view.eye - g.xyz);
         let r = reflect(-v, n);
