@@ -372,16 +372,33 @@ fn cones(anisotropic: bool, correct: bool) {
 }
 
 /// The per-pixel pass on the glossy Cornell box (diffuse cones and the mirror cone of the
-/// glossy floor) against `cpu::shade` on the G-buffer read back.
+/// glossy floor), and its ambient occlusion view, against `cpu::shade` on the G-buffer read
+/// back.
 #[test]
 fn cone_tracing_matches_cpu_twin() {
-    let gpu = gpu();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-glossy");
     let scene = Scene::load(&dir).expect("scene");
     let size = (24, 18);
     let (renderer, voxels) = voxelised(&scene, size, true, false, 1);
-    let ctx = renderer.context();
     let trace = TraceParams::new(12, 10f32.to_radians(), 2.0);
+    for occlusion_radius in [0.0, 8.0] {
+        let params = TraceParams {
+            occlusion_radius,
+            ..trace
+        };
+        trace_pixels(&scene, &renderer, &voxels, size, params);
+    }
+}
+
+fn trace_pixels(
+    scene: &Scene,
+    renderer: &Renderer,
+    voxels: &SparseVoxels,
+    size: (u32, u32),
+    trace: TraceParams,
+) {
+    let gpu = gpu();
+    let ctx = renderer.context();
     let pass = ConeTrace::new(ctx, &voxels.svo, trace);
     let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -421,7 +438,7 @@ fn cone_tracing_matches_cpu_twin() {
         .unwrap(),
     )
     .to_vec();
-    let pyramid = gpu_pyramid(&voxels);
+    let pyramid = gpu_pyramid(voxels);
     let mut want = Vec::new();
     let mut glossy = 0;
     for i in 0..pixels as usize {
@@ -442,16 +459,29 @@ fn cone_tracing_matches_cpu_twin() {
         want.push(cpu::shade(&pyramid, &voxels.svo.params, &trace, &receiver));
     }
     assert!(glossy > 0, "the glossy floor is in view");
+    let view = if trace.occlusion_radius > 0.0 {
+        "ambient occlusion"
+    } else {
+        "indirect"
+    };
     let peak = want.iter().map(|w| w.max_element()).fold(0.0f32, f32::max);
-    assert!(peak > 0.0);
+    let least = want
+        .iter()
+        .map(|w| w.min_element())
+        .fold(f32::MAX, f32::min);
+    assert!(
+        peak > 0.0 && least < 0.9 * peak,
+        "{view}: the image varies ({least} to {peak})"
+    );
     let mut worst = 0.0f32;
     for (i, (g, w)) in got.iter().zip(&want).enumerate() {
         let off = (g.truncate() - *w).abs().max_element() / (w.max_element() + 0.01 * peak);
         worst = worst.max(off);
-        assert!(off < 0.02, "pixel {i}: GPU {g} against CPU {w}");
+        assert!(off < 0.02, "{view}, pixel {i}: GPU {g} against CPU {w}");
     }
     eprintln!(
-        "cone tracing {}x{}: {glossy} glossy pixels, worst off by {worst:.2e}",
+        "cone tracing {}x{} ({view}): {glossy} glossy pixels, values {least:.3} to {peak:.3}, \
+         worst off by {worst:.2e}",
         size.0, size.1
     );
 }

@@ -294,8 +294,19 @@ pub fn trace_cone(
     start: f32,
     correct_opacity: bool,
 ) -> Vec4 {
-    let max_level = pyramid.max_level as f32;
     let end = (1u32 << pyramid.max_level) as f32 * 1.732_050_8;
+    trace_cone_to(pyramid, origin, dir, (tan_half, start, end), correct_opacity)
+}
+
+/// [`trace_cone`] with its `(tan_half, start, end)`: up to distance `end` (`svo_cone_to`).
+pub fn trace_cone_to(
+    pyramid: &Pyramid,
+    origin: Vec3,
+    dir: Vec3,
+    (tan_half, start, end): (f32, f32, f32),
+    correct_opacity: bool,
+) -> Vec4 {
+    let max_level = pyramid.max_level as f32;
     let mut radiance = Vec3::ZERO;
     let mut alpha = 0.0f32;
     let mut t = start;
@@ -373,6 +384,27 @@ pub fn diffuse(
     sum / trace.cones as f32
 }
 
+/// Ambient occlusion (§6): the mean opacity of the diffuse cones around `n` from `origin`
+/// within `radius` leaf voxels (`svo.wgsl::svo_occlusion`).
+pub fn occlusion(
+    pyramid: &Pyramid,
+    origin: Vec3,
+    n: Vec3,
+    trace: &TraceParams,
+    radius: f32,
+    correct_opacity: bool,
+) -> f32 {
+    let [t, u, _] = basis(n);
+    let reach = (trace.tan_half, trace.start, trace.start + radius);
+    let mut sum = 0.0;
+    for k in 0..trace.cones {
+        let d = cone_direction(k, trace.cones);
+        let dir = t * d.x + u * d.y + n * d.z;
+        sum += trace_cone_to(pyramid, origin, dir, reach, correct_opacity).w;
+    }
+    sum / trace.cones as f32
+}
+
 /// Every leaf's surface from the fragments, as `radiance.wgsl::surface_of_leaves` sums it:
 /// `[albedo r, g, b (0 to 255 a fragment), fragments, normal x, y, z (-127 to 127 a fragment,
 /// two's complement), 0]`.
@@ -441,11 +473,15 @@ pub struct Receiver {
 
 /// The indirect radiance towards the eye at `r` (`trace.wgsl::main`): the mean of the diffuse
 /// cones times the albedo, and for a glossy material the mirror cone times Ks and the
-/// normalised lobe's integral.
+/// normalised lobe's integral; in the ambient occlusion view one minus the [`occlusion`].
 pub fn shade(pyramid: &Pyramid, svo: &SvoParams, trace: &TraceParams, r: &Receiver) -> Vec3 {
     let n = r.normal;
     let corrected = svo.correct_opacity != 0;
     let origin = (r.position - Vec3::from(svo.origin)) * svo.inv_voxel + n * trace.offset;
+    if trace.occlusion_radius > 0.0 {
+        let radius = trace.occlusion_radius;
+        return Vec3::splat(1.0 - occlusion(pyramid, origin, n, trace, radius, corrected));
+    }
     let mut radiance = r.albedo * diffuse(pyramid, origin, n, trace, corrected);
     if r.ks.cmpgt(Vec3::ZERO).any() {
         let v = (r.eye - r.position).normalize();

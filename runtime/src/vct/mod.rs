@@ -19,8 +19,11 @@
 //! leaves, then per bounce every leaf gathers with the diffuse cones from the bricks as they
 //! are (its direct light plus its albedo times what it gathers), MIP-mapping and bricks again.
 //!
-//! What it leaves out, so far: ambient occlusion (§6), the octree's incremental update for
-//! moving objects (§4.2.2: everything is rebuilt). What the method itself approximates: a voxel
+//! With `view=ambient-occlusion` (§6) the pass writes, instead, one minus the mean opacity the
+//! diffuse cones meet within `occlusion-radius` leaf voxels, as grey.
+//!
+//! What it leaves out, so far: the octree's incremental update for moving objects (§4.2.2:
+//! everything is rebuilt). What the method itself approximates: a voxel
 //! is opaque where any surface touches it and radiates the same in every direction, so light leaks through walls thinner than a
 //! voxel at the level a cone samples, a surface's own coarse voxels shade it, and a cone's
 //! aperture blurs what it sees. `reports/runtime.md` measures it against the path tracer.
@@ -68,6 +71,8 @@ pub struct VctOptions {
     pub correct_opacity: bool,
     /// Diffuse bounces: 1 the direct light's, each more gathered into the leaves (§8.1).
     pub bounces: u32,
+    /// The ambient occlusion view's reach in leaf voxels (§6), `None` for the indirect light.
+    pub occlusion: Option<f32>,
 }
 
 impl Default for VctOptions {
@@ -87,6 +92,8 @@ impl VctOptions {
             offset: options.number("offset"),
             correct_opacity: options.switch("opacity-correction"),
             bounces: options.count("bounces"),
+            occlusion: (options.choice("view") == "ambient-occlusion")
+                .then(|| options.number("occlusion-radius")),
         }
     }
 
@@ -177,6 +184,24 @@ pub const METHOD: MethodEntry = MethodEntry {
                    the interpolation spreads it",
             kind: OptionKind::Switch { default: false },
         },
+        OptionSpec {
+            name: "view",
+            help: "indirect: the indirect light; ambient-occlusion: one minus the mean opacity \
+                   the diffuse cones meet within occlusion-radius (§6), as grey (with \
+                   --component indirect)",
+            kind: OptionKind::Choice {
+                default: "indirect",
+                choices: &["indirect", "ambient-occlusion"],
+            },
+        },
+        OptionSpec {
+            name: "occlusion-radius",
+            help: "how far the ambient occlusion's cones reach, in leaf voxels",
+            kind: OptionKind::Number {
+                default: 16.0,
+                min: 1.0,
+            },
+        },
     ],
     passes: &[
         PassInfo {
@@ -244,11 +269,14 @@ impl VctMethod {
         let ctx = setup.ctx;
         let options = VctOptions::from_resolved(setup.options);
         options.check()?;
-        let params = TraceParams::new(
-            options.cones,
-            options.aperture.to_radians(),
-            options.offset,
-        );
+        let params = TraceParams {
+            occlusion_radius: options.occlusion.unwrap_or(0.0),
+            ..TraceParams::new(
+                options.cones,
+                options.aperture.to_radians(),
+                options.offset,
+            )
+        };
         let voxels = SparseVoxels::new(
             ctx,
             setup.scene.bounds(),

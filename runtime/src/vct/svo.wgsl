@@ -158,8 +158,12 @@ fn svo_sample_lod(p: vec3f, level: f32, dir: vec3f) -> vec4f {
 // accumulation of the samples' radiance and opacity (§5), each sample's opacity corrected for
 // a step shorter than its voxel when `correct_opacity`. Returns (radiance, opacity).
 fn svo_cone(origin: vec3f, dir: vec3f, tan_half: f32, start: f32) -> vec4f {
+    return svo_cone_to(origin, dir, tan_half, start, f32(svo.resolution) * 1.7320508);
+}
+
+// `svo_cone` up to distance `end`.
+fn svo_cone_to(origin: vec3f, dir: vec3f, tan_half: f32, start: f32, end: f32) -> vec4f {
     let max_level = f32(svo.max_level);
-    let end = f32(svo.resolution) * 1.7320508;
     var radiance = vec3f(0.0);
     var alpha = 0.0;
     var t = start;
@@ -207,6 +211,18 @@ fn svo_cone_direction(k: u32, cones: u32) -> vec3f {
     let r = sqrt(u);
     let phi = SVO_GOLDEN_ANGLE * f32(k);
     return vec3f(r * cos(phi), r * sin(phi), sqrt(1.0 - u));
+}
+
+// Ambient occlusion (§6): the mean opacity the diffuse cones gather within `radius` leaf voxels
+// of `origin` (the paper weighs it by a falloff with distance; here a radius bounds it).
+fn svo_occlusion(origin: vec3f, n: vec3f, cones: u32, tan_half: f32, start: f32, radius: f32) -> f32 {
+    let frame = svo_basis(n);
+    var sum = 0.0;
+    for (var k = 0u; k < cones; k++) {
+        let dir = frame * svo_cone_direction(k, cones);
+        sum += svo_cone_to(origin, dir, tan_half, start, start + radius).a;
+    }
+    return sum / f32(cones);
 }
 
 // The mean radiance of `cones` cosine-distributed diffuse cones around `n` from `origin`: the

@@ -26,8 +26,10 @@ pub struct TraceParams {
     pub cones: u32,
     /// tan of the diffuse cones' half angle.
     pub tan_half: f32,
+    /// Above 0: the ambient occlusion view (§6), the cones' reach in leaf voxels.
+    pub occlusion_radius: f32,
     /// Unused.
-    pub padding_a: [u32; 2],
+    pub padding_a: u32,
     /// [`START`].
     pub start: f32,
     /// How far off the surface along its normal the cones start, leaf voxels.
@@ -45,7 +47,8 @@ impl TraceParams {
         Self {
             cones,
             tan_half: half_angle.tan(),
-            padding_a: [0; 2],
+            occlusion_radius: 0.0,
+            padding_a: 0,
             start: START,
             offset,
             half_angle,
@@ -247,5 +250,40 @@ impl Probe {
             dir: dir.normalize().to_array(),
             tan_half,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trace_params_layout_matches_wgsl() {
+        use std::mem::{offset_of, size_of};
+        let module = crate::shaders::tests::module(Shader::ConeTrace);
+        crate::shaders::tests::check_struct(
+            &module,
+            "TraceParams",
+            size_of::<TraceParams>(),
+            &[
+                ("cones", offset_of!(TraceParams, cones)),
+                ("tan_half", offset_of!(TraceParams, tan_half)),
+                ("occlusion_radius", offset_of!(TraceParams, occlusion_radius)),
+                ("start", offset_of!(TraceParams, start)),
+                ("offset", offset_of!(TraceParams, offset)),
+                ("half_angle", offset_of!(TraceParams, half_angle)),
+            ],
+        );
+        crate::shaders::tests::check_struct(
+            &module,
+            "Probe",
+            size_of::<Probe>(),
+            &[
+                ("origin", offset_of!(Probe, origin)),
+                ("start", offset_of!(Probe, start)),
+                ("dir", offset_of!(Probe, dir)),
+                ("tan_half", offset_of!(Probe, tan_half)),
+            ],
+        );
     }
 }

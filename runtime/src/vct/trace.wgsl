@@ -5,13 +5,15 @@
 // vct/cpu.rs `shade`; `probe` traces given cones for the test against `cpu::trace_cone`.
 
 #import cssm::types::{Material, View}
-#import cssm::svo::{svo, svo_cone, svo_diffuse}
+#import cssm::svo::{svo, svo_cone, svo_diffuse, svo_occlusion}
 
 struct TraceParams {
     cones: u32,
     // tan of the diffuse cones' half angle.
     tan_half: f32,
-    padding_a: vec2u,
+    // Above 0: the ambient occlusion view (§6), its cones this far (leaves).
+    occlusion_radius: f32,
+    padding_a: u32,
     // Where a cone's first sample lies and how far off the surface it starts, in leaves.
     start: f32,
     offset: f32,
@@ -55,6 +57,12 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     let origin = (g.xyz - svo.origin) * svo.inv_voxel + n * params.offset;
     // §7: the hemisphere's irradiance over pi as the mean of cosine-distributed cones (a
     // uniform sky of radiance L gives L).
+    if params.occlusion_radius > 0.0 {
+        let occlusion = svo_occlusion(origin, n, params.cones, params.tan_half, params.start,
+            params.occlusion_radius);
+        indirect[index] = vec4f(vec3f(1.0 - occlusion), 1.0);
+        return;
+    }
     var radiance = albedo * svo_diffuse(origin, n, params.cones, params.tan_half, params.start);
     if any(material.ks > vec3f(0.0)) {
         let v = normalize(view.eye - g.xyz);
