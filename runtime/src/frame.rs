@@ -349,6 +349,18 @@ impl FrameContext {
         (self.settings.width, self.settings.height)
     }
 
+    /// A storage buffer of one `vec4f` per pixel of the current size, row-major: a method's
+    /// indirect radiance ([`crate::method::GiMethod::indirect`]).
+    pub fn pixel_buffer(&self, label: &str) -> wgpu::Buffer {
+        let (w, h) = self.size();
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: 16 * (w * h) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    }
+
     /// The view constants as the GPU reads them.
     pub fn gpu_view(&self) -> GpuView {
         self.camera

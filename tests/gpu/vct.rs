@@ -55,33 +55,9 @@ fn voxel_light_matches_cpu_twin() {
 fn voxel_light(anisotropic: bool) {
     let gpu = gpu();
     let (scene, _) = cornell();
-    let renderer = rsm_renderer(scene, &OptionValues::default(), (16, 16), 256);
-    let ctx = renderer.context();
     let resolution = 32;
-    let voxels = SparseVoxels::new(
-        ctx,
-        scene.bounds(),
-        resolution,
-        anisotropic,
-        true,
-        &bounce_cones(),
-    )
-    .expect("voxels");
+    let (renderer, voxels) = voxelised(scene, (16, 16), anisotropic, true, 1);
     let faces = voxels.svo.params.faces;
-    let bounces = 1;
-    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    voxels.run(
-        ctx,
-        &mut FrameEncoder {
-            encoder: &mut encoder,
-            timer: &mut timer,
-            index: 0,
-        },
-        bounces,
-    );
-    gpu.queue.submit([encoder.finish()]);
-    gpu.wait().expect("the passes run");
     let read = |buffer, size| read_buffer(&gpu.device, &gpu.queue, buffer, 0, size).unwrap();
     let octree = &voxels.octree;
     let count = words(&read(&voxels.voxelizer.count, 4))[0];

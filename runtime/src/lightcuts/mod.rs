@@ -100,14 +100,8 @@ impl FinalGather {
         params: &wgpu::Buffer,
         node_radiance: &wgpu::Buffer,
     ) -> Result<(wgpu::Buffer, wgpu::BindGroup), RuntimeError> {
-        let (w, h) = ctx.size();
         let hierarchy = &ctx.cssm()?.hierarchy;
-        let indirect = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("final gather"),
-            size: 16 * (w * h) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let indirect = ctx.pixel_buffer("final gather");
         let gbuffer = &ctx.gbuffer;
         let views = [
             &gbuffer.position,

@@ -149,13 +149,7 @@ impl AtlasLookup {
         params: &wgpu::Buffer,
         texel_irradiance: &wgpu::Buffer,
     ) -> (wgpu::Buffer, wgpu::BindGroup) {
-        let (w, h) = ctx.size();
-        let indirect = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("atlas lookup"),
-            size: 16 * (w * h) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let indirect = ctx.pixel_buffer("atlas lookup");
         let gbuffer = &ctx.gbuffer;
         let views = [&gbuffer.position, &gbuffer.albedo, &gbuffer.atlas]
             .map(|t| t.create_view(&Default::default()));

@@ -277,13 +277,7 @@ impl Resolve {
         bind_layout: &wgpu::BindGroupLayout,
         filter: &EdgeAwareFilter,
     ) -> (wgpu::Buffer, wgpu::BindGroup) {
-        let (w, h) = ctx.size();
-        let indirect = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("rsm indirect"),
-            size: 16 * (w * h) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let indirect = ctx.pixel_buffer("rsm indirect");
         let views = [&ctx.gbuffer.normal, &ctx.gbuffer.albedo]
             .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![

@@ -171,20 +171,25 @@ fn leaves(
     @builtin(num_workgroups) count: vec3u,
     @builtin(local_invocation_index) local: u32,
 ) {
-    let range = svo_levels[svo.max_level];
-    let node = range.x + linear_group(group, count) * WORKGROUP + local;
-    if node >= range.y || svo_nodes[node] != SVO_FLAG {
+    let node = invocation_leaf(group, count, local);
+    if node == SVO_NONE {
         return;
     }
-    let units = vec3f(
-        f32(atomicLoad(&flux[node * 4u])),
-        f32(atomicLoad(&flux[node * 4u + 1u])),
-        f32(atomicLoad(&flux[node * 4u + 2u])),
-    );
     let radiance = leaf_radiance(node);
     for (var face = 0u; face < svo.faces; face++) {
         values[node * svo.faces + face] = vec4f(radiance, 1.0);
     }
+}
+
+// The leaf of an invocation of a pass over the last level's nodes, SVO_NONE for an empty
+// node or past the level.
+fn invocation_leaf(group: vec3u, count: vec3u, local: u32) -> u32 {
+    let range = svo_levels[svo.max_level];
+    let node = range.x + linear_group(group, count) * WORKGROUP + local;
+    if node >= range.y || svo_nodes[node] != SVO_FLAG {
+        return SVO_NONE;
+    }
+    return node;
 }
 
 // A leaf's direct radiance from its sums: flux over pi over area (`cpu::leaf_radiance`).
@@ -237,9 +242,8 @@ fn bounce(
     @builtin(num_workgroups) count: vec3u,
     @builtin(local_invocation_index) local: u32,
 ) {
-    let range = svo_levels[svo.max_level];
-    let node = range.x + linear_group(group, count) * WORKGROUP + local;
-    if node >= range.y || svo_nodes[node] != SVO_FLAG {
+    let node = invocation_leaf(group, count, local);
+    if node == SVO_NONE {
         return;
     }
     let fragments = atomicLoad(&surface[node * 8u + 3u]);

@@ -115,13 +115,7 @@ impl ConeTrace {
         bind_layout: &wgpu::BindGroupLayout,
         params: &wgpu::Buffer,
     ) -> (wgpu::Buffer, wgpu::BindGroup) {
-        let (w, h) = ctx.size();
-        let indirect = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vct indirect"),
-            size: 16 * (w * h) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let indirect = ctx.pixel_buffer("vct indirect");
         let views = [&ctx.gbuffer.position, &ctx.gbuffer.normal, &ctx.gbuffer.albedo]
             .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![
