@@ -22,7 +22,7 @@ use runtime::{Gpu, Renderer, RendererSettings, frame::FrameSettings, method};
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, frame, median};
+use common::{arg, frame, median, passes_cell, timed_frames, write_report};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -95,36 +95,15 @@ fn main() {
             })
             .collect();
         let mut renderer = build();
-        frame(&gpu, &mut renderer, &view);
-        let mut passes = Vec::new();
-        let persistent: Vec<f64> = (0..frames.max(1))
-            .map(|_| {
-                let start = Instant::now();
-                frame(&gpu, &mut renderer, &view);
-                let ms = start.elapsed().as_secs_f64() * 1e3;
-                passes = renderer.read_timings().expect("timings");
-                ms
-            })
-            .collect();
-        let (a, b) = (median(one_shot), median(persistent));
-        let passes: Vec<String> = passes
-            .iter()
-            .map(|(n, ms)| format!("{n} {ms:.2}"))
-            .collect();
+        let (b, passes) = timed_frames(&gpu, &mut renderer, &view, frames, None);
+        let a = median(one_shot);
         let row = format!(
             "| {name} | {a:.1} | {b:.1} | {:.1}x | {} |\n",
             a / b,
-            if passes.is_empty() {
-                "no timestamps".into()
-            } else {
-                passes.join(", ")
-            }
+            passes_cell(&passes)
         );
         print!("{row}");
         report += &row;
     }
-    if let Some(out) = out {
-        std::fs::write(&out, &report).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
-        println!("wrote {}", out.display());
-    }
+    write_report(out.as_deref(), &report);
 }

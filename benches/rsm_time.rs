@@ -13,7 +13,7 @@
 //! lavapipe only the ratio with/without visibility means something; absolute GPU times count
 //! only from a real GPU (`reports/runtime.sh`).
 
-use std::{path::PathBuf, time::Instant};
+use std::path::PathBuf;
 
 use cssm::{formats, runtime};
 use runtime::{
@@ -25,7 +25,7 @@ use runtime::{
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, frame, median};
+use common::{arg, passes_cell, timed_frames, write_report};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -79,32 +79,13 @@ fn main() {
                 &settings,
             )
             .expect("renderer");
-            frame(&gpu, &mut renderer, &view);
-            let mut passes = Vec::new();
-            let times: Vec<f64> = (0..frames.max(1))
-                .map(|_| {
-                    if let (true, Some(light)) = (moving, scene.lights.first()) {
-                        renderer.set_light(0, light).expect("light");
-                    }
-                    let start = Instant::now();
-                    frame(&gpu, &mut renderer, &view);
-                    let ms = start.elapsed().as_secs_f64() * 1e3;
-                    passes = renderer.read_timings().expect("timings");
-                    ms
-                })
-                .collect();
-            let ms = median(times);
+            let light = scene.lights.first().filter(|_| moving);
+            let (ms, passes) = timed_frames(&gpu, &mut renderer, &view, frames, light);
             medians.push(ms);
-            let gpu_total: f64 = passes.iter().map(|(_, t)| t).sum();
-            let passes: Vec<String> = passes.iter().map(|(n, t)| format!("{n} {t:.2}")).collect();
             let row = format!(
                 "| {visibility} | {} | {ms:.1} | {} |\n",
                 if moving { "moving" } else { "static" },
-                if passes.is_empty() {
-                    "no timestamps".into()
-                } else {
-                    format!("{} (sum {gpu_total:.2})", passes.join(", "))
-                }
+                passes_cell(&passes)
             );
             print!("{row}");
             report += &row;
@@ -117,8 +98,5 @@ fn main() {
     );
     print!("{ratio}");
     report += &ratio;
-    if let Some(out) = out {
-        std::fs::write(&out, &report).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
-        println!("wrote {}", out.display());
-    }
+    write_report(out.as_deref(), &report);
 }

@@ -14,7 +14,7 @@
 //! GPU milliseconds per pass of the last frame. On lavapipe only the ratios mean something;
 //! absolute GPU times count only from a real GPU (`reports/runtime.sh`).
 
-use std::{path::PathBuf, time::Instant};
+use std::path::PathBuf;
 
 use cssm::{formats, runtime};
 use runtime::{
@@ -27,41 +27,7 @@ use runtime::{
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, frame, median};
-
-/// Median wall-clock ms of `frames` frames after a first, and the last frame's GPU passes.
-fn time(
-    gpu: &Gpu,
-    renderer: &mut Renderer,
-    view: &wgpu::TextureView,
-    frames: usize,
-    light: Option<&formats::scene::SpotLight>,
-) -> (f64, Vec<(&'static str, f64)>) {
-    frame(gpu, renderer, view);
-    let mut passes = Vec::new();
-    let times: Vec<f64> = (0..frames.max(1))
-        .map(|_| {
-            if let Some(light) = light {
-                renderer.set_light(0, light).expect("light");
-            }
-            let start = Instant::now();
-            frame(gpu, renderer, view);
-            let ms = start.elapsed().as_secs_f64() * 1e3;
-            passes = renderer.read_timings().expect("timings");
-            ms
-        })
-        .collect();
-    (median(times), passes)
-}
-
-fn passes_cell(passes: &[(&str, f64)]) -> String {
-    if passes.is_empty() {
-        return "no timestamps".into();
-    }
-    let total: f64 = passes.iter().map(|(_, t)| t).sum();
-    let list: Vec<String> = passes.iter().map(|(n, t)| format!("{n} {t:.2}")).collect();
-    format!("{} (sum {total:.2})", list.join(", "))
-}
+use common::{arg, passes_cell, timed_frames, write_report};
 
 fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
@@ -125,7 +91,7 @@ fn main() {
     let mut baseline = Vec::new();
     for name in ["direct", "rsm"] {
         let mut r = renderer(name, &OptionValues::default());
-        let (ms, passes) = time(&gpu, &mut r, &view, frames, None);
+        let (ms, passes) = timed_frames(&gpu, &mut r, &view, frames, None);
         baseline.push(ms);
         let row = format!("| {name} | static | {ms:.1} | {} |\n", passes_cell(&passes));
         print!("{row}");
@@ -140,14 +106,14 @@ fn main() {
         let mut values = OptionValues::default();
         values.set("resolution", OptionValue::Count(resolution));
         let mut r = renderer("vct", &values);
-        let (still, passes) = time(&gpu, &mut r, &view, frames, None);
+        let (still, passes) = timed_frames(&gpu, &mut r, &view, frames, None);
         let row = format!(
             "| vct {resolution}³ | static | {still:.1} | {} |\n",
             passes_cell(&passes)
         );
         print!("{row}");
         report += &row;
-        let (moving, passes) = time(&gpu, &mut r, &view, frames, light);
+        let (moving, passes) = timed_frames(&gpu, &mut r, &view, frames, light);
         let row = format!(
             "| vct {resolution}³ | moving | {moving:.1} | {} |\n",
             passes_cell(&passes)
@@ -185,8 +151,5 @@ fn main() {
     );
     print!("{tail}");
     report += &tail;
-    if let Some(out) = out {
-        std::fs::write(&out, &report).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
-        println!("wrote {}", out.display());
-    }
+    write_report(out.as_deref(), &report);
 }

@@ -362,14 +362,14 @@ impl SparseVoxels {
         let bytes = read_buffer(device, &ctx.queue, &voxelizer.fragments, 0, size.max(16))?;
         let fragments: &[VoxelFragment] = bytemuck::cast_slice(&bytes[..size as usize]);
         // A tile for the root and one for every occupied node above the leaves; those of the
-        // level above the leaves hold leaves.
+        // level above the leaves hold leaves. Each level's cells from the finer level's, so
+        // only the leaves' pass reads every fragment.
         let max_level = octree::max_level(resolution);
+        let mut cells: BTreeSet<[u32; 3]> = fragments.iter().map(|f| f.cell()).collect();
         let mut inner_tiles = 1u64;
         let mut leaf_tiles = 0u64;
-        for level in 0..max_level {
-            let shift = max_level - level;
-            let cells: BTreeSet<[u32; 3]> =
-                fragments.iter().map(|f| f.cell().map(|c| c >> shift)).collect();
+        for level in (0..max_level).rev() {
+            cells = cells.iter().map(|c| c.map(|k| k >> 1)).collect();
             if level + 1 == max_level {
                 leaf_tiles = cells.len() as u64;
             } else {

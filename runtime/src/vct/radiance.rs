@@ -263,12 +263,13 @@ impl Svo {
     }
 
     /// Bytes of the node pool (nodes, their cells, the tiles' cells), of the brick pool, and
-    /// of the per-node values and flux the radiance passes keep.
+    /// of what the radiance passes keep per node ([`VoxelRadiance`]'s flux, values and
+    /// surface).
     pub fn pool_bytes(&self, octree: &OctreeBuild) -> (u64, u64, u64) {
         let tiles = octree.tile_capacity as u64;
         let size = self.bricks.size();
         let texels = size.width as u64 * size.height as u64 * size.depth_or_array_layers as u64;
-        let per_node = 16 * (1 + self.params.faces as u64);
+        let per_node = 16 + 16 * self.params.faces as u64 + 32;
         (tiles * (32 + 32 + 8), texels * 8, tiles * 8 * per_node)
     }
 }
