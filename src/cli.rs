@@ -367,6 +367,10 @@ pub struct ErrorArgs {
     /// scene files, size, samples, bounces and component, instead of path tracing again.
     #[arg(long)]
     reference_cache: bool,
+    /// Frames each GPU variant renders before its image is measured, the camera at rest: the
+    /// temporally filtered methods (ssil) converge over a few.
+    #[arg(long, default_value_t = 1)]
+    frames: u32,
 }
 
 /// One `--method` of `cssm report error`, checked by the method table.
@@ -399,6 +403,8 @@ pub struct ErrorConfig {
     pub out: PathBuf,
     /// `--reference-cache`.
     pub reference_cache: bool,
+    /// Frames rendered per GPU variant, 1..=[`MAX_FRAMES`].
+    pub frames: u32,
 }
 
 impl ErrorArgs {
@@ -439,6 +445,12 @@ impl ErrorArgs {
             ..Default::default()
         };
         bake.check().map_err(|e| cssm::flag_error(&e))?;
+        if !(1..=MAX_FRAMES).contains(&self.frames) {
+            return Err(format!(
+                "--frames {} is out of range 1..={MAX_FRAMES}",
+                self.frames
+            ));
+        }
         Ok(ErrorConfig {
             scenes: self.scenes,
             variants,
@@ -448,6 +460,7 @@ impl ErrorArgs {
             bake,
             out: self.out,
             reference_cache: self.reference_cache,
+            frames: self.frames,
         })
     }
 }

@@ -398,11 +398,13 @@ fn render_variant(
                 &settings,
             )
             .map_err(fail)?;
-            // One frame; its passes that every frame runs are the frame's GPU time, the others
-            // (shadow maps, radiosity over the atlas) the prepare time.
-            let image = runtime::common::readback::render_image(&mut renderer, 1).map_err(fail)?;
+            // `--frames` frames, the camera at rest; the first frame's passes that every frame
+            // runs are the frame's GPU time, the others (shadow maps, radiosity over the atlas)
+            // the prepare time.
+            let image = runtime::common::readback::render_image(&mut renderer, config.frames)
+                .map_err(fail)?;
             gpu.wait().map_err(fail)?;
-            let gpu_ms = (!image.timings.is_empty()).then(|| {
+            let gpu_ms = (!image.first_timings.is_empty()).then(|| {
                 let schedule = runtime::frame::schedule(method.passes);
                 let stage = |name: &str| {
                     schedule
@@ -412,7 +414,7 @@ fn render_variant(
                 };
                 let sum = |wanted: runtime::frame::Stage| {
                     image
-                        .timings
+                        .first_timings
                         .iter()
                         .filter(|(name, _)| stage(name) == wanted)
                         .map(|(_, ms)| ms)

@@ -12,6 +12,8 @@ mod methods;
 mod octree;
 #[path = "gpu/rsm.rs"]
 mod rsm;
+#[path = "gpu/ssil.rs"]
+mod ssil;
 #[path = "gpu/vct.rs"]
 mod vct;
 #[path = "gpu/voxelize.rs"]

@@ -78,6 +78,7 @@ method_table! {
     lightcuts => [METHOD],
     rsm => [METHOD],
     vct => [METHOD],
+    ssil => [METHOD],
     reference => [METHOD],
 }
 

@@ -5,7 +5,7 @@
 //! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
 //! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
 //! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`,
-//! `cssm::lowres`, `cssm::voxel`, `cssm::svo`) and a module
+//! `cssm::lowres`, `cssm::voxel`, `cssm::svo`, `cssm::bilateral`) and a module
 //! imports what it uses (`#import cssm::visibility::{cssm_texels, cssm_visibility_texel}`).
 //!
 //! The workgroup sizes are defined once, here ([`WORKGROUP_1D`], [`WORKGROUP_2D`]): the WGSL
@@ -32,8 +32,9 @@ pub const WORKGROUP_2D: u32 = 8;
 /// The libraries the modules import (`#import cssm::...`), each defining its import path:
 /// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
 /// the shadow lookup, the light model, the CSSM visibility query, the light transfer, the
-/// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads.
-const LIBRARIES: [(&str, &str); 9] = [
+/// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads,
+/// the joint bilateral weight.
+const LIBRARIES: [(&str, &str); 10] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -64,6 +65,10 @@ const LIBRARIES: [(&str, &str); 9] = [
         include_str!("common/voxel.wgsl"),
     ),
     ("runtime/src/vct/svo.wgsl", include_str!("vct/svo.wgsl")),
+    (
+        "runtime/src/common/bilateral.wgsl",
+        include_str!("common/bilateral.wgsl"),
+    ),
 ];
 
 /// Bind group of the CSSM library in the runtime's own modules (group 0 is each pass's own).
@@ -147,8 +152,22 @@ pub enum Shader {
     Bvh,
     /// `rsm/sample.wgsl`, the RSM gather with the micro linear buffer.
     RsmSampling,
-    /// `rsm/resolve.wgsl`, the filtered RSM light reflected towards the eye.
-    RsmResolve,
+    /// `common/resolve.wgsl`, two planes of gathered light reflected towards the eye (`rsm`,
+    /// `ssil`).
+    Resolve,
+    /// `common/pyramid.wgsl`: the G-buffer pyramid's vote (`vote`) and a signal's mean
+    /// (`mean`).
+    Pyramid,
+    /// `ssil/sender.wgsl`: the diffuse direct light leaving every pixel, and the next bounce's.
+    SsilSender,
+    /// `ssil/voxels.wgsl`: the view frustum's solid voxels by XOR (`vs_main`, `fs_main`) and
+    /// their AND down the levels (`and_down`).
+    SsilVoxels,
+    /// `ssil/gather.wgsl` with `common/bilateral.wgsl`: one level's gather and the coarser
+    /// levels up-sampled into it (`gather`), and the bounces' sum (`accumulate`).
+    SsilGather,
+    /// `ssil/temporal.wgsl`: the reprojected history blended in.
+    SsilTemporal,
     /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
     Voxelize,
     /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
@@ -163,7 +182,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 20] = [
+    pub const ALL: [Shader; 25] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -179,11 +198,16 @@ impl Shader {
         Shader::Gather,
         Shader::Bvh,
         Shader::RsmSampling,
-        Shader::RsmResolve,
+        Shader::Resolve,
         Shader::Voxelize,
         Shader::Octree,
         Shader::VoxelRadiance,
         Shader::ConeTrace,
+        Shader::Pyramid,
+        Shader::SsilSender,
+        Shader::SsilVoxels,
+        Shader::SsilGather,
+        Shader::SsilTemporal,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -204,7 +228,12 @@ impl Shader {
             Shader::Gather => "visibility gather",
             Shader::Bvh => "bvh segments",
             Shader::RsmSampling => "rsm sampling",
-            Shader::RsmResolve => "rsm resolve",
+            Shader::Resolve => "resolve",
+            Shader::Pyramid => "pyramid",
+            Shader::SsilSender => "ssil sender",
+            Shader::SsilVoxels => "ssil voxels",
+            Shader::SsilGather => "ssil gather",
+            Shader::SsilTemporal => "ssil temporal",
             Shader::Voxelize => "voxelize",
             Shader::Octree => "octree",
             Shader::VoxelRadiance => "voxel radiance",
@@ -288,9 +317,29 @@ impl Shader {
                 "runtime/src/common/voxelize.wgsl",
                 include_str!("common/voxelize.wgsl"),
             ),
-            Shader::RsmResolve => (
-                "runtime/src/rsm/resolve.wgsl",
-                include_str!("rsm/resolve.wgsl"),
+            Shader::Resolve => (
+                "runtime/src/common/resolve.wgsl",
+                include_str!("common/resolve.wgsl"),
+            ),
+            Shader::Pyramid => (
+                "runtime/src/common/pyramid.wgsl",
+                include_str!("common/pyramid.wgsl"),
+            ),
+            Shader::SsilSender => (
+                "runtime/src/ssil/sender.wgsl",
+                include_str!("ssil/sender.wgsl"),
+            ),
+            Shader::SsilVoxels => (
+                "runtime/src/ssil/voxels.wgsl",
+                include_str!("ssil/voxels.wgsl"),
+            ),
+            Shader::SsilGather => (
+                "runtime/src/ssil/gather.wgsl",
+                include_str!("ssil/gather.wgsl"),
+            ),
+            Shader::SsilTemporal => (
+                "runtime/src/ssil/temporal.wgsl",
+                include_str!("ssil/temporal.wgsl"),
             ),
         }
     }

@@ -6,7 +6,7 @@ use cssm_formats::Scene;
 use cssm_runtime::{
     Renderer, RendererSettings,
     common::{
-        filters::{self, CpuGuide, EdgeAwareFilter, FilterOptions},
+        filters::{self, CpuGuide, EdgeAwareFilter, FilterOptions, LowGuide},
         readback::{read_buffer, read_texture, render_image},
         timestamps::PassTimer,
     },
@@ -39,6 +39,7 @@ fn guide(ctx: &FrameContext) -> CpuGuide {
         position: read(&ctx.gbuffer.position),
         normal: read(&ctx.gbuffer.normal),
         eye: ctx.gpu_view().eye.into(),
+        low: None,
     }
 }
 
@@ -144,8 +145,15 @@ fn filters_match_cpu_twin() {
                 radius,
                 ..Default::default()
             };
-            let filter = EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options)
-                .expect("filter");
+            let filter = EdgeAwareFilter::new(
+                &ctx.device,
+                &ctx.gbuffer,
+                &ctx.view,
+                2,
+                options,
+                LowGuide::Representative,
+            )
+            .expect("filter");
             let (worst, timings) = run_and_compare(ctx, &filter, &cpu_guide, seed);
             seed += 1;
             eprintln!(
@@ -167,12 +175,24 @@ fn filters_match_cpu_twin() {
 
     // After a resize, the filter follows the new G-buffer.
     let options = FilterOptions::default();
-    let mut filter =
-        EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options).expect("filter");
+    let mut filter = EdgeAwareFilter::new(
+        &ctx.device,
+        &ctx.gbuffer,
+        &ctx.view,
+        2,
+        options,
+        LowGuide::Representative,
+    )
+    .expect("filter");
     renderer.resize(21, 13).expect("resize");
     render_image(&mut renderer, 1).expect("frame");
     let ctx = renderer.context();
-    filter.resize(&ctx.device, &ctx.gbuffer, &ctx.view);
+    filter.resize(
+        &ctx.device,
+        &ctx.gbuffer,
+        &ctx.view,
+        LowGuide::Representative,
+    );
     assert_eq!(filter.low_size(), (11, 7));
     let (worst, _) = run_and_compare(ctx, &filter, &guide(ctx), seed);
     eprintln!("after resize to 21x13: max relative difference {worst:.3e}");

@@ -136,7 +136,26 @@ struct FilterParams {
     spatial_sigma: f32,
     depth_sigma: f32,
     normal_power: f32,
-    padding: [u32; 2],
+    guide_buffers: u32,
+    guide_offset: u32,
+}
+
+/// Where the filters read the guide of a low-res pixel.
+#[derive(Clone, Copy, Debug)]
+pub enum LowGuide<'a> {
+    /// The G-buffer at the pixel's [`representative`] (a technique that samples there).
+    Representative,
+    /// A technique's own low-res guide: `position` (xyz, w 1 where covered) and `normal` (xyz)
+    /// per low-res pixel, row-major from element `offset` (a level of
+    /// [`crate::common::pyramid::GBufferPyramid`]).
+    Buffers {
+        /// Positions, `vec4f` per pixel.
+        position: &'a wgpu::Buffer,
+        /// Normals, `vec4f` per pixel.
+        normal: &'a wgpu::Buffer,
+        /// Element of the low-res pixel (0, 0).
+        offset: u32,
+    },
 }
 
 /// What depends on the G-buffer's size.
@@ -164,7 +183,8 @@ pub struct EdgeAwareFilter {
 
 impl EdgeAwareFilter {
     /// Buffers for `layers` planes at the G-buffer's size reduced by `options.factor`, the
-    /// guide read from `gbuffer` and the eye from the frame's `view` uniform.
+    /// full-res guide read from `gbuffer`, the low-res one from `low_guide`, and the eye from
+    /// the frame's `view` uniform.
     ///
     /// # Errors
     /// Options that [`FilterOptions::check`] refuses, or no layer.
@@ -174,6 +194,7 @@ impl EdgeAwareFilter {
         view: &wgpu::Buffer,
         layers: u32,
         options: FilterOptions,
+        low_guide: LowGuide,
     ) -> Result<Self, RuntimeError> {
         options.check()?;
         if layers == 0 {
@@ -193,6 +214,8 @@ impl EdgeAwareFilter {
                 layout::texture(3, d2, c),
                 layout::storage(4, true, c),
                 layout::storage(5, false, c),
+                layout::storage(6, true, c),
+                layout::storage(7, true, c),
             ],
         );
         let module = Shader::Filters.create(device);
@@ -202,7 +225,15 @@ impl EdgeAwareFilter {
         let blur_x = pipeline("edge-aware blur x", "blur_x");
         let blur_y = pipeline("edge-aware blur y", "blur_y");
         let upsample = pipeline("upsample", "upsample");
-        let sized = Self::bind(device, &bind_layout, gbuffer, view, layers, &options);
+        let sized = Self::bind(
+            device,
+            &bind_layout,
+            gbuffer,
+            view,
+            layers,
+            &options,
+            low_guide,
+        );
         Ok(Self {
             options,
             layers,
@@ -221,6 +252,7 @@ impl EdgeAwareFilter {
         view: &wgpu::Buffer,
         layers: u32,
         options: &FilterOptions,
+        low_guide: LowGuide,
     ) -> Sized {
         let full_size = gbuffer.size();
         let low = low_size(full_size, options.factor);
@@ -235,7 +267,11 @@ impl EdgeAwareFilter {
                 spatial_sigma: options.spatial_sigma,
                 depth_sigma: options.depth_sigma,
                 normal_power: options.normal_power,
-                padding: [0; 2],
+                guide_buffers: u32::from(matches!(low_guide, LowGuide::Buffers { .. })),
+                guide_offset: match low_guide {
+                    LowGuide::Buffers { offset, .. } => offset,
+                    LowGuide::Representative => 0,
+                },
             }),
             usage: wgpu::BufferUsages::UNIFORM,
         });
@@ -256,6 +292,18 @@ impl EdgeAwareFilter {
         let output = planes("edge-aware filters output", full_size, copy);
         let position = gbuffer.position.create_view(&Default::default());
         let normal = gbuffer.normal.create_view(&Default::default());
+        let unused = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("edge-aware filters unused guide"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let (low_position, low_normal) = match low_guide {
+            LowGuide::Buffers {
+                position, normal, ..
+            } => (position, normal),
+            LowGuide::Representative => (&unused, &unused),
+        };
         let group = |label, from: &wgpu::Buffer, to: &wgpu::Buffer| {
             layout::bind_group(
                 device,
@@ -268,6 +316,8 @@ impl EdgeAwareFilter {
                     wgpu::BindingResource::TextureView(&normal),
                     from.as_entire_binding(),
                     to.as_entire_binding(),
+                    low_position.as_entire_binding(),
+                    low_normal.as_entire_binding(),
                 ],
             )
         };
@@ -312,9 +362,15 @@ impl EdgeAwareFilter {
         self.options
     }
 
-    /// New buffers and bind groups after the G-buffer was resized (pipelines stay). The input
-    /// is a new, zeroed buffer.
-    pub fn resize(&mut self, device: &wgpu::Device, gbuffer: &GBuffer, view: &wgpu::Buffer) {
+    /// New buffers and bind groups after the G-buffer was resized (pipelines stay), the
+    /// low-res guide read from `low_guide`. The input is a new, zeroed buffer.
+    pub fn resize(
+        &mut self,
+        device: &wgpu::Device,
+        gbuffer: &GBuffer,
+        view: &wgpu::Buffer,
+        low_guide: LowGuide,
+    ) {
         self.sized = Self::bind(
             device,
             &self.bind_layout,
@@ -322,6 +378,7 @@ impl EdgeAwareFilter {
             view,
             self.layers,
             &self.options,
+            low_guide,
         );
     }
 
@@ -359,6 +416,10 @@ pub struct CpuGuide {
     pub normal: Vec<[f32; 4]>,
     /// Eye position (`View::eye`).
     pub eye: Vec3,
+    /// The low-res guide when the filter reads it from buffers ([`LowGuide::Buffers`]): per
+    /// low-res pixel, row-major, position (w 1 where covered) and normal; `None` for the
+    /// G-buffer at each low-res pixel's [`representative`].
+    pub low: Option<(Vec<[f32; 4]>, Vec<[f32; 4]>)>,
 }
 
 /// `filters.wgsl`: `Guide`.
@@ -366,6 +427,13 @@ struct Guide {
     covered: bool,
     distance: f32,
     normal: Vec3,
+}
+
+impl Guide {
+    /// What [`bilateral_weight`] compares: distance from the eye and normal.
+    fn key(&self) -> (f32, Vec3) {
+        (self.distance, self.normal)
+    }
 }
 
 impl CpuGuide {
@@ -382,16 +450,50 @@ impl CpuGuide {
     fn size(&self) -> (u32, u32) {
         (self.width, self.height)
     }
+
+    /// `filters.wgsl`: `low_guide_at`.
+    fn low_at(&self, low: (u32, u32), factor: u32) -> Guide {
+        match &self.low {
+            None => self.at(representative(low, factor, self.size())),
+            Some((position, normal)) => {
+                let (lw, _) = low_size(self.size(), factor);
+                let i = (low.1 * lw + low.0) as usize;
+                let p = position[i];
+                Guide {
+                    covered: p[3] > 0.0,
+                    distance: self.eye.distance(Vec3::new(p[0], p[1], p[2])),
+                    normal: Vec4::from(normal[i]).truncate(),
+                }
+            }
+        }
+    }
 }
 
 /// `filters.wgsl`: `range_weight`, the depth and normal weight of `tap` against `centre`.
 fn range_weight(centre: &Guide, tap: &Guide, options: &FilterOptions) -> f32 {
-    let r = (tap.distance - centre.distance) / (options.depth_sigma * centre.distance.max(1e-6));
-    let c = centre.normal.dot(tap.normal);
+    bilateral_weight(
+        centre.key(),
+        tap.key(),
+        options.depth_sigma,
+        options.normal_power,
+    )
+}
+
+/// `bilateral.wgsl`: `bilateral_weight`, the depth and normal weight of a tap (distance from
+/// the eye, normal) against a centre whose distance is the reference; 0 for normals facing
+/// apart.
+pub fn bilateral_weight(
+    (centre_distance, centre_normal): (f32, Vec3),
+    (tap_distance, tap_normal): (f32, Vec3),
+    depth_sigma: f32,
+    normal_power: f32,
+) -> f32 {
+    let r = (tap_distance - centre_distance) / (depth_sigma * centre_distance.max(1e-6));
+    let c = centre_normal.dot(tap_normal);
     if c <= 0.0 {
         return 0.0;
     }
-    (-r * r).exp() * c.powf(options.normal_power)
+    (-r * r).exp() * c.powf(normal_power)
 }
 
 /// `filters.wgsl`: `blur`, one pass along `axis`.
@@ -410,7 +512,7 @@ fn blur_pass(
     for y in 0..lh {
         for x in 0..lw {
             let centre_index = (y * lw + x) as usize;
-            let centre = guide.at(representative((x, y), options.factor, guide.size()));
+            let centre = guide.low_at((x, y), options.factor);
             if !centre.covered {
                 continue;
             }
@@ -421,7 +523,7 @@ fn blur_pass(
                     continue;
                 }
                 let (tx, ty) = (tx as u32, ty as u32);
-                let tap = guide.at(representative((tx, ty), options.factor, guide.size()));
+                let tap = guide.low_at((tx, ty), options.factor);
                 if !tap.covered {
                     continue;
                 }
@@ -486,47 +588,69 @@ pub fn upsample(low: &[Vec4], layers: u32, guide: &CpuGuide, options: &FilterOpt
             let f = options.factor as f32;
             let (qx, qy) = ((x as f32 + 0.5) / f - 0.5, (y as f32 + 0.5) / f - 0.5);
             let (bx, by) = (qx.floor(), qy.floor());
-            let (tx, ty) = (qx - bx, qy - by);
-            let (mut weights, mut indices) = ([0.0f32; 4], [0usize; 4]);
-            let mut total = 0.0f32;
-            let mut nearest: Option<(usize, f32)> = None;
-            for i in 0..4 {
-                let (ox, oy) = (i & 1, i >> 1);
-                let sx = (bx as i32 + ox as i32).clamp(0, lw as i32 - 1) as u32;
-                let sy = (by as i32 + oy as i32).clamp(0, lh as i32 - 1) as u32;
+            let mut indices = [0usize; 4];
+            let taps: [Guide; 4] = std::array::from_fn(|i| {
+                let (ox, oy) = (i as i32 & 1, i as i32 >> 1);
+                let sx = (bx as i32 + ox).clamp(0, lw as i32 - 1) as u32;
+                let sy = (by as i32 + oy).clamp(0, lh as i32 - 1) as u32;
                 indices[i] = (sy * lw + sx) as usize;
-                let tap = guide.at(representative((sx, sy), options.factor, full));
-                if !tap.covered {
-                    continue;
-                }
-                let gap = (tap.distance - pixel.distance).abs();
-                if nearest.is_none_or(|(_, g)| gap < g) {
-                    nearest = Some((i, gap));
-                }
-                let wx = if ox == 1 { tx } else { 1.0 - tx };
-                let wy = if oy == 1 { ty } else { 1.0 - ty };
-                weights[i] = wx * wy * range_weight(&pixel, &tap, options);
-                total += weights[i];
-            }
+                guide.low_at((sx, sy), options.factor)
+            });
+            let weights = upsample_weights(
+                pixel.key(),
+                taps.map(|t| t.covered.then(|| t.key())),
+                (qx - bx, qy - by),
+                options.depth_sigma,
+                options.normal_power,
+            );
             for l in 0..layers as usize {
-                let value = if total >= 1e-6 {
-                    let mut sum = Vec4::ZERO;
-                    for i in 0..4 {
-                        if weights[i] > 0.0 {
-                            sum += weights[i] * low[l * low_plane + indices[i]];
-                        }
+                let mut value = Vec4::ZERO;
+                for i in 0..4 {
+                    if weights[i] > 0.0 {
+                        value += weights[i] * low[l * low_plane + indices[i]];
                     }
-                    sum / total
-                } else if let Some((i, _)) = nearest {
-                    low[l * low_plane + indices[i]]
-                } else {
-                    Vec4::ZERO
-                };
+                }
                 out[l * full_plane + pixel_index] = value;
             }
         }
     }
     out
+}
+
+/// `bilateral.wgsl`: `upsample_weights`, joint bilateral up-sampling from the 2x2 low-res taps
+/// around a pixel (in the order (0,0), (1,0), (0,1), (1,1); `None` where uncovered), `t` the
+/// pixel's fractional position between them: bilinear weights times [`bilateral_weight`]
+/// against the pixel's (distance, normal), normalised; when every tap is rejected, weight 1 on
+/// the covered tap nearest in distance; all 0 when none is covered.
+pub fn upsample_weights(
+    pixel: (f32, Vec3),
+    taps: [Option<(f32, Vec3)>; 4],
+    (tx, ty): (f32, f32),
+    depth_sigma: f32,
+    normal_power: f32,
+) -> [f32; 4] {
+    let mut weights = [0.0f32; 4];
+    let mut total = 0.0f32;
+    let mut nearest: Option<(usize, f32)> = None;
+    for (i, tap) in taps.iter().enumerate() {
+        let Some(tap) = *tap else { continue };
+        let gap = (tap.0 - pixel.0).abs();
+        if nearest.is_none_or(|(_, g)| gap < g) {
+            nearest = Some((i, gap));
+        }
+        let wx = if i & 1 == 1 { tx } else { 1.0 - tx };
+        let wy = if i >> 1 == 1 { ty } else { 1.0 - ty };
+        weights[i] = wx * wy * bilateral_weight(pixel, tap, depth_sigma, normal_power);
+        total += weights[i];
+    }
+    if total >= 1e-6 {
+        return weights.map(|w| w / total);
+    }
+    let mut fallback = [0.0; 4];
+    if let Some((i, _)) = nearest {
+        fallback[i] = 1.0;
+    }
+    fallback
 }
 
 /// The filters' passes as a method declares them ([`crate::method::MethodEntry::passes`]):
@@ -570,6 +694,8 @@ mod tests {
                 ("spatial_sigma", offset_of!(FilterParams, spatial_sigma)),
                 ("depth_sigma", offset_of!(FilterParams, depth_sigma)),
                 ("normal_power", offset_of!(FilterParams, normal_power)),
+                ("guide_buffers", offset_of!(FilterParams, guide_buffers)),
+                ("guide_offset", offset_of!(FilterParams, guide_offset)),
             ],
         );
     }
@@ -626,6 +752,7 @@ mod tests {
             position,
             normal,
             eye: Vec3::ZERO,
+            low: None,
         }
     }
 
@@ -720,6 +847,7 @@ mod tests {
             position,
             normal: vec![[0.0, 0.0, 1.0, 0.0]; (w * h) as usize],
             eye: Vec3::ZERO,
+            low: None,
         };
         let expected = |x: u32| Vec4::splat(if x < w / 2 { 1.0 } else { 5.0 });
         for factor in [1, 2] {

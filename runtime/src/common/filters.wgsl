@@ -1,5 +1,6 @@
 #import cssm::types::View
 #import cssm::lowres::lowres_representative
+#import cssm::bilateral::{Guide, bilateral_weight, upsample_weights}
 
 // Edge-aware post-processing of indirect light computed at reduced resolution (§4.5, Bang
 // 2011): a separable cross-bilateral blur at low resolution guided by the G-buffer at each
@@ -17,8 +18,11 @@ struct FilterParams {
     spatial_sigma: f32,
     depth_sigma: f32,
     normal_power: f32,
-    padding_a: u32,
-    padding_b: u32,
+    // 1: the low-res guide is read from `low_position` and `low_normal` at `guide_offset` +
+    // the low-res pixel's index (a pyramid level, common/pyramid.rs); 0: the G-buffer at the
+    // low-res pixel's representative pixel.
+    guide_buffers: u32,
+    guide_offset: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: FilterParams;
@@ -27,16 +31,11 @@ struct FilterParams {
 @group(0) @binding(3) var gbuffer_normal: texture_2d<f32>;
 @group(0) @binding(4) var<storage, read> signal_in: array<vec4f>;
 @group(0) @binding(5) var<storage, read_write> signal_out: array<vec4f>;
+@group(0) @binding(6) var<storage, read> low_position: array<vec4f>;
+@group(0) @binding(7) var<storage, read> low_normal: array<vec4f>;
 
 // Most taps of a blur: radius 16 (FilterOptions::check).
 const MAX_TAPS: u32 = 33u;
-
-// The guide at a full-res pixel: covered, distance from the eye, normal.
-struct Guide {
-    covered: bool,
-    distance: f32,
-    normal: vec3f,
-}
 
 fn guide_at(pixel: vec2u) -> Guide {
     let p = textureLoad(gbuffer_position, vec2i(pixel), 0);
@@ -44,15 +43,18 @@ fn guide_at(pixel: vec2u) -> Guide {
     return Guide(p.w > 0.0, distance(view.eye, p.xyz), n);
 }
 
-// Depth and normal weight of `tap` against `centre`, whose distance is the reference
-// (twin: filters.rs::range_weight). 0 for normals facing apart.
-fn range_weight(centre: Guide, tap: Guide) -> f32 {
-    let r = (tap.distance - centre.distance) / (params.depth_sigma * max(centre.distance, 1e-6));
-    let c = dot(centre.normal, tap.normal);
-    if c <= 0.0 {
-        return 0.0;
+// The guide of low-res pixel `low`.
+fn low_guide_at(low: vec2u) -> Guide {
+    if params.guide_buffers == 0u {
+        return guide_at(lowres_representative(low, params.factor, params.full_size));
     }
-    return exp(-r * r) * pow(c, params.normal_power);
+    let i = params.guide_offset + low.y * params.low_size.x + low.x;
+    let p = low_position[i];
+    return Guide(p.w > 0.0, distance(view.eye, p.xyz), low_normal[i].xyz);
+}
+
+fn range_weight(centre: Guide, tap: Guide) -> f32 {
+    return bilateral_weight(centre, tap, params.depth_sigma, params.normal_power);
 }
 
 fn blur(id: vec2u, axis: vec2i) {
@@ -62,7 +64,7 @@ fn blur(id: vec2u, axis: vec2i) {
     }
     let plane = low.x * low.y;
     let centre_index = id.y * low.x + id.x;
-    let centre = guide_at(lowres_representative(id, params.factor, params.full_size));
+    let centre = low_guide_at(id);
     if !centre.covered {
         for (var l = 0u; l < params.layers; l++) {
             signal_out[l * plane + centre_index] = vec4f(0.0);
@@ -81,7 +83,7 @@ fn blur(id: vec2u, axis: vec2i) {
         if t.x < 0 || t.y < 0 || t.x >= i32(low.x) || t.y >= i32(low.y) {
             continue;
         }
-        let tap = guide_at(lowres_representative(vec2u(t), params.factor, params.full_size));
+        let tap = low_guide_at(vec2u(t));
         if !tap.covered {
             continue;
         }
@@ -116,9 +118,8 @@ fn blur_y(@builtin(global_invocation_id) id: vec3u) {
     blur(id.xy, vec2i(0, 1));
 }
 
-// Joint bilateral up-sampling (Kopf et al. 2007): the 2x2 low-res samples around the pixel,
-// bilinear weight times the depth and normal weight against the pixel's own guide; when all
-// are rejected, the covered sample closest in distance.
+// Joint bilateral up-sampling (Kopf et al. 2007): the 2x2 low-res samples around the pixel
+// weighted by cssm::bilateral::upsample_weights.
 @compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
 fn upsample(@builtin(global_invocation_id) id: vec3u) {
     let full = params.full_size;
@@ -138,43 +139,22 @@ fn upsample(@builtin(global_invocation_id) id: vec3u) {
     }
     let q = (vec2f(id.xy) + 0.5) / f32(params.factor) - 0.5;
     let base = floor(q);
-    let t = q - base;
     let b = vec2i(base);
-    var weights: array<f32, 4>;
+    var taps: array<Guide, 4>;
     var indices: array<u32, 4>;
-    var total = 0.0;
-    var nearest = 4u;
-    var nearest_gap = 0.0;
     for (var i = 0u; i < 4u; i++) {
-        let o = vec2u(i & 1u, i >> 1u);
-        let s = vec2u(clamp(b + vec2i(o), vec2i(0), vec2i(low) - 1));
+        let o = vec2i(vec2u(i & 1u, i >> 1u));
+        let s = vec2u(clamp(b + o, vec2i(0), vec2i(low) - 1));
         indices[i] = s.y * low.x + s.x;
-        weights[i] = 0.0;
-        let tap = guide_at(lowres_representative(s, params.factor, full));
-        if !tap.covered {
-            continue;
-        }
-        let gap = abs(tap.distance - pixel.distance);
-        if nearest == 4u || gap < nearest_gap {
-            nearest = i;
-            nearest_gap = gap;
-        }
-        let wx = select(1.0 - t.x, t.x, o.x == 1u);
-        let wy = select(1.0 - t.y, t.y, o.y == 1u);
-        weights[i] = wx * wy * range_weight(pixel, tap);
-        total += weights[i];
+        taps[i] = low_guide_at(s);
     }
+    let weights = upsample_weights(pixel, taps, q - base, params.depth_sigma, params.normal_power);
     for (var l = 0u; l < params.layers; l++) {
         var value = vec4f(0.0);
-        if total >= 1e-6 {
-            for (var i = 0u; i < 4u; i++) {
-                if weights[i] > 0.0 {
-                    value += weights[i] * signal_in[l * low_plane + indices[i]];
-                }
+        for (var i = 0u; i < 4u; i++) {
+            if weights[i] > 0.0 {
+                value += weights[i] * signal_in[l * low_plane + indices[i]];
             }
-            value /= total;
-        } else if nearest < 4u {
-            value = signal_in[l * low_plane + indices[nearest]];
         }
         signal_out[l * full_plane + pixel_index] = value;
     }

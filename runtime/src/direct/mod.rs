@@ -53,7 +53,7 @@ impl GiMethod for DirectOnly {
 }
 
 /// Layout entries 0 to 4 of both passes: view, materials, lights, shadow maps, sampler.
-fn light_entries() -> [wgpu::BindGroupLayoutEntry; 5] {
+pub(crate) fn light_entries() -> [wgpu::BindGroupLayoutEntry; 5] {
     let c = wgpu::ShaderStages::COMPUTE;
     [
         layout::uniform(0, c),
@@ -64,7 +64,7 @@ fn light_entries() -> [wgpu::BindGroupLayoutEntry; 5] {
     ]
 }
 
-fn light_resources<'a>(
+pub(crate) fn light_resources<'a>(
     view: &'a wgpu::Buffer,
     scene: &'a SceneGpu,
     shadows: &'a ShadowMaps,

@@ -19,7 +19,7 @@
 //!    RSM, every pixel light visible;
 //! 3. the shared filters (`common::filters`, §4.5): an edge-aware blur (`blur` taps each side)
 //!    at the reduced resolution, then a joint bilateral up-sampling to the G-buffer's;
-//! 4. `rsm resolve` (`resolve.wgsl`): the diffuse irradiance times the albedo over pi, plus the
+//! 4. `rsm resolve` (`common/resolve.wgsl`): the diffuse irradiance times the albedo over pi, plus the
 //!    lobe-weighted irradiance times Ks (the receiver's normalised Phong lobe evaluated per pixel
 //!    light, so a glossy floor reflects the walls' light).
 //!
@@ -39,8 +39,9 @@ use wgpu::util::DeviceExt;
 use crate::{
     RuntimeError,
     common::{
-        filters::{self, EdgeAwareFilter, FilterOptions},
+        filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
         layout,
+        resolve::PlaneResolve,
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     method::{Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
@@ -237,74 +238,6 @@ impl Sampling {
     }
 }
 
-/// The resolve pass: the filtered planes reflected towards the eye, into [`Rsm::indirect`].
-struct Resolve {
-    indirect: wgpu::Buffer,
-    pipeline: wgpu::ComputePipeline,
-    bind_layout: wgpu::BindGroupLayout,
-    bind_group: wgpu::BindGroup,
-    size: (u32, u32),
-}
-
-impl Resolve {
-    fn new(ctx: &FrameContext, filter: &EdgeAwareFilter) -> Self {
-        let device = &ctx.device;
-        let c = wgpu::ShaderStages::COMPUTE;
-        let d2 = wgpu::TextureViewDimension::D2;
-        let entries = [
-            layout::uniform(0, c),
-            layout::storage(1, true, c),
-            layout::texture(2, d2, c),
-            layout::texture(3, d2, c),
-            layout::storage(4, true, c),
-            layout::storage(5, false, c),
-        ];
-        let bind_layout = layout::bind_group_layout(device, "rsm resolve", &entries);
-        let module = Shader::RsmResolve.create(device);
-        let pipeline = layout::compute_pipeline(device, "rsm resolve", &module, &[&bind_layout]);
-        let (indirect, bind_group) = Self::bind(ctx, &bind_layout, filter);
-        Self {
-            indirect,
-            pipeline,
-            bind_layout,
-            bind_group,
-            size: ctx.size(),
-        }
-    }
-
-    fn bind(
-        ctx: &FrameContext,
-        bind_layout: &wgpu::BindGroupLayout,
-        filter: &EdgeAwareFilter,
-    ) -> (wgpu::Buffer, wgpu::BindGroup) {
-        let indirect = ctx.pixel_buffer("rsm indirect");
-        let views = [&ctx.gbuffer.normal, &ctx.gbuffer.albedo]
-            .map(|t| t.create_view(&Default::default()));
-        let mut resources = vec![
-            ctx.view.as_entire_binding(),
-            ctx.scene.materials.as_entire_binding(),
-        ];
-        resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        resources.push(filter.output().as_entire_binding());
-        resources.push(indirect.as_entire_binding());
-        let bind_group = layout::bind_group(&ctx.device, "rsm resolve", bind_layout, &resources);
-        (indirect, bind_group)
-    }
-
-    fn resize(&mut self, ctx: &FrameContext, filter: &EdgeAwareFilter) {
-        (self.indirect, self.bind_group) = Self::bind(ctx, &self.bind_layout, filter);
-        self.size = ctx.size();
-    }
-
-    fn run(&self, frame: &mut FrameEncoder) {
-        let mut pass = frame.compute_pass("rsm resolve");
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        let (x, y) = shaders::groups_2d(self.size);
-        pass.dispatch_workgroups(x, y, 1);
-    }
-}
-
 /// `--method rsm`.
 pub const METHOD: MethodEntry = MethodEntry {
     name: "rsm",
@@ -402,17 +335,23 @@ pub const METHOD: MethodEntry = MethodEntry {
 struct RsmMethod {
     sampling: Sampling,
     filter: EdgeAwareFilter,
-    resolve: Resolve,
+    resolve: PlaneResolve,
 }
 
 impl RsmMethod {
     fn build(setup: &MethodSetup) -> Result<Box<dyn GiMethod>, RuntimeError> {
         let ctx = setup.ctx;
         let options = RsmOptions::from_resolved(setup.options);
-        let filter =
-            EdgeAwareFilter::new(&ctx.device, &ctx.gbuffer, &ctx.view, 2, options.filter())?;
+        let filter = EdgeAwareFilter::new(
+            &ctx.device,
+            &ctx.gbuffer,
+            &ctx.view,
+            2,
+            options.filter(),
+            LowGuide::Representative,
+        )?;
         let sampling = Sampling::new(ctx, &options, &filter)?;
-        let resolve = Resolve::new(ctx, &filter);
+        let resolve = PlaneResolve::new(ctx, "rsm resolve", filter.output());
         Ok(Box::new(Self {
             sampling,
             filter,
@@ -429,13 +368,18 @@ impl GiMethod for RsmMethod {
     }
 
     fn indirect(&self) -> Option<&wgpu::Buffer> {
-        Some(&self.resolve.indirect)
+        Some(self.resolve.indirect())
     }
 
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
-        self.filter.resize(&ctx.device, &ctx.gbuffer, &ctx.view);
+        self.filter.resize(
+            &ctx.device,
+            &ctx.gbuffer,
+            &ctx.view,
+            LowGuide::Representative,
+        );
         self.sampling.resize(ctx, &self.filter)?;
-        self.resolve.resize(ctx, &self.filter);
+        self.resolve.resize(ctx, self.filter.output());
         Ok(())
     }
 }

@@ -1,5 +1,7 @@
-// The filtered RSM planes reflected towards the eye at full resolution: the diffuse irradiance
-// with the pixel's albedo, the lobe-weighted irradiance with its Ks (`rsm::resolve`).
+// Two planes of gathered light reflected towards the eye at full resolution (common/resolve.rs,
+// shared by rsm and ssil): the diffuse irradiance with the pixel's albedo over pi, the
+// lobe-weighted irradiance (each sample's irradiance times the pixel's normalised Phong lobe
+// towards the eye) with its Ks.
 
 #import cssm::types::{Material, View}
 

@@ -1,0 +1,406 @@
+//! Screen-space indirect illumination (`cssm_runtime::ssil`) against its CPU twins: the
+//! G-buffer pyramid's vote and the light's mean, the solid voxels of the view frustum against
+//! ray casts through their columns and their AND down the levels, every level's gather for
+//! every pixel, the temporal filter; and the levels together against a brute-force sum over
+//! every pixel of the G-buffer.
+
+use cssm_formats::Scene;
+use cssm_runtime::{
+    Renderer, RendererSettings,
+    common::{
+        compose::Component,
+        pyramid::{CpuLevel, mean_cpu, vote_cpu},
+        readback::{read_buffer, read_texture, render_image},
+        timestamps::PassTimer,
+    },
+    frame::{FrameContext, FrameEncoder, FrameSettings},
+    gpu_types::GpuMaterial,
+    method::{self, OptionValues},
+    ssil::{
+        ScreenSpaceGi, SsilOptions, Visibility,
+        cpu::{self, GatherInputs},
+        vec4s,
+    },
+};
+use glam::{Mat4, Vec3, Vec4};
+
+use super::{cornell, gpu};
+
+/// A renderer of `direct` on `scene` at `size`, one frame rendered: the context (G-buffer,
+/// shadow maps) the tests' own SSIL pipelines run over.
+fn context_renderer(scene: &Scene, size: (u32, u32)) -> Renderer {
+    let gpu = gpu();
+    let settings = RendererSettings {
+        frame: FrameSettings {
+            width: size.0,
+            height: size.1,
+            shadow_resolution: 512,
+            ..Default::default()
+        },
+        component: Component::Indirect,
+        ..Default::default()
+    };
+    let method = method::find("direct").unwrap();
+    let mut renderer = Renderer::new(
+        &gpu.device,
+        &gpu.queue,
+        scene,
+        None,
+        method,
+        &OptionValues::default(),
+        &settings,
+    )
+    .expect("renderer");
+    render_image(&mut renderer, 1).expect("render");
+    renderer
+}
+
+/// `frames` frames of an SSIL pipeline of `options` over the renderer's context.
+fn run(ctx: &FrameContext, scene: &Scene, options: &SsilOptions, frames: u32) -> ScreenSpaceGi {
+    let gpu = gpu();
+    let mut gi = ScreenSpaceGi::new(ctx, scene.bounds(), options).expect("ssil");
+    for _ in 0..frames {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+        gi.encode(
+            ctx,
+            &mut FrameEncoder {
+                encoder: &mut encoder,
+                timer: &mut timer,
+                index: 0,
+            },
+        );
+        gpu.queue.submit([encoder.finish()]);
+    }
+    gi
+}
+
+fn read4(ctx: &FrameContext, buffer: &wgpu::Buffer) -> Vec<Vec4> {
+    vec4s(&read_buffer(&ctx.device, &ctx.queue, buffer, 0, buffer.size()).expect("read"))
+}
+
+fn read_words(ctx: &FrameContext, buffer: &wgpu::Buffer) -> Vec<u32> {
+    let bytes = read_buffer(&ctx.device, &ctx.queue, buffer, 0, buffer.size()).expect("read");
+    bytemuck::cast_slice(&bytes).to_vec()
+}
+
+fn texture4(ctx: &FrameContext, texture: &wgpu::Texture) -> Vec<Vec4> {
+    vec4s(&read_texture(&ctx.device, &ctx.queue, texture, 16).expect("read texture"))
+}
+
+fn materials(ctx: &FrameContext) -> Vec<GpuMaterial> {
+    let buffer = &ctx.scene.materials;
+    let bytes = read_buffer(&ctx.device, &ctx.queue, buffer, 0, buffer.size()).expect("read");
+    bytemuck::cast_slice(&bytes).to_vec()
+}
+
+fn test_options() -> SsilOptions {
+    SsilOptions {
+        samples: 12,
+        levels: 3,
+        start_level: 1,
+        radius: 6.0,
+        bounces: 1,
+        temporal: 0.0,
+        ..Default::default()
+    }
+}
+
+fn level_of(all: &[Vec4], gi: &ScreenSpaceGi, level: u32) -> Vec<Vec4> {
+    let layout = gi.levels().pyramid;
+    let (w, h) = layout.size(level);
+    let start = layout.offset(level) as usize;
+    all[start..start + (w * h) as usize].to_vec()
+}
+
+#[test]
+fn pyramids_match_cpu_twins() {
+    let (scene, _) = cornell();
+    let renderer = context_renderer(scene, (45, 34));
+    let ctx = renderer.context();
+    let gi = run(ctx, scene, &test_options(), 1);
+    let eye: Vec3 = ctx.gpu_view().eye.into();
+    let mut fine = CpuLevel {
+        size: ctx.size(),
+        position: texture4(ctx, &ctx.gbuffer.position),
+        normal: texture4(ctx, &ctx.gbuffer.normal),
+        albedo: texture4(ctx, &ctx.gbuffer.albedo),
+    };
+    let pyramid = gi.pyramid();
+    let [position, normal, albedo] =
+        [&pyramid.position, &pyramid.normal, &pyramid.albedo].map(|b| read4(ctx, b));
+    let sender = read4(ctx, gi.sender());
+    let light = read4(ctx, &gi.light().signal);
+    let mut signal = sender[..(ctx.size().0 * ctx.size().1) as usize].to_vec();
+    let mut signal_size = ctx.size();
+    for level in 1..=gi.levels().last {
+        let cpu_level = vote_cpu(&fine, eye);
+        let gpu_level = CpuLevel {
+            size: gi.levels().pyramid.size(level),
+            position: level_of(&position, &gi, level),
+            normal: level_of(&normal, &gi, level),
+            albedo: level_of(&albedo, &gi, level),
+        };
+        // The vote picks one child's values as they are; a near tie may fall either way in
+        // the last bit of a score.
+        let differ = (0..cpu_level.position.len())
+            .filter(|&i| {
+                cpu_level.position[i] != gpu_level.position[i]
+                    || cpu_level.normal[i] != gpu_level.normal[i]
+                    || cpu_level.albedo[i] != gpu_level.albedo[i]
+            })
+            .count();
+        assert!(
+            differ * 100 <= cpu_level.position.len(),
+            "level {level}: {differ} of {} pixels voted otherwise",
+            cpu_level.position.len()
+        );
+        assert!(gpu_level.position.iter().any(|p| p.w > 0.0));
+        // The light's mean, from the GPU's finer level.
+        let cpu_light = mean_cpu(&signal, signal_size);
+        let gpu_light = level_of(&light, &gi, level);
+        for (i, (c, g)) in cpu_light.iter().zip(&gpu_light).enumerate() {
+            assert!(
+                (*c - *g).abs().max_element() <= 1e-5 * c.abs().max_element().max(1e-3),
+                "level {level} pixel {i}: light {g} against {c}"
+            );
+        }
+        fine = gpu_level;
+        signal = gpu_light;
+        signal_size = fine.size;
+    }
+}
+
+#[test]
+fn voxels_match_ray_casts() {
+    let (scene, _) = cornell();
+    let size = (48, 36);
+    let renderer = context_renderer(scene, size);
+    let ctx = renderer.context();
+    let options = test_options();
+    let gi = run(ctx, scene, &options, 1);
+    let levels = gi.levels();
+    let grid = read_words(ctx, gi.grid());
+    let params = gi.frame_params(ctx);
+    let triangles: Vec<[Vec3; 3]> = (0..scene.triangles.len())
+        .map(|t| scene.triangle(t))
+        .collect();
+    let view_proj = Mat4::from_cols_array_2d(&ctx.gpu_view().view_proj);
+    let cpu_grid = cpu::voxelize(
+        &triangles,
+        view_proj,
+        size,
+        levels.start,
+        (params.z_near, params.z_far),
+    );
+    let columns = cpu_grid.len() / 4;
+    let differ = (0..columns)
+        .filter(|&c| cpu_grid[4 * c..4 * c + 4] != grid[4 * c..4 * c + 4])
+        .count();
+    // The rasteriser's coverage of a triangle's edge differs from the ray casts' on a few
+    // columns; everything else matches bit for bit.
+    assert!(
+        differ * 50 <= columns,
+        "{differ} of {columns} columns differ from the ray casts"
+    );
+    let solid = cpu_grid.iter().map(|w| w.count_ones()).sum::<u32>();
+    assert!(solid > 0, "the Cornell box's boxes are solid");
+    for level in levels.start + 1..=levels.last {
+        let fine_size = levels.pyramid.size(level - 1);
+        let at = |l: u32| 4 * levels.grid_offset(l) as usize;
+        let fine = &grid[at(level - 1)..at(level - 1) + 4 * (fine_size.0 * fine_size.1) as usize];
+        let coarse = cpu::and_down(fine, fine_size);
+        assert_eq!(
+            &grid[at(level)..at(level) + coarse.len()],
+            &coarse[..],
+            "level {level}"
+        );
+    }
+}
+
+/// Every pixel of every gathered level against `gather_pixel` over the GPU's own inputs, with
+/// and without visibility, on the plain and the glossy Cornell box.
+#[test]
+fn gather_matches_cpu_twin() {
+    let glossy = Scene::load(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/cornell-glossy")
+            .as_path(),
+    )
+    .expect("glossy Cornell box");
+    for (scene, visibility) in [
+        (&cornell().0, Visibility::Voxels),
+        (&cornell().0, Visibility::None),
+        (&glossy, Visibility::Voxels),
+    ] {
+        let renderer = context_renderer(scene, (40, 30));
+        let ctx = renderer.context();
+        let options = SsilOptions {
+            visibility,
+            ..test_options()
+        };
+        let gi = run(ctx, scene, &options, 1);
+        let levels = gi.levels();
+        let view = ctx.gpu_view();
+        let [position, normal] =
+            [&gi.pyramid().position, &gi.pyramid().normal].map(|b| read4(ctx, b));
+        let sender = read4(ctx, &gi.light().signal);
+        let grid = read_words(ctx, gi.grid());
+        let gathered = read4(ctx, gi.gathered());
+        let materials = materials(ctx);
+        let inputs = GatherInputs {
+            view_proj: Mat4::from_cols_array_2d(&view.view_proj),
+            eye: view.eye.into(),
+            frame: gi.frame_params(ctx),
+            materials: &materials,
+            position: &position,
+            normal: &normal,
+            sender: &sender,
+            grid: &grid,
+            gathered: &gathered,
+        };
+        let pixels = levels.pyramid.pixels() as usize;
+        let (mut checked, mut off, mut lit, mut glossy_lit) = (0, 0, 0, 0);
+        for level in levels.start..=levels.last {
+            let params = levels.gather_params(level, 0, &options);
+            let (w, h) = levels.pyramid.size(level);
+            for y in 0..h {
+                for x in 0..w {
+                    let [d, g] = cpu::gather_pixel(&inputs, &params, (x, y));
+                    let i = levels.pyramid.index(level, (x, y));
+                    let (gd, gg) = (gathered[i].truncate(), gathered[pixels + i].truncate());
+                    checked += 1;
+                    lit += usize::from(d.max_element() > 0.0);
+                    glossy_lit += usize::from(g.max_element() > 0.0);
+                    let near = |a: Vec3, b: Vec3| {
+                        (a - b).abs().max_element() <= 1e-3 * b.abs().max_element().max(1e-4)
+                    };
+                    if !near(gd, d) || !near(gg, g) {
+                        off += 1;
+                    }
+                }
+            }
+        }
+        // A march may decide a sample's visibility otherwise where a point falls on a voxel's
+        // edge in one and not the other; a pixel with such a sample is off.
+        assert!(
+            off * 50 <= checked,
+            "{} {visibility:?}: {off} of {checked} pixels differ from the twin",
+            scene.name
+        );
+        assert!(
+            lit * 2 > checked,
+            "{lit} of {checked} pixels gathered light"
+        );
+        if scene.name.contains("glossy") {
+            assert!(glossy_lit > 0, "the glossy floor gathers its lobe");
+        }
+    }
+}
+
+/// The levels' rings together stand for the whole screen: the mean irradiance SSIL gathers
+/// without visibility, over many frames' sample patterns, against the sum of Eq. 3 with Eq. 4
+/// over every covered pixel of the finest gathered level (each its own disc), for that level's
+/// receivers. The same sum over the G-buffer's full-res pixels is printed beside it: what the
+/// reduced resolution itself loses (near-field light where the coarse pixels cannot resolve a
+/// corner).
+#[test]
+fn the_levels_gather_the_whole_screen() {
+    let (scene, _) = cornell();
+    let size = (80, 60);
+    let renderer = context_renderer(scene, size);
+    let ctx = renderer.context();
+    let options = SsilOptions {
+        visibility: Visibility::None,
+        samples: 32,
+        levels: 4,
+        radius: 8.0,
+        ..test_options()
+    };
+    let gpu = gpu();
+    let mut gi = ScreenSpaceGi::new(ctx, scene.bounds(), &options).expect("ssil");
+    let levels = gi.levels();
+    let (lw, lh) = levels.pyramid.size(levels.start);
+    let mut summed = vec![Vec3::ZERO; (lw * lh) as usize];
+    let frames = 24;
+    for _ in 0..frames {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+        gi.encode(
+            ctx,
+            &mut FrameEncoder {
+                encoder: &mut encoder,
+                timer: &mut timer,
+                index: 0,
+            },
+        );
+        gpu.queue.submit([encoder.finish()]);
+        for (s, v) in summed.iter_mut().zip(read4(ctx, gi.summed())) {
+            *s += v.truncate() / frames as f32;
+        }
+    }
+    let view = ctx.gpu_view();
+    let view_proj = Mat4::from_cols_array_2d(&view.view_proj);
+    let eye: Vec3 = view.eye.into();
+    let pixel_area = gi.frame_params(ctx).pixel_area;
+    // Eq. 3 with Eq. 4 from every covered pixel of (positions, normals, light), `scale`
+    // full-res pixels each, at the receiver (x, n), skipping pixel `skip`.
+    let sum = |x: Vec3, n: Vec3, senders: (&[Vec4], &[Vec4], &[Vec4]), scale: f32, skip: usize| {
+        let mut e = Vec3::ZERO;
+        for (j, s4) in senders.0.iter().enumerate() {
+            if s4.w <= 0.0 || j == skip {
+                continue;
+            }
+            let (s, ns) = (s4.truncate(), senders.1[j].truncate());
+            let d = s - x;
+            let r2 = d.dot(d);
+            if r2 <= 1e-12 {
+                continue;
+            }
+            let w = d / r2.sqrt();
+            let (cos_r, cos_s) = (n.dot(w), -ns.dot(w));
+            if cos_r <= 0.0 || cos_s <= 0.0 {
+                continue;
+            }
+            let z = (view_proj * s.extend(1.0)).w;
+            let to_eye = eye - s;
+            let cos_beta = (ns.dot(to_eye) / to_eye.length()).max(0.01);
+            let ds = scale * pixel_area * z * z * (z / to_eye.length()) / cos_beta;
+            let f = cos_r * cos_s * ds / (r2 + cos_s * ds / std::f32::consts::PI);
+            e += senders.2[j].truncate() * f;
+        }
+        f64::from(e.element_sum())
+    };
+    let full = (
+        texture4(ctx, &ctx.gbuffer.position),
+        texture4(ctx, &ctx.gbuffer.normal),
+        read4(ctx, gi.sender()),
+    );
+    let level = [
+        &gi.pyramid().position,
+        &gi.pyramid().normal,
+        &gi.light().signal,
+    ]
+    .map(|b| level_of(&read4(ctx, b), &gi, levels.start));
+    let scale = (1u32 << (2 * levels.start)) as f32;
+    let (mut ssil, mut over_level, mut over_full) = (0.0f64, 0.0f64, 0.0f64);
+    for (i, x4) in level[0].iter().enumerate() {
+        if x4.w <= 0.0 {
+            continue;
+        }
+        let (x, n) = (x4.truncate(), level[1][i].truncate());
+        ssil += f64::from(summed[i].element_sum());
+        over_level += sum(x, n, (&level[0], &level[1], &level[2]), scale, i);
+        over_full += sum(x, n, (&full.0, &full.1, &full.2), 1.0, usize::MAX);
+    }
+    let ratio = ssil / over_level;
+    eprintln!(
+        "ssil / the sum over its finest level's pixels: {ratio:.4}; that sum / the sum over \
+         the full-res pixels: {:.4}",
+        over_level / over_full
+    );
+    assert!(
+        (ratio - 1.0).abs() < 0.08,
+        "ssil gathers {ratio} of the level's light"
+    );
+}
