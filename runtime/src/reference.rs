@@ -57,7 +57,7 @@ use crate::{
     direct::cpu::{albedo_at, brdf, direct_radiance, facing_normal, ray_epsilon},
     gpu_types::GpuMaterial,
     load::AlbedoTexture,
-    method::{self, Backend, Checks, CpuSetup, MethodEntry, OptionKind, OptionSpec},
+    method::{self, Backend, Checks, Energy, CpuSetup, MethodEntry, OptionKind, OptionSpec},
 };
 
 /// `--method reference`: this path tracer, on the CPU, the ground truth of every other method.
@@ -80,7 +80,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     passes: &[],
     backend: Backend::Cpu(render_method),
     checks: Checks {
-        energy: Some(0.02),
+        energy: Energy::Within(0.02),
         golden_flip: 0.005,
     },
 };

@@ -404,3 +404,134 @@ fn the_levels_gather_the_whole_screen() {
         "ssil gathers {ratio} of the level's light"
     );
 }
+
+fn encode(gi: &mut ScreenSpaceGi, ctx: &FrameContext) {
+    let gpu = gpu();
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+    gi.encode(
+        ctx,
+        &mut FrameEncoder {
+            encoder: &mut encoder,
+            timer: &mut timer,
+            index: 0,
+        },
+    );
+    gpu.queue.submit([encoder.finish()]);
+}
+
+/// The temporal filter of a frame after the camera moved against `temporal_pixel`, on the
+/// glossy box (the lobe-weighted plane's weight follows the camera's turn).
+#[test]
+fn temporal_filter_matches_cpu_twin() {
+    let glossy = Scene::load(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/cornell-glossy")
+            .as_path(),
+    )
+    .expect("glossy Cornell box");
+    let mut renderer = context_renderer(&glossy, (40, 30));
+    let options = SsilOptions {
+        temporal: 0.8,
+        ..test_options()
+    };
+    let mut gi = ScreenSpaceGi::new(renderer.context(), glossy.bounds(), &options).expect("ssil");
+    encode(&mut gi, renderer.context());
+    let (previous_view, history, history_position, history_normal) = {
+        let ctx = renderer.context();
+        (
+            ctx.gpu_view(),
+            read4(ctx, gi.blended()),
+            texture4(ctx, &ctx.gbuffer.position),
+            texture4(ctx, &ctx.gbuffer.normal),
+        )
+    };
+    let mut camera = glossy.camera.clone();
+    camera.position += Vec3::new(15.0, 5.0, 0.0);
+    renderer.set_camera(&camera).expect("camera");
+    render_image(&mut renderer, 1).expect("render");
+    let ctx = renderer.context();
+    encode(&mut gi, ctx);
+    let materials = materials(ctx);
+    let inputs = cpu::TemporalInputs {
+        eye: ctx.gpu_view().eye.into(),
+        previous_view_proj: Mat4::from_cols_array_2d(&previous_view.view_proj),
+        previous_eye: previous_view.eye.into(),
+        blend: options.temporal,
+        size: ctx.size(),
+        materials: &materials,
+        position: &texture4(ctx, &ctx.gbuffer.position),
+        normal: &texture4(ctx, &ctx.gbuffer.normal),
+        history_position: &history_position,
+        history_normal: &history_normal,
+        current: &read4(ctx, gi.filtered()),
+        history: &history,
+    };
+    let blended = read4(ctx, gi.blended());
+    let (w, h) = ctx.size();
+    let plane = (w * h) as usize;
+    let (mut reprojected, mut off) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let [d, g] = cpu::temporal_pixel(&inputs, (x, y));
+            let i = (y * w + x) as usize;
+            reprojected += usize::from(d != inputs.current[i]);
+            let near = |a: Vec4, b: Vec4| {
+                (a - b).abs().max_element() <= 1e-4 * b.abs().max_element().max(1e-4)
+            };
+            if !near(blended[i], d) || !near(blended[plane + i], g) {
+                off += 1;
+            }
+        }
+    }
+    assert!(
+        off * 100 <= plane,
+        "{off} of {plane} pixels differ from the twin"
+    );
+    assert!(
+        reprojected * 2 > plane,
+        "only {reprojected} of {plane} pixels found history"
+    );
+}
+
+/// `--method ssil` through the renderer: a resize rebuilds the levels (another pyramid, grid
+/// and history) and the next frames gather light again.
+#[test]
+fn the_renderer_resizes_ssil() {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let settings = RendererSettings {
+        frame: FrameSettings {
+            width: 48,
+            height: 36,
+            shadow_resolution: 512,
+            ..Default::default()
+        },
+        component: Component::Indirect,
+        ..Default::default()
+    };
+    let method = method::find("ssil").unwrap();
+    let mut renderer = Renderer::new(
+        &gpu.device,
+        &gpu.queue,
+        scene,
+        None,
+        method,
+        &OptionValues::default(),
+        &settings,
+    )
+    .expect("ssil renderer");
+    let lit = |image: &cssm_runtime::common::readback::Image| {
+        image
+            .radiance
+            .iter()
+            .filter(|p| p[0] + p[1] + p[2] > 0.0)
+            .count()
+    };
+    let first = render_image(&mut renderer, 2).expect("render");
+    assert!(lit(&first) * 2 > first.radiance.len());
+    renderer.resize(37, 29).expect("resize");
+    let resized = render_image(&mut renderer, 2).expect("render after resize");
+    assert_eq!(resized.radiance.len(), 37 * 29);
+    assert!(lit(&resized) * 2 > resized.radiance.len());
+}

@@ -19,7 +19,7 @@ use crate::{
     frame::{FrameContext, FrameEncoder},
     shaders::{self, Shader},
     load::{CssmGpu, SceneGpu},
-    method::{Backend, Checks, GiMethod, MethodEntry, MethodSetup},
+    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup},
 };
 
 /// `--method direct`: the shared passes alone (shadow maps, G-buffer, direct light); no
@@ -32,7 +32,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     passes: &[],
     backend: Backend::Gpu(|_: &MethodSetup| Ok(Box::new(DirectOnly))),
     checks: Checks {
-        energy: None,
+        energy: Energy::NoIndirect,
         golden_flip: 0.005,
     },
 };

@@ -15,7 +15,7 @@ use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     gpu_types::GpuTraversalParams,
-    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders::{self, Shader},
 };
@@ -195,7 +195,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     ],
     backend: Backend::Gpu(Lightcuts::build),
     checks: Checks {
-        energy: Some(0.04),
+        energy: Energy::Within(0.04),
         golden_flip: 0.005,
     },
 };

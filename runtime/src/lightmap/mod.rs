@@ -16,7 +16,7 @@ use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     load::CssmGpu,
-    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, Resolved},
+    method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, Resolved},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders::{self, Shader},
 };
@@ -203,7 +203,7 @@ pub const HRC: MethodEntry = MethodEntry {
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Nearest)),
     checks: Checks {
-        energy: Some(0.04),
+        energy: Energy::Within(0.04),
         golden_flip: 0.005,
     },
 };
@@ -217,7 +217,7 @@ pub const LIGHTMAP: MethodEntry = MethodEntry {
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Bicubic)),
     checks: Checks {
-        energy: Some(0.04),
+        energy: Energy::Within(0.04),
         golden_flip: 0.005,
     },
 };

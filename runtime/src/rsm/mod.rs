@@ -44,7 +44,7 @@ use crate::{
         resolve::PlaneResolve,
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
-    method::{Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
     shaders::{self, Shader},
 };
 
@@ -326,7 +326,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     ],
     backend: Backend::Gpu(RsmMethod::build),
     checks: Checks {
-        energy: Some(0.04),
+        energy: Energy::Within(0.04),
         golden_flip: 0.005,
     },
 };

@@ -57,7 +57,7 @@ use crate::{
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     gpu_types::GpuView,
     load::SceneGpu,
-    method::{Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
     shaders::{self, Shader},
 };
 
@@ -1084,7 +1084,7 @@ pub const METHOD: MethodEntry = MethodEntry {
             name: "levels",
             help: "gathered levels of the G-buffer pyramid, each twice as coarse (§4)",
             kind: OptionKind::Count {
-                default: 4,
+                default: 5,
                 min: 1,
                 max: MAX_LEVELS,
             },
@@ -1102,7 +1102,7 @@ pub const METHOD: MethodEntry = MethodEntry {
             name: "radius",
             help: "outer radius of the sampled ring, in pixels of each level (§4: 40 at 1280x720)",
             kind: OptionKind::Number {
-                default: 24.0,
+                default: 32.0,
                 min: 1.0,
             },
         },
@@ -1213,7 +1213,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     ],
     backend: Backend::Gpu(SsilMethod::build),
     checks: Checks {
-        energy: Some(0.5),
+        energy: Energy::OnScreenOnly,
         golden_flip: 0.01,
     },
 };

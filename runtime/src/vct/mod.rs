@@ -47,7 +47,7 @@ use crate::{
         voxelize::{self, VoxelFragment, VoxelGrid, Voxelizer},
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
-    method::{Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
 };
 
 use octree::OctreeBuild;
@@ -252,7 +252,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     // fills only part of each coarse voxel's columns, so a cone sampling coarse voxels at the
     // wall sees it partly transparent and light leaves the sphere (`reports/runtime.md`).
     checks: Checks {
-        energy: Some(0.3),
+        energy: Energy::Within(0.3),
         golden_flip: 0.005,
     },
 };
