@@ -13,10 +13,12 @@ prepare)
     cargo bench --bench frame_time --no-run 2>&1 | tail -1
     cargo bench --bench rsm_time --no-run 2>&1 | tail -1
     cargo bench --bench vct_time --no-run 2>&1 | tail -1
+    cargo bench --bench ssil_time --no-run 2>&1 | tail -1
     bench=$(ls -t target/release/deps/gpu_queries-* | grep -v '\.d$' | head -1)
     frame_bench=$(ls -t target/release/deps/frame_time-* | grep -v '\.d$' | head -1)
     rsm_bench=$(ls -t target/release/deps/rsm_time-* | grep -v '\.d$' | head -1)
     vct_bench=$(ls -t target/release/deps/vct_time-* | grep -v '\.d$' | head -1)
+    ssil_bench=$(ls -t target/release/deps/ssil_time-* | grep -v '\.d$' | head -1)
     (cd ../shared/tools/gpu-limit && cargo build --release)
     mkdir -p .carry/scenes
     cp target/release/cssm "$bench" ../shared/tools/gpu-limit/target/release/gpu-limit .carry/
@@ -24,6 +26,7 @@ prepare)
     cp "$frame_bench" .carry/frame_time
     cp "$rsm_bench" .carry/rsm_time
     cp "$vct_bench" .carry/vct_time
+    cp "$ssil_bench" .carry/ssil_time
     mkdir -p .carry/scenes/sibenik-view && cp reports/scenes/sibenik/scene.toml .carry/scenes/sibenik-view/
     sed -i 's|mesh = .*|mesh = "../sibenik/sibenik.obj"|' .carry/scenes/sibenik-view/scene.toml
     cp -r ../shared/scenes/sibenik .carry/scenes/ 2>/dev/null || echo "no sibenik: its rows will be skipped"
@@ -69,6 +72,14 @@ measure)
         .carry/vct_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
             --resolutions 128,256,512 --out "$out/runtime-vct-sibenik.md" \
             | tee "$out/runtime-vct-sibenik.txt"
+    fi
+    # SSIL at Fig. 9's settings with and without visibility (issue 19; targets at 1280x720:
+    # 0.5 ms without, 1.5 ms with visibility), GPU ms per pass.
+    .carry/ssil_time --size 1280x720 --frames 20 --out "$out/runtime-ssil-cornell.md" \
+        | tee "$out/runtime-ssil-cornell.txt"
+    if [ -d .carry/scenes/sibenik ]; then
+        .carry/ssil_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
+            --out "$out/runtime-ssil-sibenik.md" | tee "$out/runtime-ssil-sibenik.txt"
     fi
     # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
     # lightmap, 1 and 2 bounces, 640x480.

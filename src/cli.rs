@@ -532,6 +532,7 @@ fn render_after_help() -> String {
          cssm render --method reference --bounces 3 --samples 1024 --exr truth.exr\n  \
          cssm render --method rsm --component indirect --set visibility=none --out rsm-no-visibility.png\n  \
          cssm render scenes/cornell-glossy --method vct --set resolution=64 --out vct.png\n  \
+         cssm render --method ssil --frames 16 --set visibility=none --out ssil.png\n  \
          cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings",
         runtime::method::describe_methods()
     )
@@ -582,7 +583,8 @@ pub struct RenderArgs {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     set: Vec<String>,
     /// Frames to render and average, 1 to 4096 (lightcuts: every frame jitters its senders
-    /// over their nodes' surfaces, §4.5, so the average converges for glossy scenes).
+    /// over their nodes' surfaces, §4.5, so the average converges for glossy scenes; ssil:
+    /// every frame draws new samples and its temporal filter blends them into the history).
     #[arg(long, default_value_t = 1)]
     frames: u32,
     /// Which light the image holds: direct, indirect or full.

@@ -22,7 +22,9 @@
 //!    `lightmap::AtlasLookup` (`hrc`: nearest texel, `lightmap`: bicubic) or
 //!    `lightcuts::FinalGather` (`lightcuts`: the last, glossy bounce per pixel, §4.4), or
 //!    `rsm`'s sampling at a reduced resolution, the shared `common::filters` (edge-aware blur,
-//!    joint bilateral up-sampling) and its resolve, or `vct`'s cones through the octree
+//!    joint bilateral up-sampling) and its resolve, or `vct`'s cones through the octree, or
+//!    `ssil`'s sent light, G-buffer pyramid, frustum voxels, gathers per level and bounce, the
+//!    shared filters, temporal filter and resolve
 //! 6. `common::compose` — direct + indirect, or either alone (`--component`)
 //! 7. `common::tonemap` — exposure, ACES, sRGB, into the caller's target
 //!

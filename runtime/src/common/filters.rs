@@ -402,6 +402,10 @@ impl EdgeAwareFilter {
     }
 }
 
+/// A low-res guide on the CPU: per low-res pixel, row-major, position (w 1 where covered) and
+/// normal.
+pub type LowRows = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+
 /// The G-buffer on the CPU, the guide of the CPU twins: full-res rows of the position
 /// (xyz, w 1 where covered) and normal (xyz) targets, and the eye.
 #[derive(Clone, Debug)]
@@ -419,7 +423,7 @@ pub struct CpuGuide {
     /// The low-res guide when the filter reads it from buffers ([`LowGuide::Buffers`]): per
     /// low-res pixel, row-major, position (w 1 where covered) and normal; `None` for the
     /// G-buffer at each low-res pixel's [`representative`].
-    pub low: Option<(Vec<[f32; 4]>, Vec<[f32; 4]>)>,
+    pub low: Option<LowRows>,
 }
 
 /// `filters.wgsl`: `Guide`.

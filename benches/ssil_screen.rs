@@ -1,0 +1,209 @@
+//! What screen space cannot see: the one-bounce indirect light the pixels on screen send each
+//! other with exact visibility (every pair of covered pixels, Eq. 1 over the G-buffer, a ray
+//! cast per pair), against the path tracer's one bounce, which gathers from every surface, and
+//! `ssil`'s own one bounce with and without its voxel visibility.
+//!
+//! ```text
+//! cargo bench --bench ssil_screen -- [--scene DIR]... [--size 80x60] [--samples 1024]
+//!     [--frames 16] [--out FILE.md]
+//! ```
+//!
+//! Per scene, sums of luminance over the covered pixels: the screen's bound with exact
+//! visibility and without any, the path tracer (`--samples` paths, one bounce), `ssil` (one
+//! bounce, `--frames` frames, the camera at rest). The screen's bound over the path tracer is
+//! the share of the light that comes from surfaces on screen; `ssil` over the bound, what the
+//! method's levels, samples and voxels make of it. Only diffuse reflection is summed (the
+//! scenes' Ks is ignored): measure diffuse scenes.
+
+use std::path::PathBuf;
+
+use cssm::{formats, raycast, runtime};
+use glam::{Mat4, Vec3, Vec4};
+use rayon::prelude::*;
+use runtime::{
+    Gpu, Renderer, RendererSettings,
+    common::{
+        camera::View,
+        compose::Component,
+        readback::{read_buffer, read_texture, render_image},
+        timestamps::PassTimer,
+    },
+    frame::{FrameEncoder, FrameSettings},
+    method::{self, OptionValue, OptionValues},
+    ssil::{ScreenSpaceGi, SsilOptions, vec4s},
+};
+
+// Not every shared helper is needed here.
+#[allow(dead_code)]
+#[path = "common/mod.rs"]
+mod common;
+
+use common::{arg, write_report};
+
+fn luminance(v: Vec3) -> f64 {
+    f64::from(0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let (width, height) = common::size(&args, (80, 60));
+    let samples: u32 = arg(&args, "--samples")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1024);
+    let frames: u32 = arg(&args, "--frames")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(16);
+    let mut dirs: Vec<PathBuf> = args
+        .windows(2)
+        .filter(|w| w[0] == "--scene")
+        .map(|w| PathBuf::from(&w[1]))
+        .collect();
+    if dirs.is_empty() {
+        dirs.push(cssm::builtin::cornell_box().expect("built-in scene"));
+    }
+    let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
+    let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
+    let mut report = format!(
+        "One bounce of diffuse indirect light at {width}x{height}: sums of luminance over the \
+         covered pixels; the path tracer {samples} paths per pixel, `ssil` after {frames} \
+         frames (defaults, one bounce), GPU passes on {}.\n\n\
+         | scene | on-screen senders, exact visibility / path tracer | on-screen senders, no \
+         visibility / path tracer | ssil / path tracer | ssil / on-screen, exact | \
+         ssil:visibility=none / on-screen, none |\n| --- | ---: | ---: | ---: | ---: | ---: |\n",
+        gpu.describe()
+    );
+    for dir in &dirs {
+        let scene = formats::Scene::load(dir).unwrap_or_else(|e| panic!("{e}"));
+        let settings = RendererSettings {
+            frame: FrameSettings {
+                width,
+                height,
+                ..Default::default()
+            },
+            component: Component::Indirect,
+            ..Default::default()
+        };
+        let ssil = |visibility: &'static str| {
+            let mut values = OptionValues::default();
+            values.set("bounces", OptionValue::Count(1));
+            values.set("visibility", OptionValue::Choice(visibility));
+            let entry = method::find("ssil").expect("ssil");
+            let mut renderer = Renderer::new(
+                &gpu.device,
+                &gpu.queue,
+                &scene,
+                None,
+                entry,
+                &values,
+                &settings,
+            )
+            .expect("renderer");
+            let image = render_image(&mut renderer, frames).expect("render");
+            let sum: f64 = image
+                .radiance
+                .iter()
+                .map(|p| luminance(Vec4::from(*p).truncate()))
+                .sum();
+            (renderer, sum)
+        };
+        let (renderer, ssil_sum) = ssil("voxels");
+        let (_, ssil_none) = ssil("none");
+        // The G-buffer and the light each pixel sends, from the renderer's context.
+        let ctx = renderer.context();
+        let options = SsilOptions::default();
+        let mut gi = ScreenSpaceGi::new(ctx, scene.bounds(), &options).expect("ssil");
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+        gi.encode(
+            ctx,
+            &mut FrameEncoder {
+                encoder: &mut encoder,
+                timer: &mut timer,
+                index: 0,
+            },
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let texture = |t| vec4s(&read_texture(&ctx.device, &ctx.queue, t, 16).expect("read"));
+        let position = texture(&ctx.gbuffer.position);
+        let normal = texture(&ctx.gbuffer.normal);
+        let albedo = texture(&ctx.gbuffer.albedo);
+        let sender = gi.sender();
+        let sender =
+            vec4s(&read_buffer(&ctx.device, &ctx.queue, sender, 0, sender.size()).expect("read"));
+        let view = ctx.gpu_view();
+        let view_proj = Mat4::from_cols_array_2d(&view.view_proj);
+        let eye: Vec3 = view.eye.into();
+        let pixel_area = runtime::ssil::pixel_area(&view_proj, (width, height));
+        let bvh = raycast::SceneBvh::new(&scene);
+        let extent = (scene.bounds().1 - scene.bounds().0).length();
+        let covered: Vec<usize> = (0..position.len())
+            .filter(|&i| position[i].w > 0.0)
+            .collect();
+        let (exact, open): (f64, f64) = covered
+            .par_iter()
+            .map(|&i| {
+                let (x, n) = (position[i].truncate(), normal[i].truncate());
+                let (mut seen, mut all) = (Vec3::ZERO, Vec3::ZERO);
+                for &j in &covered {
+                    let (s, ns) = (position[j].truncate(), normal[j].truncate());
+                    let d = s - x;
+                    let r2 = d.dot(d);
+                    if r2 <= 1e-12 {
+                        continue;
+                    }
+                    let w = d / r2.sqrt();
+                    let (cos_r, cos_s) = (n.dot(w), -ns.dot(w));
+                    if cos_r <= 0.0 || cos_s <= 0.0 {
+                        continue;
+                    }
+                    let z = (view_proj * s.extend(1.0)).w;
+                    let to_eye = eye - s;
+                    let cos_beta = (ns.dot(to_eye) / to_eye.length()).max(0.01);
+                    let ds = pixel_area * z * z * (z / to_eye.length()) / cos_beta;
+                    let f = cos_r * cos_s * ds / (r2 + cos_s * ds / std::f32::consts::PI);
+                    let e = sender[j].truncate() * f;
+                    all += e;
+                    let offset = 1e-4 * extent;
+                    if bvh.segment_clear(x + offset * n, s + offset * ns) {
+                        seen += e;
+                    }
+                }
+                let rho = albedo[i].truncate() / std::f32::consts::PI;
+                (luminance(rho * seen), luminance(rho * all))
+            })
+            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        // The path tracer's one bounce.
+        let reference = method::find("reference").expect("reference");
+        let mut values = OptionValues::default();
+        values.set("samples", OptionValue::Count(samples));
+        values.set("bounces", OptionValue::Count(1));
+        let resolved = reference.resolve(&values).expect("options");
+        let runtime::method::Backend::Cpu(run) = reference.backend else {
+            panic!("the reference runs on the CPU")
+        };
+        let traced = run(&runtime::method::CpuSetup {
+            scene: &scene,
+            view: &View::of_scene(&scene, width, height),
+            component: Component::Indirect,
+            options: &resolved,
+            progress: &|_, _| {},
+        })
+        .expect("path tracer");
+        let traced: f64 = traced
+            .iter()
+            .map(|p| luminance(Vec4::from(*p).truncate()))
+            .sum();
+        let row = format!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
+            scene.name,
+            exact / traced,
+            open / traced,
+            ssil_sum / traced,
+            ssil_sum / exact,
+            ssil_none / open
+        );
+        print!("{row}");
+        report += &row;
+    }
+    write_report(out.as_deref(), &report);
+}
