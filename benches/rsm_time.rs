@@ -13,48 +13,26 @@
 //! lavapipe only the ratio with/without visibility means something; absolute GPU times count
 //! only from a real GPU (`reports/runtime.sh`).
 
-use std::path::PathBuf;
-
-use cssm::{formats, runtime};
-use runtime::{
-    Gpu, Renderer, RendererSettings,
-    frame::FrameSettings,
-    method::{self, OptionValue, OptionValues},
-};
+use cssm::runtime;
+use runtime::method::{OptionValue, OptionValues};
 
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, passes_cell, timed_frames, write_report};
+use common::{Bench, passes_cell, timed_frames, write_report};
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let (width, height) = common::size(&args, (1280, 720));
-    let frames: usize = arg(&args, "--frames")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(5);
-    let shadow_resolution: u32 = arg(&args, "--shadow-resolution")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(runtime::common::shadow_map::DEFAULT_RESOLUTION);
-    let dir = arg(&args, "--scene")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
-    let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
-
-    let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
-    let scene = formats::Scene::load(&dir).unwrap_or_else(|e| panic!("{e}"));
-    let settings = RendererSettings {
-        frame: FrameSettings {
-            width,
-            height,
-            shadow_resolution,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);
-    let view = target.create_view(&Default::default());
-    let entry = method::find("rsm").expect("rsm");
+    let bench = Bench::new((1280, 720));
+    let Bench {
+        width,
+        height,
+        frames,
+        shadow_resolution,
+        ref gpu,
+        ref scene,
+        ref view,
+        ..
+    } = bench;
     let mut report = format!(
         "`rsm` on {} ({} triangles), {width}x{height}, RSM {shadow_resolution}², default \
          options, on {}; median of {frames} frames after the first.\n\n\
@@ -69,18 +47,9 @@ fn main() {
         for moving in [false, true] {
             let mut values = OptionValues::default();
             values.set("visibility", OptionValue::Choice(visibility));
-            let mut renderer = Renderer::new(
-                &gpu.device,
-                &gpu.queue,
-                &scene,
-                None,
-                entry,
-                &values,
-                &settings,
-            )
-            .expect("renderer");
+            let mut renderer = bench.renderer("rsm", &values);
             let light = scene.lights.first().filter(|_| moving);
-            let (ms, passes) = timed_frames(&gpu, &mut renderer, &view, frames, light);
+            let (ms, passes) = timed_frames(gpu, &mut renderer, view, frames, light);
             medians.push(ms);
             let row = format!(
                 "| {visibility} | {} | {ms:.1} | {} |\n",
@@ -98,5 +67,5 @@ fn main() {
     );
     print!("{ratio}");
     report += &ratio;
-    write_report(out.as_deref(), &report);
+    write_report(bench.out.as_deref(), &report);
 }

@@ -33,12 +33,10 @@ use runtime::{
     ssil::{ScreenSpaceGi, SsilOptions, vec4s},
 };
 
-// Not every shared helper is needed here.
-#[allow(dead_code)]
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, write_report};
+use common::{arg, parsed, write_report};
 
 fn luminance(v: Vec3) -> f64 {
     f64::from(0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z)
@@ -47,12 +45,8 @@ fn luminance(v: Vec3) -> f64 {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let (width, height) = common::size(&args, (80, 60));
-    let samples: u32 = arg(&args, "--samples")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1024);
-    let frames: u32 = arg(&args, "--frames")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(16);
+    let samples: u32 = parsed(&args, "--samples", 1024);
+    let frames: u32 = parsed(&args, "--frames", 16);
     let mut dirs: Vec<PathBuf> = args
         .windows(2)
         .filter(|w| w[0] == "--scene")
@@ -139,35 +133,24 @@ fn main() {
         let covered: Vec<usize> = (0..position.len())
             .filter(|&i| position[i].w > 0.0)
             .collect();
+        let senders = runtime::ssil::cpu::ScreenSenders {
+            position: &position,
+            normal: &normal,
+            light: &sender,
+            view_proj,
+            eye,
+            pixel_area,
+            scale: 1.0,
+        };
+        let offset = 1e-4 * extent;
+        let clear = |x: Vec3, n: Vec3, s: Vec3, ns: Vec3| {
+            bvh.segment_clear(x + offset * n, s + offset * ns)
+        };
         let (exact, open): (f64, f64) = covered
             .par_iter()
             .map(|&i| {
                 let (x, n) = (position[i].truncate(), normal[i].truncate());
-                let (mut seen, mut all) = (Vec3::ZERO, Vec3::ZERO);
-                for &j in &covered {
-                    let (s, ns) = (position[j].truncate(), normal[j].truncate());
-                    let d = s - x;
-                    let r2 = d.dot(d);
-                    if r2 <= 1e-12 {
-                        continue;
-                    }
-                    let w = d / r2.sqrt();
-                    let (cos_r, cos_s) = (n.dot(w), -ns.dot(w));
-                    if cos_r <= 0.0 || cos_s <= 0.0 {
-                        continue;
-                    }
-                    let z = (view_proj * s.extend(1.0)).w;
-                    let to_eye = eye - s;
-                    let cos_beta = (ns.dot(to_eye) / to_eye.length()).max(0.01);
-                    let ds = pixel_area * z * z * (z / to_eye.length()) / cos_beta;
-                    let f = cos_r * cos_s * ds / (r2 + cos_s * ds / std::f32::consts::PI);
-                    let e = sender[j].truncate() * f;
-                    all += e;
-                    let offset = 1e-4 * extent;
-                    if bvh.segment_clear(x + offset * n, s + offset * ns) {
-                        seen += e;
-                    }
-                }
+                let (all, seen) = senders.irradiance(x, n, None, &clear);
                 let rho = albedo[i].truncate() / std::f32::consts::PI;
                 (luminance(rho * seen), luminance(rho * all))
             })

@@ -13,47 +13,26 @@
 //! the ratios to `direct` and between rows mean something; absolute GPU times count only from
 //! a real GPU (`reports/runtime.sh`).
 
-use std::path::PathBuf;
-
-use cssm::{formats, runtime};
-use runtime::{
-    Gpu, Renderer, RendererSettings,
-    frame::FrameSettings,
-    method::{self, OptionValue, OptionValues},
-};
+use cssm::runtime;
+use runtime::method::{OptionValue, OptionValues};
 
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, passes_cell, timed_frames, write_report};
+use common::{Bench, passes_cell, timed_frames, write_report};
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let (width, height) = common::size(&args, (1280, 720));
-    let frames: usize = arg(&args, "--frames")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(5);
-    let shadow_resolution: u32 = arg(&args, "--shadow-resolution")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(runtime::common::shadow_map::DEFAULT_RESOLUTION);
-    let dir = arg(&args, "--scene")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
-    let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
-
-    let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
-    let scene = formats::Scene::load(&dir).unwrap_or_else(|e| panic!("{e}"));
-    let settings = RendererSettings {
-        frame: FrameSettings {
-            width,
-            height,
-            shadow_resolution,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);
-    let view = target.create_view(&Default::default());
+    let bench = Bench::new((1280, 720));
+    let Bench {
+        width,
+        height,
+        frames,
+        shadow_resolution,
+        ref gpu,
+        ref scene,
+        ref view,
+        ..
+    } = bench;
     let mut report = format!(
         "`ssil` on {} ({} triangles), {width}x{height}, shadow maps {shadow_resolution}², on \
          {}; median of {frames} frames after the first, the camera and light at rest.\n\n\
@@ -64,18 +43,8 @@ fn main() {
         gpu.describe()
     );
     let run = |name: &str, values: &OptionValues| {
-        let entry = method::find(name).expect("method");
-        let mut renderer = Renderer::new(
-            &gpu.device,
-            &gpu.queue,
-            &scene,
-            None,
-            entry,
-            values,
-            &settings,
-        )
-        .expect("renderer");
-        timed_frames(&gpu, &mut renderer, &view, frames, None)
+        let mut renderer = bench.renderer(name, values);
+        timed_frames(gpu, &mut renderer, view, frames, None)
     };
     let (direct_ms, direct_passes) = run("direct", &OptionValues::default());
     let row = format!(
@@ -117,5 +86,5 @@ fn main() {
         print!("{row}");
         report += &row;
     }
-    write_report(out.as_deref(), &report);
+    write_report(bench.out.as_deref(), &report);
 }

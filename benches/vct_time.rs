@@ -14,70 +14,39 @@
 //! GPU milliseconds per pass of the last frame. On lavapipe only the ratios mean something;
 //! absolute GPU times count only from a real GPU (`reports/runtime.sh`).
 
-use std::path::PathBuf;
-
-use cssm::{formats, runtime};
+use cssm::runtime;
 use runtime::{
-    Gpu, Renderer, RendererSettings,
-    frame::FrameSettings,
-    method::{self, OptionValue, OptionValues},
+    method::{OptionValue, OptionValues},
     vct::SparseVoxels,
 };
 
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, passes_cell, timed_frames, write_report};
+use common::{Bench, arg, passes_cell, timed_frames, write_report};
 
 fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let (width, height) = common::size(&args, (1280, 720));
-    let frames: usize = arg(&args, "--frames")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(5);
-    let shadow_resolution: u32 = arg(&args, "--shadow-resolution")
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(runtime::common::shadow_map::DEFAULT_RESOLUTION);
-    let resolutions: Vec<u32> = arg(&args, "--resolutions")
+    let bench = Bench::new((1280, 720));
+    let resolutions: Vec<u32> = arg(&bench.args, "--resolutions")
         .unwrap_or_else(|| "64,128,256".into())
         .split(',')
         .map(|r| r.parse().expect("--resolutions N,N,..."))
         .collect();
-    let dir = arg(&args, "--scene")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
-    let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
-
-    let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
-    let scene = formats::Scene::load(&dir).unwrap_or_else(|e| panic!("{e}"));
-    let settings = RendererSettings {
-        frame: FrameSettings {
-            width,
-            height,
-            shadow_resolution,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);
-    let view = target.create_view(&Default::default());
-    let renderer = |name: &str, values: &OptionValues| {
-        let entry = method::find(name).expect("method");
-        Renderer::new(
-            &gpu.device,
-            &gpu.queue,
-            &scene,
-            None,
-            entry,
-            values,
-            &settings,
-        )
-        .expect("renderer")
-    };
+    let Bench {
+        width,
+        height,
+        frames,
+        shadow_resolution,
+        ref gpu,
+        ref scene,
+        ref view,
+        ..
+    } = bench;
+    let renderer = |name: &str, values: &OptionValues| bench.renderer(name, values);
     let mut report = format!(
         "`vct` on {} ({} triangles), {width}x{height}, RSM {shadow_resolution}², default options \
          but the resolution, on {}; median of {frames} frames after the first.\n\n\
@@ -91,7 +60,7 @@ fn main() {
     let mut baseline = Vec::new();
     for name in ["direct", "rsm"] {
         let mut r = renderer(name, &OptionValues::default());
-        let (ms, passes) = timed_frames(&gpu, &mut r, &view, frames, None);
+        let (ms, passes) = timed_frames(gpu, &mut r, view, frames, None);
         baseline.push(ms);
         let row = format!("| {name} | static | {ms:.1} | {} |\n", passes_cell(&passes));
         print!("{row}");
@@ -106,14 +75,14 @@ fn main() {
         let mut values = OptionValues::default();
         values.set("resolution", OptionValue::Count(resolution));
         let mut r = renderer("vct", &values);
-        let (still, passes) = timed_frames(&gpu, &mut r, &view, frames, None);
+        let (still, passes) = timed_frames(gpu, &mut r, view, frames, None);
         let row = format!(
             "| vct {resolution}³ | static | {still:.1} | {} |\n",
             passes_cell(&passes)
         );
         print!("{row}");
         report += &row;
-        let (moving, passes) = timed_frames(&gpu, &mut r, &view, frames, light);
+        let (moving, passes) = timed_frames(gpu, &mut r, view, frames, light);
         let row = format!(
             "| vct {resolution}³ | moving | {moving:.1} | {} |\n",
             passes_cell(&passes)
@@ -151,5 +120,5 @@ fn main() {
     );
     print!("{tail}");
     report += &tail;
-    write_report(out.as_deref(), &report);
+    write_report(bench.out.as_deref(), &report);
 }

@@ -1,12 +1,20 @@
-//! What the renderer benchmarks share (`frame_time.rs`, `rsm_time.rs`, `vct_time.rs`): their
-//! flags, the median, one frame, a persistent renderer's timed frames and how a table cell lists
+//! What the renderer benchmarks share (`frame_time.rs`, `rsm_time.rs`, `vct_time.rs`,
+//! `ssil_time.rs`, `ssil_screen.rs`): their flags and the device, scene and target they start
+//! from, the median, one frame, a persistent renderer's timed frames and how a table cell lists
 //! its passes, the report written.
 
-use std::{path::Path, time::Instant};
+// Each benchmark includes this module and uses a part of it.
+#![allow(dead_code)]
+
+use std::{
+    path::{Path, PathBuf},
+    str::FromStr,
+    time::Instant,
+};
 
 use cssm::{
-    formats::scene::SpotLight,
-    runtime::{Gpu, Renderer},
+    formats::{Scene, scene::SpotLight},
+    runtime::{self, Gpu, Renderer, RendererSettings, frame::FrameSettings, method::OptionValues},
 };
 
 /// The value after the flag `name`, if given.
@@ -15,6 +23,97 @@ pub fn arg(args: &[String], name: &str) -> Option<String> {
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1))
         .cloned()
+}
+
+/// The value of the flag `name` parsed, or `default` when the flag is absent or does not parse.
+pub fn parsed<T: FromStr>(args: &[String], name: &str, default: T) -> T {
+    arg(args, name)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
+}
+
+/// What a renderer benchmark of one scene starts from: `--size` (or its default), `--frames`
+/// (5), `--shadow-resolution`, `--scene` (the built-in Cornell box), `--out`; the headless
+/// device, the scene, the settings and an offscreen target of the size.
+pub struct Bench {
+    /// The command line.
+    pub args: Vec<String>,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Timed frames after the first.
+    pub frames: usize,
+    /// Shadow-map (and RSM) resolution.
+    pub shadow_resolution: u32,
+    /// Where the report goes.
+    pub out: Option<PathBuf>,
+    /// The device.
+    pub gpu: Gpu,
+    /// The scene.
+    pub scene: Scene,
+    /// The renderers' settings.
+    pub settings: RendererSettings,
+    /// The offscreen target's view.
+    pub view: wgpu::TextureView,
+}
+
+impl Bench {
+    /// Parses the flags, opens the device and loads the scene.
+    pub fn new(default_size: (u32, u32)) -> Self {
+        let args: Vec<String> = std::env::args().collect();
+        let (width, height) = size(&args, default_size);
+        let frames = parsed(&args, "--frames", 5);
+        let shadow_resolution = parsed(
+            &args,
+            "--shadow-resolution",
+            runtime::common::shadow_map::DEFAULT_RESOLUTION,
+        );
+        let dir = arg(&args, "--scene")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
+        let out = arg(&args, "--out").map(PathBuf::from);
+        let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
+        let scene = Scene::load(&dir).unwrap_or_else(|e| panic!("{e}"));
+        let settings = RendererSettings {
+            frame: FrameSettings {
+                width,
+                height,
+                shadow_resolution,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);
+        let view = target.create_view(&Default::default());
+        Self {
+            args,
+            width,
+            height,
+            frames,
+            shadow_resolution,
+            out,
+            gpu,
+            scene,
+            settings,
+            view,
+        }
+    }
+
+    /// A renderer of method `name` with `values` on the scene.
+    pub fn renderer(&self, name: &str, values: &OptionValues) -> Renderer {
+        let entry = runtime::method::find(name).expect("method");
+        Renderer::new(
+            &self.gpu.device,
+            &self.gpu.queue,
+            &self.scene,
+            None,
+            entry,
+            values,
+            &self.settings,
+        )
+        .expect("renderer")
+    }
 }
 
 /// `--size WxH`, or `default`.

@@ -29,6 +29,13 @@ use super::{cornell, gpu};
 /// A renderer of `direct` on `scene` at `size`, one frame rendered: the context (G-buffer,
 /// shadow maps) the tests' own SSIL pipelines run over.
 fn context_renderer(scene: &Scene, size: (u32, u32)) -> Renderer {
+    let mut renderer = renderer_of("direct", scene, size);
+    render_image(&mut renderer, 1).expect("render");
+    renderer
+}
+
+/// A renderer of method `name` on `scene` at `size`, indirect light only.
+fn renderer_of(name: &str, scene: &Scene, size: (u32, u32)) -> Renderer {
     let gpu = gpu();
     let settings = RendererSettings {
         frame: FrameSettings {
@@ -40,37 +47,23 @@ fn context_renderer(scene: &Scene, size: (u32, u32)) -> Renderer {
         component: Component::Indirect,
         ..Default::default()
     };
-    let method = method::find("direct").unwrap();
-    let mut renderer = Renderer::new(
+    Renderer::new(
         &gpu.device,
         &gpu.queue,
         scene,
         None,
-        method,
+        method::find(name).unwrap(),
         &OptionValues::default(),
         &settings,
     )
-    .expect("renderer");
-    render_image(&mut renderer, 1).expect("render");
-    renderer
+    .expect("renderer")
 }
 
 /// `frames` frames of an SSIL pipeline of `options` over the renderer's context.
 fn run(ctx: &FrameContext, scene: &Scene, options: &SsilOptions, frames: u32) -> ScreenSpaceGi {
-    let gpu = gpu();
     let mut gi = ScreenSpaceGi::new(ctx, scene.bounds(), options).expect("ssil");
     for _ in 0..frames {
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-        gi.encode(
-            ctx,
-            &mut FrameEncoder {
-                encoder: &mut encoder,
-                timer: &mut timer,
-                index: 0,
-            },
-        );
-        gpu.queue.submit([encoder.finish()]);
+        encode(&mut gi, ctx);
     }
     gi
 }
@@ -317,24 +310,13 @@ fn the_levels_gather_the_whole_screen() {
         radius: 8.0,
         ..test_options()
     };
-    let gpu = gpu();
     let mut gi = ScreenSpaceGi::new(ctx, scene.bounds(), &options).expect("ssil");
     let levels = gi.levels();
     let (lw, lh) = levels.pyramid.size(levels.start);
     let mut summed = vec![Vec3::ZERO; (lw * lh) as usize];
     let frames = 24;
     for _ in 0..frames {
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-        gi.encode(
-            ctx,
-            &mut FrameEncoder {
-                encoder: &mut encoder,
-                timer: &mut timer,
-                index: 0,
-            },
-        );
-        gpu.queue.submit([encoder.finish()]);
+        encode(&mut gi, ctx);
         for (s, v) in summed.iter_mut().zip(read4(ctx, gi.summed())) {
             *s += v.truncate() / frames as f32;
         }
@@ -343,46 +325,32 @@ fn the_levels_gather_the_whole_screen() {
     let view_proj = Mat4::from_cols_array_2d(&view.view_proj);
     let eye: Vec3 = view.eye.into();
     let pixel_area = gi.frame_params(ctx).pixel_area;
-    // Eq. 3 with Eq. 4 from every covered pixel of (positions, normals, light), `scale`
-    // full-res pixels each, at the receiver (x, n), skipping pixel `skip`.
-    let sum = |x: Vec3, n: Vec3, senders: (&[Vec4], &[Vec4], &[Vec4]), scale: f32, skip: usize| {
-        let mut e = Vec3::ZERO;
-        for (j, s4) in senders.0.iter().enumerate() {
-            if s4.w <= 0.0 || j == skip {
-                continue;
-            }
-            let (s, ns) = (s4.truncate(), senders.1[j].truncate());
-            let d = s - x;
-            let r2 = d.dot(d);
-            if r2 <= 1e-12 {
-                continue;
-            }
-            let w = d / r2.sqrt();
-            let (cos_r, cos_s) = (n.dot(w), -ns.dot(w));
-            if cos_r <= 0.0 || cos_s <= 0.0 {
-                continue;
-            }
-            let z = (view_proj * s.extend(1.0)).w;
-            let to_eye = eye - s;
-            let cos_beta = (ns.dot(to_eye) / to_eye.length()).max(0.01);
-            let ds = scale * pixel_area * z * z * (z / to_eye.length()) / cos_beta;
-            let f = cos_r * cos_s * ds / (r2 + cos_s * ds / std::f32::consts::PI);
-            e += senders.2[j].truncate() * f;
-        }
-        f64::from(e.element_sum())
-    };
-    let full = (
-        texture4(ctx, &ctx.gbuffer.position),
-        texture4(ctx, &ctx.gbuffer.normal),
-        read4(ctx, gi.sender()),
-    );
+    let full = [&ctx.gbuffer.position, &ctx.gbuffer.normal].map(|t| texture4(ctx, t));
+    let sender = read4(ctx, gi.sender());
     let level = [
         &gi.pyramid().position,
         &gi.pyramid().normal,
         &gi.light().signal,
     ]
     .map(|b| level_of(&read4(ctx, b), &gi, levels.start));
-    let scale = (1u32 << (2 * levels.start)) as f32;
+    let senders = |position, normal, light, scale| cpu::ScreenSenders {
+        position,
+        normal,
+        light,
+        view_proj,
+        eye,
+        pixel_area,
+        scale,
+    };
+    let over_level_pixels = senders(
+        &level[0],
+        &level[1],
+        &level[2],
+        (1u32 << (2 * levels.start)) as f32,
+    );
+    let over_full_pixels = senders(&full[0], &full[1], &sender, 1.0);
+    let always = |_: Vec3, _: Vec3, _: Vec3, _: Vec3| true;
+    let sum = |(all, _): (Vec3, Vec3)| f64::from(all.element_sum());
     let (mut ssil, mut over_level, mut over_full) = (0.0f64, 0.0f64, 0.0f64);
     for (i, x4) in level[0].iter().enumerate() {
         if x4.w <= 0.0 {
@@ -390,8 +358,8 @@ fn the_levels_gather_the_whole_screen() {
         }
         let (x, n) = (x4.truncate(), level[1][i].truncate());
         ssil += f64::from(summed[i].element_sum());
-        over_level += sum(x, n, (&level[0], &level[1], &level[2]), scale, i);
-        over_full += sum(x, n, (&full.0, &full.1, &full.2), 1.0, usize::MAX);
+        over_level += sum(over_level_pixels.irradiance(x, n, Some(i), &always));
+        over_full += sum(over_full_pixels.irradiance(x, n, None, &always));
     }
     let ratio = ssil / over_level;
     eprintln!(
@@ -498,29 +466,8 @@ fn temporal_filter_matches_cpu_twin() {
 /// and history) and the next frames gather light again.
 #[test]
 fn the_renderer_resizes_ssil() {
-    let gpu = gpu();
     let (scene, _) = cornell();
-    let settings = RendererSettings {
-        frame: FrameSettings {
-            width: 48,
-            height: 36,
-            shadow_resolution: 512,
-            ..Default::default()
-        },
-        component: Component::Indirect,
-        ..Default::default()
-    };
-    let method = method::find("ssil").unwrap();
-    let mut renderer = Renderer::new(
-        &gpu.device,
-        &gpu.queue,
-        scene,
-        None,
-        method,
-        &OptionValues::default(),
-        &settings,
-    )
-    .expect("ssil renderer");
+    let mut renderer = renderer_of("ssil", scene, (48, 36));
     let lit = |image: &cssm_runtime::common::readback::Image| {
         image
             .radiance

@@ -222,21 +222,38 @@ pub fn compute_pipeline_entry(
     })
 }
 
-/// An `Rgba32Float` texture of `size` that a compute pass writes (storage), later passes read
-/// (`textureLoad`) and read-back copies: the per-pixel radiance of the passes.
-pub fn radiance_texture(device: &wgpu::Device, label: &str, size: wgpu::Extent3d) -> wgpu::Texture {
+/// A 2D texture of `width` x `height`, one mip level, one sample.
+pub fn texture_2d(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
-        size,
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::STORAGE_BINDING
-            | wgpu::TextureUsages::TEXTURE_BINDING
-            | wgpu::TextureUsages::COPY_SRC,
+        format,
+        usage,
         view_formats: &[],
     })
+}
+
+/// An `Rgba32Float` texture of `size` that a compute pass writes (storage), later passes read
+/// (`textureLoad`) and read-back copies: the per-pixel radiance of the passes.
+pub fn radiance_texture(device: &wgpu::Device, label: &str, size: wgpu::Extent3d) -> wgpu::Texture {
+    let usage = wgpu::TextureUsages::STORAGE_BINDING
+        | wgpu::TextureUsages::TEXTURE_BINDING
+        | wgpu::TextureUsages::COPY_SRC;
+    let format = wgpu::TextureFormat::Rgba32Float;
+    texture_2d(device, label, (size.width, size.height), format, usage)
 }
 
 /// A colour attachment of `view` cleared to transparent black and stored: the raster passes'

@@ -260,6 +260,66 @@ pub fn gather_pixel(inputs: &GatherInputs, params: &GatherParams, (px, py): (u32
     [diffuse + up[0].truncate(), glossy + up[1].truncate()]
 }
 
+/// Pixels of a G-buffer as senders of Eq. 3 with Eq. 4, each its own disc: the sum the gather
+/// estimates at its finest level (`scale` 4^level, the level's pixels), or over the full-res
+/// G-buffer (`scale` 1), the bound of any screen-space method.
+pub struct ScreenSenders<'a> {
+    /// Positions, w 1 where covered.
+    pub position: &'a [Vec4],
+    /// Normals towards the eye.
+    pub normal: &'a [Vec4],
+    /// The light each sends (rgb).
+    pub light: &'a [Vec4],
+    /// World to clip space.
+    pub view_proj: Mat4,
+    /// The eye.
+    pub eye: Vec3,
+    /// [`super::pixel_area`] of the full-res image.
+    pub pixel_area: f32,
+    /// Full-res pixels per sender pixel.
+    pub scale: f32,
+}
+
+impl ScreenSenders<'_> {
+    /// The irradiance at `x` (normal `n`) from every covered sender but `skip`: from all, and
+    /// from those `visible(x, n, s, ns)` says are visible.
+    pub fn irradiance(
+        &self,
+        x: Vec3,
+        n: Vec3,
+        skip: Option<usize>,
+        visible: &dyn Fn(Vec3, Vec3, Vec3, Vec3) -> bool,
+    ) -> (Vec3, Vec3) {
+        let (mut all, mut seen) = (Vec3::ZERO, Vec3::ZERO);
+        for (j, s4) in self.position.iter().enumerate() {
+            if s4.w <= 0.0 || Some(j) == skip {
+                continue;
+            }
+            let (s, ns) = (s4.truncate(), self.normal[j].truncate());
+            let d = s - x;
+            let r2 = d.dot(d);
+            if r2 <= 1e-12 {
+                continue;
+            }
+            let w = d / r2.sqrt();
+            let (cos_r, cos_s) = (n.dot(w), -ns.dot(w));
+            if cos_r <= 0.0 || cos_s <= 0.0 {
+                continue;
+            }
+            let z = (self.view_proj * s.extend(1.0)).w;
+            let to_eye = self.eye - s;
+            let cos_beta = (ns.dot(to_eye) / to_eye.length()).max(0.01);
+            let ds = self.scale * self.pixel_area * z * z * (z / to_eye.length()) / cos_beta;
+            let e = self.light[j].truncate() * (cos_r * cos_s * ds / (r2 + cos_s * ds / PI));
+            all += e;
+            if visible(x, n, s, ns) {
+                seen += e;
+            }
+        }
+        (all, seen)
+    }
+}
+
 /// `voxels.wgsl`: `slice_of`.
 fn slice_of(z: f32, (z_near, z_far): (f32, f32)) -> u32 {
     let t = (z - z_near) / (z_far - z_near);

@@ -401,21 +401,9 @@ fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffe
     })
 }
 
-fn history_texture(device: &wgpu::Device, label: &str, (w, h): (u32, u32)) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: crate::common::gbuffer::TARGET_FORMAT,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    })
+fn history_texture(device: &wgpu::Device, label: &str, size: (u32, u32)) -> wgpu::Texture {
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+    layout::texture_2d(device, label, size, crate::common::gbuffer::TARGET_FORMAT, usage)
 }
 
 /// The pipelines and layouts, created once.
@@ -712,21 +700,13 @@ impl ScreenSpaceGi {
         let pixels = u64::from(levels.pyramid.pixels());
         let acc = storage_buffer(device, "ssil gathered", 32 * pixels);
         let grid = storage_buffer(device, "ssil voxels", 16 * u64::from(levels.columns()));
-        let (cw, ch) = levels.pyramid.size(levels.start);
-        let grid_target = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("ssil voxels target"),
-            size: wgpu::Extent3d {
-                width: cw,
-                height: ch,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: VOXEL_TARGET,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        });
+        let grid_target = layout::texture_2d(
+            device,
+            "ssil voxels target",
+            levels.pyramid.size(levels.start),
+            VOXEL_TARGET,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
         let (w, h) = ctx.size();
         let planes = 32 * u64::from(w) * u64::from(h);
         let blended = storage_buffer(device, "ssil blended", planes);
