@@ -29,13 +29,13 @@ use super::{cornell, gpu};
 /// A renderer of `direct` on `scene` at `size`, one frame rendered: the context (G-buffer,
 /// shadow maps) the tests' own SSIL pipelines run over.
 fn context_renderer(scene: &Scene, size: (u32, u32)) -> Renderer {
-    let mut renderer = renderer_of("direct", scene, size);
+    let mut renderer = renderer_of("direct", scene, size, Component::Indirect);
     render_image(&mut renderer, 1).expect("render");
     renderer
 }
 
-/// A renderer of method `name` on `scene` at `size`, indirect light only.
-fn renderer_of(name: &str, scene: &Scene, size: (u32, u32)) -> Renderer {
+/// A renderer of method `name` on `scene` at `size` drawing `component`.
+fn renderer_of(name: &str, scene: &Scene, size: (u32, u32), component: Component) -> Renderer {
     let gpu = gpu();
     let settings = RendererSettings {
         frame: FrameSettings {
@@ -44,7 +44,7 @@ fn renderer_of(name: &str, scene: &Scene, size: (u32, u32)) -> Renderer {
             shadow_resolution: 512,
             ..Default::default()
         },
-        component: Component::Indirect,
+        component,
         ..Default::default()
     };
     Renderer::new(
@@ -467,7 +467,7 @@ fn temporal_filter_matches_cpu_twin() {
 #[test]
 fn the_renderer_resizes_ssil() {
     let (scene, _) = cornell();
-    let mut renderer = renderer_of("ssil", scene, (48, 36));
+    let mut renderer = renderer_of("ssil", scene, (48, 36), Component::Indirect);
     let lit = |image: &cssm_runtime::common::readback::Image| {
         image
             .radiance
@@ -481,4 +481,28 @@ fn the_renderer_resizes_ssil() {
     let resized = render_image(&mut renderer, 2).expect("render after resize");
     assert_eq!(resized.radiance.len(), 37 * 29);
     assert!(lit(&resized) * 2 > resized.radiance.len());
+}
+
+/// The light each pixel sends is its diffuse direct light: on the Cornell box, whose materials
+/// have no Ks, the direct pass's own radiance (held to exact ray casts by
+/// `direct_light_matches_cpu_reference`).
+#[test]
+fn the_sent_light_is_the_diffuse_direct_light() {
+    let (scene, _) = cornell();
+    let mut renderer = renderer_of("direct", scene, (40, 30), Component::Direct);
+    render_image(&mut renderer, 1).expect("render");
+    let ctx = renderer.context();
+    let gi = run(ctx, scene, &test_options(), 1);
+    let direct = texture4(ctx, renderer.radiance());
+    let sender = read4(ctx, gi.sender());
+    let mut lit = 0;
+    for (i, (d, s)) in direct.iter().zip(&sender).enumerate() {
+        let (d, s) = (d.truncate(), s.truncate());
+        lit += usize::from(d.max_element() > 0.0);
+        assert!(
+            (d - s).abs().max_element() <= 1e-5 * d.max_element().max(1e-3),
+            "pixel {i}: sent {s}, direct {d}"
+        );
+    }
+    assert!(lit * 4 > direct.len(), "{lit} lit pixels");
 }

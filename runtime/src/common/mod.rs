@@ -7,6 +7,7 @@ pub mod camera;
 pub mod compose;
 pub mod filters;
 pub mod gbuffer;
+pub mod history;
 pub mod layout;
 pub mod pyramid;
 pub mod readback;

@@ -29,7 +29,8 @@
 //!    gathered level, guided by that level of the pyramid, and joint bilateral up-sampling to
 //!    the G-buffer's resolution;
 //! 6. `ssil temporal` (`temporal.wgsl`, §4, Eq. 6): the previous frame's result reprojected
-//!    and blended in with `temporal` (less on glossy pixels as the camera turns);
+//!    through the frame history (`common::history`: the previous camera and G-buffer) and
+//!    blended in with `temporal` (less on glossy pixels as the camera turns);
 //! 7. `ssil resolve` (`common::resolve`): albedo / pi times the diffuse irradiance plus Ks
 //!    times the lobe-weighted one.
 //!
@@ -51,6 +52,7 @@ use crate::{
         filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
         layout,
         pyramid::{GBufferPyramid, PyramidLayout, SignalPyramid},
+        history::FrameHistory,
         resolve::PlaneResolve,
     },
     direct::{light_entries, light_resources},
@@ -401,11 +403,6 @@ fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffe
     })
 }
 
-fn history_texture(device: &wgpu::Device, label: &str, size: (u32, u32)) -> wgpu::Texture {
-    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
-    layout::texture_2d(device, label, size, crate::common::gbuffer::TARGET_FORMAT, usage)
-}
-
 /// The pipelines and layouts, created once.
 struct Pipelines {
     sender_layout: wgpu::BindGroupLayout,
@@ -580,8 +577,6 @@ struct Sized {
     grid_target: wgpu::Texture,
     blended: wgpu::Buffer,
     history: wgpu::Buffer,
-    history_position: wgpu::Texture,
-    history_normal: wgpu::Texture,
     sender_group: wgpu::BindGroup,
     voxel_group: wgpu::BindGroup,
     and_groups: Vec<wgpu::BindGroup>,
@@ -605,8 +600,8 @@ pub struct ScreenSpaceGi {
     voxel_params: wgpu::Buffer,
     temporal_params: wgpu::Buffer,
     sized: Sized,
+    frame_history: FrameHistory,
     frames: u32,
-    previous: Option<GpuView>,
 }
 
 impl ScreenSpaceGi {
@@ -648,6 +643,7 @@ impl ScreenSpaceGi {
             history: 0,
             padding: [0; 3],
         });
+        let frame_history = FrameHistory::new(device, ctx.size());
         let sized = Self::bind(
             ctx,
             options,
@@ -657,6 +653,7 @@ impl ScreenSpaceGi {
             &filter,
             [&frame_params, &voxel_params, &temporal_params],
             sender,
+            &frame_history,
         );
         let resolve = PlaneResolve::new(ctx, "ssil resolve", &sized.blended);
         Ok(Self {
@@ -671,8 +668,8 @@ impl ScreenSpaceGi {
             voxel_params,
             temporal_params,
             sized,
+            frame_history,
             frames: 0,
-            previous: None,
         })
     }
 
@@ -694,6 +691,7 @@ impl ScreenSpaceGi {
         filter: &EdgeAwareFilter,
         [frame_params, voxel_params, temporal_params]: [&wgpu::Buffer; 3],
         sender: wgpu::Buffer,
+        frames: &FrameHistory,
     ) -> Sized {
         let device = &ctx.device;
         let levels = Levels::new(ctx.size(), options);
@@ -711,8 +709,6 @@ impl ScreenSpaceGi {
         let planes = 32 * u64::from(w) * u64::from(h);
         let blended = storage_buffer(device, "ssil blended", planes);
         let history = storage_buffer(device, "ssil history", planes);
-        let history_position = history_texture(device, "ssil history position", (w, h));
-        let history_normal = history_texture(device, "ssil history normal", (w, h));
 
         let gbuffer = [&ctx.gbuffer.position, &ctx.gbuffer.normal, &ctx.gbuffer.albedo]
             .map(|t| t.create_view(&Default::default()));
@@ -783,8 +779,8 @@ impl ScreenSpaceGi {
         let texture_views = [
             &ctx.gbuffer.position,
             &ctx.gbuffer.normal,
-            &history_position,
-            &history_normal,
+            &frames.position,
+            &frames.normal,
         ]
         .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![
@@ -808,8 +804,6 @@ impl ScreenSpaceGi {
             grid_target,
             blended,
             history,
-            history_position,
-            history_normal,
             sender_group,
             voxel_group,
             and_groups,
@@ -833,6 +827,7 @@ impl ScreenSpaceGi {
             &ctx.view,
             Self::low_guide(&self.pyramid, &levels),
         );
+        self.frame_history.resize(device, ctx.size());
         self.sized = Self::bind(
             ctx,
             &self.options,
@@ -842,9 +837,9 @@ impl ScreenSpaceGi {
             &self.filter,
             [&self.frame_params, &self.voxel_params, &self.temporal_params],
             sender,
+            &self.frame_history,
         );
         self.resolve.resize(ctx, &self.sized.blended);
-        self.previous = None;
     }
 
     /// The levels' geometry.
@@ -927,7 +922,7 @@ impl ScreenSpaceGi {
                 columns: [cw, ch],
             }),
         );
-        let previous = self.previous.unwrap_or(view);
+        let previous = *self.frame_history.previous().unwrap_or(&view);
         queue.write_buffer(
             &self.temporal_params,
             0,
@@ -935,11 +930,10 @@ impl ScreenSpaceGi {
                 previous_view_proj: previous.view_proj,
                 previous_eye: previous.eye,
                 blend: self.options.temporal,
-                history: u32::from(self.previous.is_some()),
+                history: u32::from(self.frame_history.previous().is_some()),
                 padding: [0; 3],
             }),
         );
-        self.previous = Some(view);
 
         let sized = &self.sized;
         let (w, h) = ctx.size();
@@ -985,19 +979,11 @@ impl ScreenSpaceGi {
         }
         self.resolve.run(frame);
         // The history of the next frame.
-        let encoder = &mut *frame.encoder;
-        encoder.copy_buffer_to_buffer(&sized.blended, 0, &sized.history, 0, None);
-        let extent = ctx.gbuffer.position.size();
-        for (from, to) in [
-            (&ctx.gbuffer.position, &sized.history_position),
-            (&ctx.gbuffer.normal, &sized.history_normal),
-        ] {
-            encoder.copy_texture_to_texture(
-                from.as_image_copy(),
-                to.as_image_copy(),
-                extent,
-            );
-        }
+        frame
+            .encoder
+            .copy_buffer_to_buffer(&sized.blended, 0, &sized.history, 0, None);
+        self.frame_history
+            .record(frame.encoder, &ctx.gbuffer, view);
     }
 
     /// The XOR raster into the finest gathered level's columns, then the AND down the levels.
