@@ -16,6 +16,8 @@ mod rsm;
 mod ssil;
 #[path = "gpu/vct.rs"]
 mod vct;
+#[path = "gpu/vf.rs"]
+mod vf;
 #[path = "gpu/voxelize.rs"]
 mod voxelize;
 

@@ -59,6 +59,9 @@ pub mod method;
 pub mod radiosity;
 mod renderer;
 pub mod shaders;
+/// Visibility filtering over point proxies (Chen et al. 2014), in progress: not yet a method of
+/// the table.
+pub mod vf;
 pub mod visibility;
 
 /// Declares each method's module (its folder under `runtime/src/`) and lists its entries in

@@ -168,6 +168,9 @@ pub enum Shader {
     SsilGather,
     /// `ssil/temporal.wgsl`: the reprojected history blended in.
     SsilTemporal,
+    /// `vf/proxies.wgsl`: the point proxies' voxel keys (`hash`) and each voxel's range of
+    /// the sorted proxies (`cell_ranges`).
+    VfProxies,
     /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
     Voxelize,
     /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
@@ -182,7 +185,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 25] = [
+    pub const ALL: [Shader; 26] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -208,6 +211,7 @@ impl Shader {
         Shader::SsilVoxels,
         Shader::SsilGather,
         Shader::SsilTemporal,
+        Shader::VfProxies,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -234,6 +238,7 @@ impl Shader {
             Shader::SsilVoxels => "ssil voxels",
             Shader::SsilGather => "ssil gather",
             Shader::SsilTemporal => "ssil temporal",
+            Shader::VfProxies => "vf proxies",
             Shader::Voxelize => "voxelize",
             Shader::Octree => "octree",
             Shader::VoxelRadiance => "voxel radiance",
@@ -340,6 +345,10 @@ impl Shader {
             Shader::SsilTemporal => (
                 "runtime/src/ssil/temporal.wgsl",
                 include_str!("ssil/temporal.wgsl"),
+            ),
+            Shader::VfProxies => (
+                "runtime/src/vf/proxies.wgsl",
+                include_str!("vf/proxies.wgsl"),
             ),
         }
     }

@@ -28,7 +28,7 @@ use super::{cornell, gpu};
 
 /// A renderer of `direct` on `scene` at `size`, one frame rendered: the context (G-buffer,
 /// shadow maps) the tests' own SSIL pipelines run over.
-fn context_renderer(scene: &Scene, size: (u32, u32)) -> Renderer {
+pub(super) fn context_renderer(scene: &Scene, size: (u32, u32)) -> Renderer {
     let mut renderer = renderer_of("direct", scene, size, Component::Indirect);
     render_image(&mut renderer, 1).expect("render");
     renderer

@@ -13,6 +13,7 @@ pub mod pyramid;
 pub mod readback;
 pub mod resolve;
 pub mod shadow_map;
+pub mod sort;
 pub mod timestamps;
 pub mod tonemap;
 pub mod voxelize;

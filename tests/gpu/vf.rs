@@ -1,0 +1,101 @@
+//! Visibility filtering's pieces against their CPU twins: the shared GPU radix sort
+//! (`cssm_runtime::common::sort`) against a stable sort, and the point proxies' voxel keys,
+//! sort and cell ranges (`cssm_runtime::vf::proxies`).
+
+use cssm_runtime::{
+    common::{
+        readback::read_buffer,
+        sort::{KeySort, KeyValue, key_bits, sort_cpu},
+        timestamps::PassTimer,
+    },
+    frame::FrameEncoder,
+    vf::proxies::{ProxyGrid, cells_cpu, hash_cpu, place_proxies},
+};
+use glam::Mat4;
+use wgpu::util::DeviceExt;
+
+use super::{cornell, gpu};
+
+fn read<T: bytemuck::Pod>(buffer: &wgpu::Buffer) -> Vec<T> {
+    let gpu = gpu();
+    let bytes = read_buffer(&gpu.device, &gpu.queue, buffer, 0, buffer.size()).expect("read");
+    bytemuck::cast_slice(&bytes).to_vec()
+}
+
+/// 100,000 pairs with many equal keys, sorted on the GPU, equal to the stable sort.
+#[test]
+fn gpu_sort_matches_a_stable_sort() {
+    let gpu = gpu();
+    let mut rng = cssm_raycast::SplitMix64(7);
+    let bound = 5000;
+    let pairs: Vec<KeyValue> = (0..100_000)
+        .map(|i| KeyValue::new((rng.next_u64() % u64::from(bound)) as u32, i))
+        .collect();
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+    let input = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("pairs"),
+            contents: bytemuck::cast_slice(&pairs),
+            usage,
+        });
+    let output = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("sorted"),
+        size: input.size(),
+        usage,
+        mapped_at_creation: false,
+    });
+    let mut sort = KeySort::new(&gpu.device, &gpu.queue);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    sort.record(
+        &mut encoder,
+        &input,
+        &output,
+        pairs.len() as u32,
+        key_bits(bound),
+    )
+    .expect("sort");
+    gpu.queue.submit([encoder.finish()]);
+    assert_eq!(read::<KeyValue>(&output), sort_cpu(&pairs));
+}
+
+/// The Cornell box's proxies hashed, sorted and indexed on the GPU, equal to the twins.
+#[test]
+fn proxy_grid_matches_cpu_twins() {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let proxies = place_proxies(scene, 4096).expect("proxies");
+    let renderer = super::ssil::context_renderer(scene, (16, 12));
+    let ctx = renderer.context();
+    let mut grid = ProxyGrid::new(
+        &gpu.device,
+        &gpu.queue,
+        &proxies,
+        scene.bounds(),
+        6,
+        &ctx.scene.motion,
+    )
+    .expect("grid");
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+    grid.run(&mut FrameEncoder {
+        encoder: &mut encoder,
+        timer: &mut timer,
+        index: 0,
+    })
+    .expect("run");
+    gpu.queue.submit([encoder.finish()]);
+    let motion = vec![Mat4::IDENTITY; scene.objects.len()];
+    let pairs = hash_cpu(&proxies, &motion, &grid.grid);
+    assert_eq!(read::<KeyValue>(&grid.pairs), pairs);
+    let sorted = sort_cpu(&pairs);
+    assert_eq!(read::<KeyValue>(&grid.sorted), sorted);
+    let cells = cells_cpu(&sorted, grid.grid.cells());
+    assert_eq!(read::<[u32; 2]>(&grid.cells), cells);
+    // The box's walls fill the border cells of its 6x6x6 grid; the air inside holds none.
+    let occupied = cells.iter().filter(|c| c[1] > c[0]).count();
+    assert!(
+        occupied > 100 && occupied < 216,
+        "{occupied} of 216 cells hold proxies"
+    );
+}
