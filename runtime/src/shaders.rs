@@ -5,7 +5,7 @@
 //! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
 //! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
 //! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`,
-//! `cssm::lowres`, `cssm::voxel`, `cssm::svo`, `cssm::bilateral`) and a module
+//! `cssm::lowres`, `cssm::voxel`, `cssm::svo`, `cssm::bilateral`, `cssm::proxy`) and a module
 //! imports what it uses (`#import cssm::visibility::{cssm_texels, cssm_visibility_texel}`).
 //!
 //! The workgroup sizes are defined once, here ([`WORKGROUP_1D`], [`WORKGROUP_2D`]): the WGSL
@@ -33,8 +33,8 @@ pub const WORKGROUP_2D: u32 = 8;
 /// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
 /// the shadow lookup, the light model, the CSSM visibility query, the light transfer, the
 /// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads,
-/// the joint bilateral weight.
-const LIBRARIES: [(&str, &str); 10] = [
+/// the joint bilateral weight, the point proxy and its voxel grid.
+const LIBRARIES: [(&str, &str); 11] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -69,6 +69,7 @@ const LIBRARIES: [(&str, &str); 10] = [
         "runtime/src/common/bilateral.wgsl",
         include_str!("common/bilateral.wgsl"),
     ),
+    ("runtime/src/vf/proxy.wgsl", include_str!("vf/proxy.wgsl")),
 ];
 
 /// Bind group of the CSSM library in the runtime's own modules (group 0 is each pass's own).
@@ -171,6 +172,9 @@ pub enum Shader {
     /// `vf/proxies.wgsl`: the point proxies' voxel keys (`hash`) and each voxel's range of
     /// the sorted proxies (`cell_ranges`).
     VfProxies,
+    /// `vf/light.wgsl`: the direct light onto the proxies, VPLs (`vpl`), and each voxel's
+    /// order-0/1 spherical harmonics of their light (`voxel_sh_sum`).
+    VfLight,
     /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
     Voxelize,
     /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
@@ -185,7 +189,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 26] = [
+    pub const ALL: [Shader; 27] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -212,6 +216,7 @@ impl Shader {
         Shader::SsilGather,
         Shader::SsilTemporal,
         Shader::VfProxies,
+        Shader::VfLight,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -239,6 +244,7 @@ impl Shader {
             Shader::SsilGather => "ssil gather",
             Shader::SsilTemporal => "ssil temporal",
             Shader::VfProxies => "vf proxies",
+            Shader::VfLight => "vf light",
             Shader::Voxelize => "voxelize",
             Shader::Octree => "octree",
             Shader::VoxelRadiance => "voxel radiance",
@@ -350,6 +356,7 @@ impl Shader {
                 "runtime/src/vf/proxies.wgsl",
                 include_str!("vf/proxies.wgsl"),
             ),
+            Shader::VfLight => ("runtime/src/vf/light.wgsl", include_str!("vf/light.wgsl")),
         }
     }
 

@@ -49,7 +49,10 @@ pub struct Proxy {
     pub triangle: u32,
     /// Its object (`Scene::objects`), whose motion moves it.
     pub object: u32,
-    padding: [u32; 3],
+    /// Its triangle's material.
+    pub material: u32,
+    /// Texture coordinates (0 where the scene has none).
+    pub uv: [f32; 2],
 }
 
 /// The radical inverse of `index` in `base`: the Halton sequence.
@@ -104,6 +107,12 @@ pub fn place_proxies(scene: &Scene, target: u32) -> Result<Vec<Proxy>, RuntimeEr
         let extra = position_hash((a + b + c) / 3.0) < expected.fract();
         let count = expected.floor() as usize + usize::from(extra);
         let normal = (b - a).cross(c - a).normalize_or_zero();
+        let corners = scene.triangles[t].map(|v| {
+            scene
+                .texcoords
+                .get(v as usize)
+                .map_or(glam::Vec2::ZERO, |&uv| uv.into())
+        });
         for _ in 0..count {
             if proxies.len() as u32 >= MAX_PROXIES {
                 break;
@@ -113,13 +122,15 @@ pub fn place_proxies(scene: &Scene, target: u32) -> Result<Vec<Proxy>, RuntimeEr
             if u + v > 1.0 {
                 (u, v) = (1.0 - u, 1.0 - v);
             }
+            let uv = corners[0] + u * (corners[1] - corners[0]) + v * (corners[2] - corners[0]);
             proxies.push(Proxy {
                 position: (a + u * (b - a) + v * (c - a)).to_array(),
                 radius,
                 normal: normal.to_array(),
                 triangle: t as u32,
                 object: scene.object_of(t) as u32,
-                padding: [0; 3],
+                material: scene.triangle_materials[t],
+                uv: uv.to_array(),
             });
         }
     }
@@ -215,6 +226,8 @@ pub struct ProxyGrid {
     pub sorted: wgpu::Buffer,
     /// Per cell `[start, end)` in `sorted`.
     pub cells: wgpu::Buffer,
+    /// [`GridParams`] as a uniform.
+    pub params: wgpu::Buffer,
     sort: KeySort,
     hash: wgpu::ComputePipeline,
     ranges: wgpu::ComputePipeline,
@@ -303,6 +316,7 @@ impl ProxyGrid {
             pairs,
             sorted,
             cells,
+            params,
             sort: KeySort::new(device, queue),
             hash: pipeline("proxy hash", "hash"),
             ranges: pipeline("proxy cells", "cell_ranges"),
@@ -345,7 +359,13 @@ mod tests {
     #[test]
     fn proxy_and_grid_layouts_match_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::VfProxies);
+        // The library alone, without the line naga_oil reads (composition renames its types).
+        let source: String = include_str!("proxy.wgsl")
+            .lines()
+            .filter(|l| !l.starts_with("#define_import_path"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let module = naga::front::wgsl::parse_str(&source).expect("proxy.wgsl parses");
         crate::shaders::tests::check_struct(
             &module,
             "Proxy",
@@ -356,6 +376,8 @@ mod tests {
                 ("normal", offset_of!(Proxy, normal)),
                 ("triangle", offset_of!(Proxy, triangle)),
                 ("object", offset_of!(Proxy, object)),
+                ("material", offset_of!(Proxy, material)),
+                ("uv", offset_of!(Proxy, uv)),
             ],
         );
         crate::shaders::tests::check_struct(

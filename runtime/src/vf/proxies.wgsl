@@ -4,23 +4,7 @@
 // `cell_ranges` writes each voxel's range [start, end) in the sorted pairs (cleared to 0 before).
 // Twins: vf/proxies.rs::{hash_cpu, cells_cpu}.
 
-struct Proxy {
-    position: vec3f,
-    radius: f32,
-    normal: vec3f,
-    triangle: u32,
-    object: u32,
-    padding_a: u32,
-    padding_b: u32,
-    padding_c: u32,
-}
-
-struct GridParams {
-    lo: vec3f,
-    cell: f32,
-    dims: vec3u,
-    count: u32,
-}
+#import cssm::proxy::{Proxy, GridParams, grid_key}
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var<storage, read> proxies: array<Proxy>;
@@ -38,8 +22,7 @@ fn hash(@builtin(global_invocation_id) id: vec3u) {
     }
     let p = proxies[i];
     let world = (object_motion[p.object] * vec4f(p.position, 1.0)).xyz;
-    let v = min(vec3u(max(floor((world - grid.lo) / grid.cell), vec3f(0.0))), grid.dims - 1u);
-    pairs[i] = vec2u(v.z * grid.dims.x * grid.dims.y + v.y * grid.dims.x + v.x, i);
+    pairs[i] = vec2u(grid_key(grid, world), i);
 }
 
 @compute @workgroup_size(#{WORKGROUP_1D})
