@@ -5,7 +5,8 @@
 //! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
 //! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
 //! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`,
-//! `cssm::lowres`, `cssm::voxel`, `cssm::svo`, `cssm::bilateral`, `cssm::proxy`) and a module
+//! `cssm::lowres`, `cssm::voxel`, `cssm::svo`, `cssm::bilateral`, `cssm::proxy`,
+//! `cssm::random`) and a module
 //! imports what it uses (`#import cssm::visibility::{cssm_texels, cssm_visibility_texel}`).
 //!
 //! The workgroup sizes are defined once, here ([`WORKGROUP_1D`], [`WORKGROUP_2D`]): the WGSL
@@ -33,8 +34,8 @@ pub const WORKGROUP_2D: u32 = 8;
 /// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
 /// the shadow lookup, the light model, the CSSM visibility query, the light transfer, the
 /// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads,
-/// the joint bilateral weight, the point proxy and its voxel grid.
-const LIBRARIES: [(&str, &str); 11] = [
+/// the joint bilateral weight, the point proxy and its voxel grid, the sample patterns' hash.
+const LIBRARIES: [(&str, &str); 12] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -70,6 +71,10 @@ const LIBRARIES: [(&str, &str); 11] = [
         include_str!("common/bilateral.wgsl"),
     ),
     ("runtime/src/vf/proxy.wgsl", include_str!("vf/proxy.wgsl")),
+    (
+        "runtime/src/common/random.wgsl",
+        include_str!("common/random.wgsl"),
+    ),
 ];
 
 /// Bind group of the CSSM library in the runtime's own modules (group 0 is each pass's own).
@@ -175,6 +180,8 @@ pub enum Shader {
     /// `vf/light.wgsl`: the direct light onto the proxies, VPLs (`vpl`), and each voxel's
     /// order-0/1 spherical harmonics of their light (`voxel_sh_sum`).
     VfLight,
+    /// `vf/march.wgsl`: the sparse shadow rays through the proxies' voxels.
+    VfMarch,
     /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
     Voxelize,
     /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
@@ -189,7 +196,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 27] = [
+    pub const ALL: [Shader; 28] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -217,6 +224,7 @@ impl Shader {
         Shader::SsilTemporal,
         Shader::VfProxies,
         Shader::VfLight,
+        Shader::VfMarch,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -245,6 +253,7 @@ impl Shader {
             Shader::SsilTemporal => "ssil temporal",
             Shader::VfProxies => "vf proxies",
             Shader::VfLight => "vf light",
+            Shader::VfMarch => "vf shadow rays",
             Shader::Voxelize => "voxelize",
             Shader::Octree => "octree",
             Shader::VoxelRadiance => "voxel radiance",
@@ -357,6 +366,7 @@ impl Shader {
                 include_str!("vf/proxies.wgsl"),
             ),
             Shader::VfLight => ("runtime/src/vf/light.wgsl", include_str!("vf/light.wgsl")),
+            Shader::VfMarch => ("runtime/src/vf/march.wgsl", include_str!("vf/march.wgsl")),
         }
     }
 

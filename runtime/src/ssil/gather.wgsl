@@ -1,5 +1,6 @@
 #import cssm::types::{Material, View}
 #import cssm::bilateral::{Guide, upsample_weights}
+#import cssm::random::{pcg_hash, hash_unit}
 
 // The SSIL gather (Soler et al. 2010 §3, §4), one level of the pyramid per dispatch, coarsest
 // first. Each pixel x of level k draws `samples` screen-space samples in the ring between
@@ -85,17 +86,6 @@ const PI: f32 = 3.14159265358979;
 const SLICES: u32 = 128u;
 // Most steps of a visibility march.
 const MAX_MARCH: u32 = 256u;
-
-// PCG hash (twin: cpu.rs::hash).
-fn hash(v: u32) -> u32 {
-    let state = v * 747796405u + 2891336453u;
-    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
-}
-
-fn unit(v: u32) -> f32 {
-    return f32(v >> 8u) / 16777216.0;
-}
 
 // Level-k pixel coordinates of a clip-space point.
 fn to_level(clip: vec4f) -> vec2f {
@@ -216,9 +206,9 @@ fn gather(@builtin(global_invocation_id) id: vec3u) {
     let n4 = pyramid_normal[i];
     let n = n4.xyz;
     let m = materials[u32(n4.w)];
-    let key = hash(id.x ^ hash(id.y ^ hash(params.level ^ hash(frame.seed))));
-    let rotation = unit(key);
-    let jitter = unit(hash(key));
+    let key = pcg_hash(id.x ^ pcg_hash(id.y ^ pcg_hash(params.level ^ pcg_hash(frame.seed))));
+    let rotation = hash_unit(key);
+    let jitter = hash_unit(pcg_hash(key));
     let r1 = select(0.5 * params.radius, 0.0, params.disc == 1u);
     let r2 = params.radius;
     let ring = PI * (r2 * r2 - r1 * r1);
@@ -255,7 +245,7 @@ fn gather(@builtin(global_invocation_id) id: vec3u) {
         }
         let sigma = sqrt(PI / max(m.ns, 1e-3));
         let lobe_scale = (m.ns + 2.0) / (2.0 * PI);
-        let jitter_b = unit(hash(key ^ 0x9e3779b9u));
+        let jitter_b = hash_unit(pcg_hash(key ^ 0x9e3779b9u));
         for (var k = 0u; k < params.samples; k++) {
             let a = (f32(k) + rotation) / count;
             var theta: f32;
