@@ -26,6 +26,56 @@ fn read<T: bytemuck::Pod>(buffer: &wgpu::Buffer) -> Vec<T> {
     bytemuck::cast_slice(&bytes).to_vec()
 }
 
+/// Records what `record` records into one encoder and submits it.
+fn submit(record: impl FnOnce(&mut FrameEncoder)) {
+    let gpu = gpu();
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
+    record(&mut FrameEncoder {
+        encoder: &mut encoder,
+        timer: &mut timer,
+        index: 0,
+    });
+    gpu.queue.submit([encoder.finish()]);
+}
+
+/// The Cornell box's 4,096 proxies in a 6³ grid, hashed, sorted and lit over a context of
+/// `size` (its shadow maps light them).
+struct LitProxies {
+    renderer: cssm_runtime::Renderer,
+    proxies: Vec<cssm_runtime::vf::proxies::Proxy>,
+    grid: ProxyGrid,
+    light: ProxyLight,
+}
+
+fn lit_proxies(size: (u32, u32)) -> LitProxies {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let proxies = place_proxies(scene, 4096).expect("proxies");
+    let renderer = super::ssil::context_renderer(scene, size);
+    let ctx = renderer.context();
+    let mut grid = ProxyGrid::new(
+        &gpu.device,
+        &gpu.queue,
+        &proxies,
+        scene.bounds(),
+        6,
+        &ctx.scene.motion,
+    )
+    .expect("grid");
+    let light = ProxyLight::new(ctx, &grid);
+    submit(|frame| {
+        grid.run(frame).expect("grid");
+        light.run(frame);
+    });
+    LitProxies {
+        renderer,
+        proxies,
+        grid,
+        light,
+    }
+}
+
 /// 100,000 pairs with many equal keys, sorted on the GPU, equal to the stable sort.
 #[test]
 fn gpu_sort_matches_a_stable_sort() {
@@ -66,29 +116,8 @@ fn gpu_sort_matches_a_stable_sort() {
 /// The Cornell box's proxies hashed, sorted and indexed on the GPU, equal to the twins.
 #[test]
 fn proxy_grid_matches_cpu_twins() {
-    let gpu = gpu();
     let (scene, _) = cornell();
-    let proxies = place_proxies(scene, 4096).expect("proxies");
-    let renderer = super::ssil::context_renderer(scene, (16, 12));
-    let ctx = renderer.context();
-    let mut grid = ProxyGrid::new(
-        &gpu.device,
-        &gpu.queue,
-        &proxies,
-        scene.bounds(),
-        6,
-        &ctx.scene.motion,
-    )
-    .expect("grid");
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-    grid.run(&mut FrameEncoder {
-        encoder: &mut encoder,
-        timer: &mut timer,
-        index: 0,
-    })
-    .expect("run");
-    gpu.queue.submit([encoder.finish()]);
+    let LitProxies { proxies, grid, .. } = lit_proxies((16, 12));
     let motion = vec![Mat4::IDENTITY; scene.objects.len()];
     let pairs = hash_cpu(&proxies, &motion, &grid.grid);
     assert_eq!(read::<KeyValue>(&grid.pairs), pairs);
@@ -109,31 +138,13 @@ fn proxy_grid_matches_cpu_twins() {
 /// against the twin over the GPU's own VPLs.
 #[test]
 fn vpl_light_and_voxel_sh_match_cpu_twins() {
-    let gpu = gpu();
     let (scene, _) = cornell();
-    let proxies = place_proxies(scene, 4096).expect("proxies");
-    let renderer = super::ssil::context_renderer(scene, (16, 12));
-    let ctx = renderer.context();
-    let mut grid = ProxyGrid::new(
-        &gpu.device,
-        &gpu.queue,
-        &proxies,
-        scene.bounds(),
-        6,
-        &ctx.scene.motion,
-    )
-    .expect("grid");
-    let light = ProxyLight::new(ctx, &grid);
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-    let mut frame = FrameEncoder {
-        encoder: &mut encoder,
-        timer: &mut timer,
-        index: 0,
-    };
-    grid.run(&mut frame).expect("grid");
-    light.run(&mut frame);
-    gpu.queue.submit([encoder.finish()]);
+    let LitProxies {
+        proxies,
+        grid,
+        light,
+        ..
+    } = lit_proxies((16, 12));
     let [p, n, f] = [&light.position, &light.normal, &light.flux].map(read::<[f32; 4]>);
     let gpu_vpls: Vec<Vpl> = (0..p.len())
         .map(|i| Vpl {
@@ -200,32 +211,16 @@ fn vpl_light_and_voxel_sh_match_cpu_twins() {
 fn shadow_rays_match_cpu_twin() {
     let gpu = gpu();
     let (scene, _) = cornell();
-    let proxies = place_proxies(scene, 4096).expect("proxies");
-    let renderer = super::ssil::context_renderer(scene, (32, 24));
+    let LitProxies {
+        renderer,
+        grid,
+        light,
+        ..
+    } = lit_proxies((32, 24));
     let ctx = renderer.context();
-    let mut grid = ProxyGrid::new(
-        &gpu.device,
-        &gpu.queue,
-        &proxies,
-        scene.bounds(),
-        6,
-        &ctx.scene.motion,
-    )
-    .expect("grid");
-    let light = ProxyLight::new(ctx, &grid);
     let offset = 1e-3 * (scene.bounds().1 - scene.bounds().0).length();
     let rays = SparseRays::new(ctx, &grid, &light, 2, 8, offset);
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-    let mut frame = FrameEncoder {
-        encoder: &mut encoder,
-        timer: &mut timer,
-        index: 0,
-    };
-    grid.run(&mut frame).expect("grid");
-    light.run(&mut frame);
-    rays.run(&mut frame);
-    gpu.queue.submit([encoder.finish()]);
+    submit(|frame| rays.run(frame));
     let [position, normal] = [&light.position, &light.normal].map(read::<glam::Vec4>);
     let sorted = read::<[u32; 2]>(&grid.sorted);
     let ranges = read::<[u32; 2]>(&grid.cells);
