@@ -19,28 +19,15 @@ use runtime::method::{OptionValue, OptionValues};
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{Bench, passes_cell, timed_frames, write_report};
+use common::{Bench, passes_cell, write_report};
 
 fn main() {
     let bench = Bench::new((1280, 720));
-    let Bench {
-        width,
-        height,
-        frames,
-        shadow_resolution,
-        ref gpu,
-        ref scene,
-        ref view,
-        ..
-    } = bench;
     let mut report = format!(
-        "`rsm` on {} ({} triangles), {width}x{height}, RSM {shadow_resolution}², default \
-         options, on {}; median of {frames} frames after the first.\n\n\
+        "`rsm` on {}, default options.\n\n\
          | visibility | light | frame ms | GPU ms per pass, last frame |\n\
          | --- | --- | --- | --- |\n",
-        scene.name,
-        scene.triangle_materials.len(),
-        gpu.describe()
+        bench.setting()
     );
     let mut medians = Vec::new();
     for visibility in ["micro-buffer", "none"] {
@@ -48,8 +35,8 @@ fn main() {
             let mut values = OptionValues::default();
             values.set("visibility", OptionValue::Choice(visibility));
             let mut renderer = bench.renderer("rsm", &values);
-            let light = scene.lights.first().filter(|_| moving);
-            let (ms, passes) = timed_frames(gpu, &mut renderer, view, frames, light);
+            let light = bench.scene.lights.first().filter(|_| moving);
+            let (ms, passes) = bench.timed(&mut renderer, light);
             medians.push(ms);
             let row = format!(
                 "| {visibility} | {} | {ms:.1} | {} |\n",

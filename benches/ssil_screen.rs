@@ -25,12 +25,12 @@ use runtime::{
     common::{
         camera::View,
         compose::Component,
-        readback::{read_buffer, read_texture, render_image},
+        readback::{read_buffer, read_texture, render_image, vec4s},
         timestamps::PassTimer,
     },
     frame::{FrameEncoder, FrameSettings},
     method::{self, OptionValue, OptionValues},
-    ssil::{ScreenSpaceGi, SsilOptions, vec4s},
+    ssil::{ScreenSpaceGi, SsilOptions},
 };
 
 #[path = "common/mod.rs"]

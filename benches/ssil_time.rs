@@ -19,32 +19,19 @@ use runtime::method::{OptionValue, OptionValues};
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{Bench, passes_cell, timed_frames, write_report};
+use common::{Bench, passes_cell, write_report};
 
 fn main() {
     let bench = Bench::new((1280, 720));
-    let Bench {
-        width,
-        height,
-        frames,
-        shadow_resolution,
-        ref gpu,
-        ref scene,
-        ref view,
-        ..
-    } = bench;
     let mut report = format!(
-        "`ssil` on {} ({} triangles), {width}x{height}, shadow maps {shadow_resolution}², on \
-         {}; median of {frames} frames after the first, the camera and light at rest.\n\n\
+        "`ssil` on {}, the camera and light at rest.\n\n\
          | settings | frame ms | ratio to direct | GPU ms per pass, last frame |\n\
          | --- | --- | --- | --- |\n",
-        scene.name,
-        scene.triangle_materials.len(),
-        gpu.describe()
+        bench.setting()
     );
     let run = |name: &str, values: &OptionValues| {
         let mut renderer = bench.renderer(name, values);
-        timed_frames(gpu, &mut renderer, view, frames, None)
+        bench.timed(&mut renderer, None)
     };
     let (direct_ms, direct_passes) = run("direct", &OptionValues::default());
     let row = format!(

@@ -23,7 +23,7 @@ use runtime::{
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{Bench, arg, passes_cell, timed_frames, write_report};
+use common::{Bench, arg, passes_cell, write_report};
 
 fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
@@ -36,31 +36,18 @@ fn main() {
         .split(',')
         .map(|r| r.parse().expect("--resolutions N,N,..."))
         .collect();
-    let Bench {
-        width,
-        height,
-        frames,
-        shadow_resolution,
-        ref gpu,
-        ref scene,
-        ref view,
-        ..
-    } = bench;
     let renderer = |name: &str, values: &OptionValues| bench.renderer(name, values);
     let mut report = format!(
-        "`vct` on {} ({} triangles), {width}x{height}, RSM {shadow_resolution}², default options \
-         but the resolution, on {}; median of {frames} frames after the first.\n\n\
+        "`vct` on {}, default options but the resolution.\n\n\
          | method | light | frame ms | GPU ms per pass, last frame |\n\
          | --- | --- | --- | --- |\n",
-        scene.name,
-        scene.triangle_materials.len(),
-        gpu.describe()
+        bench.setting()
     );
-    let light = scene.lights.first();
+    let light = bench.scene.lights.first();
     let mut baseline = Vec::new();
     for name in ["direct", "rsm"] {
         let mut r = renderer(name, &OptionValues::default());
-        let (ms, passes) = timed_frames(gpu, &mut r, view, frames, None);
+        let (ms, passes) = bench.timed(&mut r, None);
         baseline.push(ms);
         let row = format!("| {name} | static | {ms:.1} | {} |\n", passes_cell(&passes));
         print!("{row}");
@@ -75,14 +62,14 @@ fn main() {
         let mut values = OptionValues::default();
         values.set("resolution", OptionValue::Count(resolution));
         let mut r = renderer("vct", &values);
-        let (still, passes) = timed_frames(gpu, &mut r, view, frames, None);
+        let (still, passes) = bench.timed(&mut r, None);
         let row = format!(
             "| vct {resolution}³ | static | {still:.1} | {} |\n",
             passes_cell(&passes)
         );
         print!("{row}");
         report += &row;
-        let (moving, passes) = timed_frames(gpu, &mut r, view, frames, light);
+        let (moving, passes) = bench.timed(&mut r, light);
         let row = format!(
             "| vct {resolution}³ | moving | {moving:.1} | {} |\n",
             passes_cell(&passes)
@@ -98,9 +85,15 @@ fn main() {
         );
         // The pools as the method sizes them (its own are inside the renderer).
         let cones = runtime::vct::trace::TraceParams::new(16, 7.5f32.to_radians(), 2.0);
-        let voxels =
-            SparseVoxels::new(r.context(), scene.bounds(), resolution, true, false, &cones)
-                .expect("voxels");
+        let voxels = SparseVoxels::new(
+            r.context(),
+            bench.scene.bounds(),
+            resolution,
+            true,
+            false,
+            &cones,
+        )
+        .expect("voxels");
         let (nodes, bricks, node_values) = voxels.svo.pool_bytes(&voxels.octree);
         // A dense grid: rgba16f leaves, and six rgba16f faces per voxel of the mip levels.
         let cube = (resolution as u64).pow(3);

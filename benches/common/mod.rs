@@ -100,6 +100,31 @@ impl Bench {
         }
     }
 
+    /// What the report's first line says of the run: the scene and its triangles, the size,
+    /// the shadow maps' resolution, the device, the frames timed.
+    pub fn setting(&self) -> String {
+        format!(
+            "{} ({} triangles), {}x{}, shadow maps and RSM {}², on {}; median of {} frames \
+             after the first",
+            self.scene.name,
+            self.scene.triangle_materials.len(),
+            self.width,
+            self.height,
+            self.shadow_resolution,
+            self.gpu.describe(),
+            self.frames
+        )
+    }
+
+    /// [`timed_frames`] of `renderer` into the bench's target.
+    pub fn timed(
+        &self,
+        renderer: &mut Renderer,
+        light: Option<&SpotLight>,
+    ) -> (f64, Vec<(&'static str, f64)>) {
+        timed_frames(&self.gpu, renderer, &self.view, self.frames, light)
+    }
+
     /// A renderer of method `name` with `values` on the scene.
     pub fn renderer(&self, name: &str, values: &OptionValues) -> Renderer {
         let entry = runtime::method::find(name).expect("method");

@@ -7,14 +7,14 @@ use cssm_runtime::{
     Renderer, RendererSettings,
     common::{
         compose::Component,
-        readback::{read_buffer, read_texture, render_image},
+        readback::{read_buffer, read_texture, render_image, vec4s},
     },
     frame::FrameSettings,
     gpu_types::GpuSpotLight,
     method::{self, OptionValue, OptionValues},
     rsm::{RsmOptions, Visibility, cpu},
 };
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec3};
 
 use super::{cornell, gpu};
 
@@ -49,13 +49,6 @@ pub(super) fn rsm_renderer(
     .expect("rsm renderer");
     render_image(&mut renderer, 1).expect("render");
     renderer
-}
-
-fn vec4s(bytes: &[u8]) -> Vec<Vec4> {
-    bytemuck::cast_slice::<u8, [f32; 4]>(bytes)
-        .iter()
-        .map(|&v| Vec4::from(v))
-        .collect()
 }
 
 /// The RSM of every light as read back, and the lights as the GPU has them.

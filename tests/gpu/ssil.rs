@@ -10,7 +10,7 @@ use cssm_runtime::{
     common::{
         compose::Component,
         pyramid::{CpuLevel, mean_cpu, vote_cpu},
-        readback::{read_buffer, read_texture, render_image},
+        readback::{read_buffer, read_texture, render_image, vec4s},
         timestamps::PassTimer,
     },
     frame::{FrameContext, FrameEncoder, FrameSettings},
@@ -19,7 +19,6 @@ use cssm_runtime::{
     ssil::{
         ScreenSpaceGi, SsilOptions, Visibility,
         cpu::{self, GatherInputs},
-        vec4s,
     },
 };
 use glam::{Mat4, Vec3, Vec4};
@@ -505,4 +504,58 @@ fn the_sent_light_is_the_diffuse_direct_light() {
         );
     }
     assert!(lit * 4 > direct.len(), "{lit} lit pixels");
+}
+
+/// Two bounces: the filters' input is the sum of both bounces' finest level, and the second
+/// bounce's light is `accumulate`'s from the first (albedo / pi times its diffuse irradiance),
+/// its coarser levels the means again. The first bounce's own result is what the sum holds
+/// beyond the second's (which the gathered planes keep at the end of the frame).
+#[test]
+fn bounces_accumulate_as_the_twin() {
+    let (scene, _) = cornell();
+    let renderer = context_renderer(scene, (40, 30));
+    let ctx = renderer.context();
+    let options = SsilOptions {
+        bounces: 2,
+        visibility: Visibility::None,
+        ..test_options()
+    };
+    let gi = run(ctx, scene, &options, 1);
+    let levels = gi.levels();
+    let (s, pixels) = (levels.start, levels.pyramid.pixels() as usize);
+    let summed = read4(ctx, gi.summed());
+    let gathered = read4(ctx, gi.gathered());
+    let light = read4(ctx, &gi.light().signal);
+    let albedo = level_of(&read4(ctx, &gi.pyramid().albedo), &gi, s);
+    let plane = albedo.len();
+    let mut lit = 0;
+    for i in 0..plane {
+        let j = levels.pyramid.offset(s) as usize + i;
+        let second = [gathered[j].truncate(), gathered[pixels + j].truncate()];
+        let sum = [summed[i].truncate(), summed[plane + i].truncate()];
+        let first = [sum[0] - second[0], sum[1] - second[1]];
+        let scale = sum[0].max_element().max(1e-6);
+        let (_, sent) = cpu::accumulate(first, None, albedo[i].truncate(), true);
+        let sent = sent.expect("a bounce follows");
+        lit += usize::from(sent.max_element() > 0.0);
+        assert!(
+            (light[j].truncate() - sent).abs().max_element() <= 1e-4 * scale,
+            "pixel {i}: sent {} against {sent}",
+            light[j]
+        );
+    }
+    assert!(
+        lit * 2 > plane,
+        "{lit} of {plane} pixels send light in the second bounce"
+    );
+    // The second bounce's coarser levels: the means of its finest.
+    let mut fine = level_of(&light, &gi, s);
+    for level in s + 1..=levels.last {
+        let coarse = mean_cpu(&fine, levels.pyramid.size(level - 1));
+        let got = level_of(&light, &gi, level);
+        for (c, g) in coarse.iter().zip(&got) {
+            assert!((*c - *g).abs().max_element() <= 1e-5 * c.abs().max_element().max(1e-3));
+        }
+        fine = got;
+    }
 }

@@ -192,3 +192,11 @@ pub fn render_image(renderer: &mut crate::Renderer, frames: u32) -> Result<Image
         timings,
     })
 }
+
+/// Read-back bytes of `vec4f`s as vectors.
+pub fn vec4s(bytes: &[u8]) -> Vec<glam::Vec4> {
+    bytemuck::cast_slice::<u8, [f32; 4]>(bytes)
+        .iter()
+        .map(|&v| glam::Vec4::from(v))
+        .collect()
+}

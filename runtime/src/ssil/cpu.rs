@@ -320,6 +320,23 @@ impl ScreenSenders<'_> {
     }
 }
 
+/// `gather.wgsl`: `accumulate` at one pixel of the finest gathered level: the bounce's diffuse
+/// and lobe-weighted irradiance added to the bounces' running sum (`None` at the first bounce),
+/// and, when another bounce follows, the light the pixel sends in it, `albedo / pi` times the
+/// diffuse irradiance.
+pub fn accumulate(
+    gathered: [Vec3; 2],
+    sum: Option<[Vec3; 2]>,
+    albedo: Vec3,
+    next_bounce: bool,
+) -> ([Vec3; 2], Option<Vec3>) {
+    let total = match sum {
+        Some([d, g]) => [gathered[0] + d, gathered[1] + g],
+        None => gathered,
+    };
+    (total, next_bounce.then(|| albedo / PI * gathered[0]))
+}
+
 /// `voxels.wgsl`: `slice_of`.
 fn slice_of(z: f32, (z_near, z_far): (f32, f32)) -> u32 {
     let t = (z - z_near) / (z_far - z_near);

@@ -43,7 +43,7 @@
 
 pub mod cpu;
 
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
 
 use crate::{
@@ -1210,14 +1210,6 @@ impl GiMethod for SsilMethod {
         self.gi.resize(ctx);
         Ok(())
     }
-}
-
-/// A vector of the read-back `vec4f`s.
-pub fn vec4s(bytes: &[u8]) -> Vec<Vec4> {
-    bytemuck::cast_slice::<u8, [f32; 4]>(bytes)
-        .iter()
-        .map(|&v| Vec4::from(v))
-        .collect()
 }
 
 #[cfg(test)]

@@ -100,7 +100,7 @@ pub fn place_proxies(scene: &Scene, target: u32) -> Result<Vec<Proxy>, RuntimeEr
     }
     let density = f64::from(target) / total;
     let radius = (1.0 / (std::f64::consts::PI * density)).sqrt() as f32;
-    let mut proxies = Vec::with_capacity(target as usize + target as usize / 8);
+    let mut proxies = Vec::new();
     for (t, &area) in areas.iter().enumerate() {
         let [a, b, c] = scene.triangle(t);
         let expected = area * density;
