@@ -14,11 +14,13 @@ prepare)
     cargo bench --bench rsm_time --no-run 2>&1 | tail -1
     cargo bench --bench vct_time --no-run 2>&1 | tail -1
     cargo bench --bench ssil_time --no-run 2>&1 | tail -1
+    cargo bench --bench vf_time --no-run 2>&1 | tail -1
     bench=$(ls -t target/release/deps/gpu_queries-* | grep -v '\.d$' | head -1)
     frame_bench=$(ls -t target/release/deps/frame_time-* | grep -v '\.d$' | head -1)
     rsm_bench=$(ls -t target/release/deps/rsm_time-* | grep -v '\.d$' | head -1)
     vct_bench=$(ls -t target/release/deps/vct_time-* | grep -v '\.d$' | head -1)
     ssil_bench=$(ls -t target/release/deps/ssil_time-* | grep -v '\.d$' | head -1)
+    vf_bench=$(ls -t target/release/deps/vf_time-* | grep -v '\.d$' | head -1)
     (cd ../shared/tools/gpu-limit && cargo build --release)
     mkdir -p .carry/scenes
     cp target/release/cssm "$bench" ../shared/tools/gpu-limit/target/release/gpu-limit .carry/
@@ -27,6 +29,7 @@ prepare)
     cp "$rsm_bench" .carry/rsm_time
     cp "$vct_bench" .carry/vct_time
     cp "$ssil_bench" .carry/ssil_time
+    cp "$vf_bench" .carry/vf_time
     mkdir -p .carry/scenes/sibenik-view && cp reports/scenes/sibenik/scene.toml .carry/scenes/sibenik-view/
     sed -i 's|mesh = .*|mesh = "../sibenik/sibenik.obj"|' .carry/scenes/sibenik-view/scene.toml
     cp -r ../shared/scenes/sibenik .carry/scenes/ 2>/dev/null || echo "no sibenik: its rows will be skipped"
@@ -80,6 +83,14 @@ measure)
     if [ -d .carry/scenes/sibenik ]; then
         .carry/ssil_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
             --out "$out/runtime-ssil-sibenik.md" | tee "$out/runtime-ssil-sibenik.txt"
+    fi
+    # VF at Table 1's marching sizes with and without the filter (issue 20; target: 2 ms at
+    # 1280x720 on the Cornell box), GPU ms per pass.
+    .carry/vf_time --size 1280x720 --frames 20 --out "$out/runtime-vf-cornell.md" \
+        | tee "$out/runtime-vf-cornell.txt"
+    if [ -d .carry/scenes/sibenik ]; then
+        .carry/vf_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
+            --out "$out/runtime-vf-sibenik.md" | tee "$out/runtime-vf-sibenik.txt"
     fi
     # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
     # lightmap, 1 and 2 bounces, 640x480.

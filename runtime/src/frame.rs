@@ -73,7 +73,8 @@ pub enum Slot {
     TexelIrradiance,
     /// Indirect light at a reduced resolution, before the shared filters (`common::filters`).
     Reduced,
-    /// The sparse voxel octree of the scene and the light in its bricks (`vct`).
+    /// A technique's voxels of the scene and their light: the sparse voxel octree and its
+    /// bricks (`vct`), the point proxies' grid, VPLs and harmonics (`vf`).
     Voxels,
     /// The reduced indirect light filtered and up-sampled to the G-buffer's resolution.
     Upsampled,

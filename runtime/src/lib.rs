@@ -59,9 +59,6 @@ pub mod method;
 pub mod radiosity;
 mod renderer;
 pub mod shaders;
-/// Visibility filtering over point proxies (Chen et al. 2014), in progress: not yet a method of
-/// the table.
-pub mod vf;
 pub mod visibility;
 
 /// Declares each method's module (its folder under `runtime/src/`) and lists its entries in
@@ -82,6 +79,7 @@ method_table! {
     rsm => [METHOD],
     vct => [METHOD],
     ssil => [METHOD],
+    vf => [METHOD],
     reference => [METHOD],
 }
 

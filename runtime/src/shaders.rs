@@ -182,6 +182,10 @@ pub enum Shader {
     VfLight,
     /// `vf/march.wgsl`: the sparse shadow rays through the proxies' voxels.
     VfMarch,
+    /// `vf/filter.wgsl`: the visibility filter, the union of the neighbours' voxel lists.
+    VfFilter,
+    /// `vf/gather.wgsl` with `common/bilateral.wgsl`: the weighted lists' VPLs and harmonics.
+    VfGather,
     /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
     Voxelize,
     /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
@@ -196,7 +200,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 28] = [
+    pub const ALL: [Shader; 30] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -225,6 +229,8 @@ impl Shader {
         Shader::VfProxies,
         Shader::VfLight,
         Shader::VfMarch,
+        Shader::VfFilter,
+        Shader::VfGather,
     ];
 
     /// Label of the module (and of its pipeline).
@@ -254,6 +260,8 @@ impl Shader {
             Shader::VfProxies => "vf proxies",
             Shader::VfLight => "vf light",
             Shader::VfMarch => "vf shadow rays",
+            Shader::VfFilter => "vf visibility filter",
+            Shader::VfGather => "vf gather",
             Shader::Voxelize => "voxelize",
             Shader::Octree => "octree",
             Shader::VoxelRadiance => "voxel radiance",
@@ -367,6 +375,8 @@ impl Shader {
             ),
             Shader::VfLight => ("runtime/src/vf/light.wgsl", include_str!("vf/light.wgsl")),
             Shader::VfMarch => ("runtime/src/vf/march.wgsl", include_str!("vf/march.wgsl")),
+            Shader::VfFilter => ("runtime/src/vf/filter.wgsl", include_str!("vf/filter.wgsl")),
+            Shader::VfGather => ("runtime/src/vf/gather.wgsl", include_str!("vf/gather.wgsl")),
         }
     }
 

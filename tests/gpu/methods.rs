@@ -16,10 +16,10 @@ use cssm_runtime::{
 use super::{RenderOptions, cornell, gpu, render, render_reference};
 
 /// Albedo of the sphere's wall.
-const RHO: f32 = 0.5;
+pub(super) const RHO: f32 = 0.5;
 /// Radiant intensity of its spot light (W/sr, every channel) and the cone's half-angle.
-const INTENSITY: f32 = 10.0;
-const CUTOFF_DEG: f32 = 50.0;
+pub(super) const INTENSITY: f32 = 10.0;
+pub(super) const CUTOFF_DEG: f32 = 50.0;
 /// Indirect bounces of the energy check.
 const BOUNCES: u32 = 2;
 
@@ -93,7 +93,7 @@ fn write_sphere(dir: &Path) -> f32 {
 }
 
 /// The sphere, its wall area and its bake (atlas 32, cube 16), made once.
-fn sphere() -> &'static (Scene, f32, CssmFile) {
+pub(super) fn sphere() -> &'static (Scene, f32, CssmFile) {
     static SPHERE: std::sync::OnceLock<(Scene, f32, CssmFile)> = std::sync::OnceLock::new();
     SPHERE.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();

@@ -10,8 +10,10 @@ use cssm_runtime::{
     },
     frame::FrameEncoder,
     vf::{
+        filter::{FilterShape, VisibilityFilter, filter_cpu, unpack_lists},
+        gather::{GatherInputs, GatherShape, Gathering, gather_cpu},
         light::{ProxyLight, SH_STRIDE, Vpl, voxel_sh_cpu, vpl_cpu},
-        march::{MarchInputs, NO_VOXEL, SparseRays, march_cpu},
+        march::{MarchInputs, NO_VOXEL, RayShape, SparseRays, march_cpu},
         proxies::{ProxyGrid, cells_cpu, hash_cpu, place_proxies},
     },
 };
@@ -48,10 +50,42 @@ struct LitProxies {
     light: ProxyLight,
 }
 
-fn lit_proxies(size: (u32, u32)) -> LitProxies {
+/// 8 rays per pixel of the G-buffer reduced `factor` times, discs `disc_scale` times their
+/// share.
+fn ray_shape(scene: &cssm_formats::Scene, factor: u32, disc_scale: f32) -> RayShape {
+    RayShape {
+        factor,
+        rays: 8,
+        offset: 1e-3 * (scene.bounds().1 - scene.bounds().0).length(),
+        disc_scale,
+    }
+}
+
+/// The context's G-buffer position and normal rows.
+fn gbuffer_rows(ctx: &cssm_runtime::frame::FrameContext) -> (Vec<glam::Vec4>, Vec<glam::Vec4>) {
     let gpu = gpu();
-    let (scene, _) = cornell();
-    let proxies = place_proxies(scene, 4096).expect("proxies");
+    let texture = |t| {
+        let bytes = cssm_runtime::common::readback::read_texture(&gpu.device, &gpu.queue, t, 16)
+            .expect("read");
+        bytemuck::cast_slice::<u8, glam::Vec4>(&bytes).to_vec()
+    };
+    (texture(&ctx.gbuffer.position), texture(&ctx.gbuffer.normal))
+}
+
+fn lit_proxies(size: (u32, u32)) -> LitProxies {
+    lit_proxies_in(&cornell().0, 4096, 6, size)
+}
+
+/// `count` proxies of `scene` in a grid of `resolution`, hashed, sorted and lit over a context
+/// of `size`.
+fn lit_proxies_in(
+    scene: &cssm_formats::Scene,
+    count: u32,
+    resolution: u32,
+    size: (u32, u32),
+) -> LitProxies {
+    let gpu = gpu();
+    let proxies = place_proxies(scene, count).expect("proxies");
     let renderer = super::ssil::context_renderer(scene, size);
     let ctx = renderer.context();
     let mut grid = ProxyGrid::new(
@@ -59,7 +93,7 @@ fn lit_proxies(size: (u32, u32)) -> LitProxies {
         &gpu.queue,
         &proxies,
         scene.bounds(),
-        6,
+        resolution,
         &ctx.scene.motion,
     )
     .expect("grid");
@@ -209,7 +243,6 @@ fn vpl_light_and_voxel_sh_match_cpu_twins() {
 /// GPU's own discs and ranges.
 #[test]
 fn shadow_rays_match_cpu_twin() {
-    let gpu = gpu();
     let (scene, _) = cornell();
     let LitProxies {
         renderer,
@@ -218,8 +251,7 @@ fn shadow_rays_match_cpu_twin() {
         ..
     } = lit_proxies((32, 24));
     let ctx = renderer.context();
-    let offset = 1e-3 * (scene.bounds().1 - scene.bounds().0).length();
-    let rays = SparseRays::new(ctx, &grid, &light, 2, 8, offset);
+    let rays = SparseRays::new(ctx, &grid, &light, ray_shape(scene, 2, 1.0));
     submit(|frame| rays.run(frame));
     let [position, normal] = [&light.position, &light.normal].map(read::<glam::Vec4>);
     let sorted = read::<[u32; 2]>(&grid.sorted);
@@ -231,12 +263,7 @@ fn shadow_rays_match_cpu_twin() {
         sorted: &sorted,
         ranges: &ranges,
     };
-    let texture = |t| {
-        let bytes = cssm_runtime::common::readback::read_texture(&gpu.device, &gpu.queue, t, 16)
-            .expect("read");
-        bytemuck::cast_slice::<u8, glam::Vec4>(&bytes).to_vec()
-    };
-    let (gb_position, gb_normal) = (texture(&ctx.gbuffer.position), texture(&ctx.gbuffer.normal));
+    let (gb_position, gb_normal) = gbuffer_rows(ctx);
     let visible = read::<u32>(&rays.visible);
     let params = rays.params;
     let (lw, lh) = (params.low_size[0], params.low_size[1]);
@@ -268,4 +295,240 @@ fn shadow_rays_match_cpu_twin() {
     // Discs of each proxy's share of the area leave gaps between them (and rays leave
     // through the box's open front): a third of the rays hit a disc at 4,096 proxies.
     assert!(hits * 4 > total, "{hits} of {total} rays hit a disc");
+}
+
+/// The shadow rays' lists filtered 7x7 on the GPU against `filter_cpu` over the GPU's own
+/// rays, and a filtered list holding at least its own rays' voxels.
+#[test]
+fn visibility_filter_matches_cpu_twin() {
+    let (scene, _) = cornell();
+    let LitProxies {
+        renderer,
+        grid,
+        light,
+        ..
+    } = lit_proxies((64, 48));
+    let ctx = renderer.context();
+    let rays = SparseRays::new(ctx, &grid, &light, ray_shape(scene, 4, 1.5));
+    let shape = FilterShape {
+        radius: 3,
+        depth: 0.1,
+        normal: 0.9,
+    };
+    let filter = VisibilityFilter::new(ctx, &rays, grid.grid.cells(), &shape).expect("filter");
+    submit(|frame| {
+        rays.run(frame);
+        filter.run(frame);
+    });
+    let (position, normal) = gbuffer_rows(ctx);
+    let visible = read::<u32>(&rays.visible);
+    let gpu_lists = unpack_lists(&filter.params, &read::<u32>(&filter.lists));
+    let eye = ctx.camera.eye;
+    let cpu_lists = filter_cpu(&filter.params, &visible, &position, &normal, eye);
+    assert_eq!(gpu_lists.len(), cpu_lists.len());
+    let differ = gpu_lists
+        .iter()
+        .zip(&cpu_lists)
+        .filter(|(g, c)| g != c)
+        .count();
+    // A neighbour right at a depth or normal threshold may go either way in the last bit.
+    assert!(
+        differ * 100 <= cpu_lists.len(),
+        "{differ} of {} lists differ from the twin",
+        cpu_lists.len()
+    );
+    let rays_per = filter.params.rays as usize;
+    let (mut own, mut filtered) = (0usize, 0usize);
+    for (i, list) in gpu_lists.iter().enumerate() {
+        let mine: std::collections::BTreeSet<u32> = visible[i * rays_per..(i + 1) * rays_per]
+            .iter()
+            .copied()
+            .filter(|&k| k != NO_VOXEL)
+            .collect();
+        assert!(
+            mine.iter().all(|k| list.binary_search(k).is_ok()),
+            "pixel {i}"
+        );
+        own += mine.len();
+        filtered += list.len();
+    }
+    eprintln!("voxels per list: {own} own, {filtered} filtered");
+    assert!(filtered > own, "the filter adds the neighbours' voxels");
+}
+
+/// Every gathering pixel of the Cornell box against `gather_cpu` over the GPU's own lists,
+/// VPLs and harmonics, with VPLs near and harmonics far (R of one voxel), and Eq. 7's weight.
+#[test]
+fn gathering_matches_cpu_twin() {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let LitProxies {
+        renderer,
+        grid,
+        light,
+        ..
+    } = lit_proxies((32, 24));
+    let ctx = renderer.context();
+    let rays = SparseRays::new(ctx, &grid, &light, ray_shape(scene, 4, 1.5));
+    let shape = FilterShape {
+        radius: 1,
+        depth: 0.1,
+        normal: 0.9,
+    };
+    let filter = VisibilityFilter::new(ctx, &rays, grid.grid.cells(), &shape).expect("filter");
+    let (materials, _) = cssm_runtime::load::cpu_materials(scene).expect("materials");
+    let ns: Vec<f32> = materials.iter().map(|m| m.ns).collect();
+    let (position, normal) = gbuffer_rows(ctx);
+    for sigma in [0.0, 0.5] {
+        let gather = GatherShape {
+            factor: 2,
+            range: grid.grid.cell,
+            depth_sigma: 0.1,
+            normal_power: 8.0,
+            sigma,
+        };
+        let size = cssm_runtime::common::filters::low_size(ctx.size(), 2);
+        let planes = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("planes"),
+            size: 2 * 16 * u64::from(size.0 * size.1),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let gathering = Gathering::new(ctx, (&grid, &light), (&rays, &filter), &gather, &planes);
+        submit(|frame| {
+            rays.run(frame);
+            filter.run(frame);
+            gathering.run(frame);
+        });
+        let lists = unpack_lists(&filter.params, &read::<u32>(&filter.lists));
+        let [p, n, f] = [&light.position, &light.normal, &light.flux].map(read::<glam::Vec4>);
+        let sorted = read::<[u32; 2]>(&grid.sorted);
+        let ranges = read::<[u32; 2]>(&grid.cells);
+        let voxel_sh = read::<glam::Vec4>(&light.voxel_sh);
+        let inputs = GatherInputs {
+            params: gathering.params,
+            eye: ctx.camera.eye,
+            position: &position,
+            normal: &normal,
+            ns: &ns,
+            lists: &lists,
+            vpls: [&p, &n, &f],
+            sorted: &sorted,
+            ranges: &ranges,
+            voxel_sh: &voxel_sh,
+        };
+        let out = read::<glam::Vec4>(&planes);
+        let plane = (size.0 * size.1) as usize;
+        let (mut lit, mut worst) = (0, 0.0f32);
+        for y in 0..size.1 {
+            for x in 0..size.0 {
+                let i = (y * size.0 + x) as usize;
+                let cpu = gather_cpu(&inputs, (x, y));
+                for (k, c) in cpu.iter().enumerate() {
+                    let g = out[k * plane + i].truncate();
+                    let err = (g - *c).abs().max_element() / c.max_element().max(1e-3);
+                    worst = worst.max(err);
+                }
+                lit += usize::from(cpu[0].max_element() > 0.0);
+            }
+        }
+        assert!(
+            worst < 1e-3,
+            "sigma {sigma}: worst relative difference {worst}"
+        );
+        assert!(
+            lit * 2 > plane,
+            "sigma {sigma}: {lit} of {plane} pixels lit"
+        );
+    }
+}
+
+/// In the closed sphere of `methods.rs` every voxel is visible from every point, and each
+/// point's one-bounce irradiance is the closed form `rho Phi / A`: the gathering over lists of
+/// every voxel (the visibility sampling taken out) must give it, with VPLs near and harmonics
+/// far (R of one voxel) and with VPLs only.
+#[test]
+fn gathering_every_voxel_gives_the_spheres_closed_form() {
+    use super::methods::{CUTOFF_DEG, INTENSITY, RHO, sphere};
+    let gpu = gpu();
+    let (scene, area, _) = sphere();
+    let LitProxies {
+        renderer,
+        grid,
+        light,
+        ..
+    } = lit_proxies_in(scene, 8192, 8, (32, 24));
+    let ctx = renderer.context();
+    let shape = RayShape {
+        rays: 64,
+        ..ray_shape(scene, 4, 1.5)
+    };
+    let rays = SparseRays::new(ctx, &grid, &light, shape);
+    let filter_shape = FilterShape {
+        radius: 3,
+        depth: 0.1,
+        normal: 0.9,
+    };
+    let filter =
+        VisibilityFilter::new(ctx, &rays, grid.grid.cells(), &filter_shape).expect("filter");
+    let ranges = read::<[u32; 2]>(&grid.cells);
+    let every: Vec<u32> = (0..ranges.len() as u32)
+        .filter(|&v| ranges[v as usize][1] > ranges[v as usize][0])
+        .collect();
+    let stride = filter.params.capacity as usize + 1;
+    assert!(
+        every.len() < stride,
+        "{} voxels, room for {}",
+        every.len(),
+        stride - 1
+    );
+    let mut lists = vec![0u32; stride * filter.params.pixels() as usize];
+    for chunk in lists.chunks_mut(stride) {
+        chunk[0] = every.len() as u32;
+        chunk[1..=every.len()].copy_from_slice(&every);
+    }
+    gpu.queue
+        .write_buffer(&filter.lists, 0, bytemuck::cast_slice(&lists));
+    let power = INTENSITY * std::f32::consts::TAU * (1.0 - CUTOFF_DEG.to_radians().cos());
+    let expected = RHO * power / area;
+    let mut errors = Vec::new();
+    // Order-1 harmonics of a clamped cosine send 3/4 of it head-on (gather.rs), and the
+    // camera looks at the wall opposite the lit patch: the far light falls short by about that.
+    for (range, tolerance) in [(1.0, 0.25), (100.0, 0.02)] {
+        let size = cssm_runtime::common::filters::low_size(ctx.size(), 2);
+        let planes = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("planes"),
+            size: 2 * 16 * u64::from(size.0 * size.1),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let gather = GatherShape {
+            factor: 2,
+            range: range * grid.grid.cell,
+            depth_sigma: 0.1,
+            normal_power: 8.0,
+            sigma: 0.0,
+        };
+        let gathering = Gathering::new(ctx, (&grid, &light), (&rays, &filter), &gather, &planes);
+        submit(|frame| gathering.run(frame));
+        let out = read::<glam::Vec4>(&planes);
+        let plane = &out[..(size.0 * size.1) as usize];
+        let mean = plane
+            .iter()
+            .map(|e| e.truncate().element_sum() / 3.0)
+            .sum::<f32>()
+            / plane.len() as f32;
+        let error = mean / expected - 1.0;
+        eprintln!(
+            "R {range} voxels: mean irradiance {mean:.5}, closed form {expected:.5}, {:+.2}%",
+            100.0 * error
+        );
+        errors.push((range, tolerance, error));
+    }
+    for (range, tolerance, error) in errors {
+        assert!(
+            error.abs() < tolerance,
+            "R {range}: {error:+} against the closed form"
+        );
+    }
 }

@@ -38,6 +38,24 @@ pub struct MarchParams {
     pub seed: u32,
     /// Origins lifted by this much along the normal; nearer hits ignored.
     pub offset: f32,
+    /// The discs' radii as the rays test them, times the proxies' own (which give each disc
+    /// its share of the area and leave gaps between discs).
+    pub disc_scale: f32,
+    /// Padding.
+    pub pad: u32,
+}
+
+/// What the shadow rays are: where from, how many, against which discs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayShape {
+    /// Reduction per side of the G-buffer the rays start from.
+    pub factor: u32,
+    /// Rays per reduced pixel.
+    pub rays: u32,
+    /// Origins lifted by this much along the normal (world units); nearer hits ignored.
+    pub offset: f32,
+    /// The discs' radii as the rays test them, times the proxies' own.
+    pub disc_scale: f32,
 }
 
 /// The shadow-ray pass and its per-pixel voxel lists.
@@ -52,15 +70,20 @@ pub struct SparseRays {
 
 impl SparseRays {
     /// `rays` rays per pixel of the context's G-buffer reduced `factor` times, through
-    /// `grid`'s voxels and `light`'s discs, origins lifted by `offset`.
+    /// `grid`'s voxels and `light`'s discs (their radii times `disc_scale`), origins lifted by
+    /// `offset`.
     pub fn new(
         ctx: &FrameContext,
         grid: &ProxyGrid,
         light: &ProxyLight,
-        factor: u32,
-        rays: u32,
-        offset: f32,
+        shape: RayShape,
     ) -> Self {
+        let RayShape {
+            factor,
+            rays,
+            offset,
+            disc_scale,
+        } = shape;
         let device = &ctx.device;
         let full = ctx.size();
         let low = filters::low_size(full, factor);
@@ -71,6 +94,8 @@ impl SparseRays {
             rays,
             seed: 0,
             offset,
+            disc_scale,
+            pad: 0,
         };
         let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("shadow rays"),
@@ -154,8 +179,8 @@ pub struct MarchInputs<'a> {
 }
 
 impl MarchInputs<'_> {
-    /// `march.wgsl`: `hit_in`.
-    fn hit_in(&self, cell: u32, o: Vec3, d: Vec3, t0: f32, t1: f32) -> Option<f32> {
+    /// `march.wgsl`: `hit_in`, discs of radius `scale` times their own.
+    fn hit_in(&self, cell: u32, o: Vec3, d: Vec3, (t0, t1): (f32, f32), scale: f32) -> Option<f32> {
         let [start, end] = self.ranges[cell as usize];
         let mut best: Option<f32> = None;
         for pair in &self.sorted[start as usize..end as usize] {
@@ -173,15 +198,17 @@ impl MarchInputs<'_> {
                 continue;
             }
             let p = o + t * d;
-            if (p - c.truncate()).length_squared() <= c.w * c.w {
+            let r = scale * c.w;
+            if (p - c.truncate()).length_squared() <= r * r {
                 best = Some(t);
             }
         }
         best
     }
 
-    /// `march.wgsl`: `march`, the first voxel with a disc the ray hits.
-    pub fn march(&self, o: Vec3, d: Vec3, offset: f32) -> u32 {
+    /// `march.wgsl`: `march`, the first voxel with a disc (of radius `disc_scale` times its
+    /// own) the ray hits, no nearer than `offset`.
+    pub fn march(&self, o: Vec3, d: Vec3, offset: f32, disc_scale: f32) -> u32 {
         let g = &self.grid;
         let lo = Vec3::from(g.lo);
         let dims_f = glam::UVec3::from(g.dims).as_vec3();
@@ -214,7 +241,10 @@ impl MarchInputs<'_> {
         for _ in 0..dims.element_sum() {
             let cell = (v.z * dims.x * dims.y + v.y * dims.x + v.x) as u32;
             let t_next = t_max.min_element().min(t_exit);
-            if self.hit_in(cell, o, d, t.max(offset), t_next).is_some() {
+            if self
+                .hit_in(cell, o, d, (t.max(offset), t_next), disc_scale)
+                .is_some()
+            {
                 return cell;
             }
             if t_next >= t_exit {
@@ -275,7 +305,7 @@ pub fn march_cpu(
             let u2 = (k as f32 * 0.618_034 + r2).fract();
             let (r, phi) = (u1.sqrt(), 2.0 * std::f32::consts::PI * u2);
             let d = frame * Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt());
-            inputs.march(o, d, params.offset)
+            inputs.march(o, d, params.offset, params.disc_scale)
         })
         .collect()
 }
@@ -299,6 +329,8 @@ mod tests {
                 ("rays", offset_of!(MarchParams, rays)),
                 ("seed", offset_of!(MarchParams, seed)),
                 ("offset", offset_of!(MarchParams, offset)),
+                ("disc_scale", offset_of!(MarchParams, disc_scale)),
+                ("pad", offset_of!(MarchParams, pad)),
             ],
         );
     }
@@ -329,19 +361,19 @@ mod tests {
             ranges: &ranges,
         };
         assert_eq!(
-            inputs.march(Vec3::new(0.1, 0.5, 0.5), Vec3::X, 0.0),
+            inputs.march(Vec3::new(0.1, 0.5, 0.5), Vec3::X, 0.0, 1.0),
             keys[0]
         );
         assert_eq!(
-            inputs.march(Vec3::new(3.9, 0.5, 0.5), -Vec3::X, 0.0),
+            inputs.march(Vec3::new(3.9, 0.5, 0.5), -Vec3::X, 0.0, 1.0),
             keys[1]
         );
         assert_eq!(
-            inputs.march(Vec3::new(0.1, 2.5, 0.5), Vec3::X, 0.0),
+            inputs.march(Vec3::new(0.1, 2.5, 0.5), Vec3::X, 0.0, 1.0),
             NO_VOXEL
         );
         assert_eq!(
-            inputs.march(Vec3::new(-1.0, 0.5, 0.5), Vec3::Y, 0.0),
+            inputs.march(Vec3::new(-1.0, 0.5, 0.5), Vec3::Y, 0.0, 1.0),
             NO_VOXEL
         );
     }

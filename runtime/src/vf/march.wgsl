@@ -19,6 +19,10 @@ struct MarchParams {
     // Ray origins lifted off their surface by this much along the normal, and hits nearer
     // than it ignored.
     offset: f32,
+    // The discs' radii as the rays test them, times the proxies' own (which give each disc
+    // its share of the area, and leave gaps between discs).
+    disc_scale: f32,
+    pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: MarchParams;
@@ -62,7 +66,8 @@ fn hit_in(cell: u32, o: vec3f, d: vec3f, t0: f32, t1: f32) -> f32 {
             continue;
         }
         let p = o + t * d;
-        if dot(p - c.xyz, p - c.xyz) <= c.w * c.w {
+        let r = params.disc_scale * c.w;
+        if dot(p - c.xyz, p - c.xyz) <= r * r {
             best = t;
         }
     }

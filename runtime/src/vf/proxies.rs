@@ -324,6 +324,22 @@ impl ProxyGrid {
         })
     }
 
+    /// Records the sort once into an encoder that is dropped, so that its workspace for
+    /// this many proxies exists before the first frame.
+    ///
+    /// # Errors
+    /// The sort's ([`KeySort::record`]).
+    pub fn reserve(&mut self, device: &wgpu::Device) -> Result<(), RuntimeError> {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        self.sort.record(
+            &mut encoder,
+            &self.pairs,
+            &self.sorted,
+            self.grid.count,
+            key_bits(self.grid.cells()),
+        )
+    }
+
     /// Records the hash, the sort and the cells' ranges.
     ///
     /// # Errors
