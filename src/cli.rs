@@ -58,6 +58,20 @@ pub enum Command {
     )]
     Render(RenderArgs),
     /// Measure the toolchain against the paper and write a report.
+    /// Render every method of the table on each scene beside the reference path tracer and
+    /// write a page (index.html) that answers which method, at what cost, how far from the
+    /// ground truth: every method's full image, indirect light and error map, its relative
+    /// RMSE, FLIP and bias against the path tracer with the reference's own noise taken out,
+    /// its GPU milliseconds per pass and GPU memory, and a chart of error against time; the
+    /// same figures as compare.csv, compare.json and compare.md.
+    ///
+    /// The reference is path traced in two independent halves: their mean is the ground truth,
+    /// their difference its noise, which the page subtracts (in quadrature) from each method's
+    /// error and reports beside it. References are cached in OUT/reference-cache/ by the
+    /// scene's files and the settings. The GPU milliseconds are the device's (lavapipe's say
+    /// nothing about a GPU).
+    #[command(after_help = compare_after_help())]
+    Compare(CompareArgs),
     #[command(
         subcommand,
         after_help = "Examples:\n  \
@@ -411,6 +425,55 @@ impl ErrorArgs {
     /// Every spec parsed and resolved against the method table, the reference's options, the
     /// frame settings and the bake options checked; an error names the spec or the flag.
     pub fn config(self) -> Result<ErrorConfig, String> {
+        let checked = MeasureFlags {
+            samples: self.samples,
+            bounces: self.bounces,
+            size: self.size,
+            exposure: self.exposure,
+            shadow_resolution: self.shadow_resolution,
+            atlas: self.atlas,
+            cube: self.cube,
+            frames: self.frames,
+        }
+        .check()?;
+        Ok(ErrorConfig {
+            scenes: self.scenes,
+            variants: parse_variants(&self.methods, self.bounces, self.samples)?,
+            frame: checked.frame,
+            reference: checked.reference,
+            component: self.component,
+            bake: checked.bake,
+            out: self.out,
+            reference_cache: self.reference_cache,
+            frames: self.frames,
+        })
+    }
+}
+
+/// The flags `cssm report error` and `cssm compare` share.
+struct MeasureFlags {
+    samples: u32,
+    bounces: u32,
+    size: (u32, u32),
+    exposure: f32,
+    shadow_resolution: u32,
+    atlas: u32,
+    cube: u32,
+    frames: u32,
+}
+
+/// [`MeasureFlags`], checked.
+struct MeasureChecked {
+    reference: Resolved,
+    frame: runtime::frame::FrameSettings,
+    bake: bake::BakeOptions,
+}
+
+impl MeasureFlags {
+    /// The reference's options checked by its table entry, the frame settings by the runtime,
+    /// the bake options by the bake library, the frame count against [`MAX_FRAMES`]; an error
+    /// names the flag.
+    fn check(&self) -> Result<MeasureChecked, String> {
         let reference_entry = runtime::method::find("reference").map_err(|e| e.to_string())?;
         for (name, value) in [("samples", self.samples), ("bounces", self.bounces)] {
             if let Some(spec) = reference_entry.option(name) {
@@ -424,14 +487,6 @@ impl ErrorArgs {
         let reference = reference_entry
             .resolve(&values)
             .map_err(|e| e.to_string())?;
-        let mut variants: Vec<Variant> = Vec::new();
-        for text in &self.methods {
-            let variant = parse_variant(text, self.bounces, self.samples)?;
-            if let Some(other) = variants.iter().find(|v| v.spec == variant.spec) {
-                return Err(format!("--method {}: given twice", other.spec));
-            }
-            variants.push(variant);
-        }
         let frame = runtime::frame::FrameSettings {
             width: self.size.0,
             height: self.size.1,
@@ -439,6 +494,12 @@ impl ErrorArgs {
             shadow_resolution: self.shadow_resolution,
         };
         frame.check().map_err(|e| e.to_string())?;
+        if !self.exposure.is_finite() {
+            return Err(format!(
+                "--exposure {}: must be a finite number",
+                self.exposure
+            ));
+        }
         let bake = bake::BakeOptions {
             atlas_resolution: self.atlas,
             cube_resolution: self.cube,
@@ -451,18 +512,172 @@ impl ErrorArgs {
                 self.frames
             ));
         }
-        Ok(ErrorConfig {
-            scenes: self.scenes,
-            variants,
-            frame,
+        Ok(MeasureChecked {
             reference,
-            component: self.component,
+            frame,
             bake,
+        })
+    }
+}
+
+/// Each spec parsed ([`parse_variant`]); a spec given twice is refused.
+fn parse_variants(specs: &[String], bounces: u32, samples: u32) -> Result<Vec<Variant>, String> {
+    let mut variants: Vec<Variant> = Vec::new();
+    for text in specs {
+        let variant = parse_variant(text, bounces, samples)?;
+        if let Some(other) = variants.iter().find(|v| v.spec == variant.spec) {
+            return Err(format!("--method {}: given twice", other.spec));
+        }
+        variants.push(variant);
+    }
+    Ok(variants)
+}
+
+/// `cssm compare --help`'s text after the options: the method table, then examples.
+fn compare_after_help() -> String {
+    format!(
+        "Methods and their options (--methods NAME:OPTION=VALUE,OPTION=VALUE,NAME,...; --bounces \
+         and --samples fill those options of every method that has them and does not set them):\n{}\n\
+         Every method marked [needs .cssm] gets one baked in memory per scene (--atlas, --cube).\n\n\
+         Examples:\n  \
+         cssm compare --out /tmp/compare                       # the built-in boxes, every method\n  \
+         cssm compare scenes/cornell-box reports/scenes/sibenik --methods rsm,vct,vf --size 640x480\n  \
+         cssm compare --methods lightcuts:bounces=2,jitter=true,ssil --bounces 2 --frames 16\n  \
+         cssm compare ../shared/scenes/sibenik --atlas 256 --samples 4096 --out /tmp/sibenik",
+        runtime::method::describe_methods()
+    )
+}
+
+#[derive(clap::Args)]
+pub struct CompareArgs {
+    /// Scene directories. Default: the built-in Cornell box and the Cornell box with a glossy
+    /// floor (scenes/cornell-box, scenes/cornell-glossy).
+    #[arg(value_name = "SCENE")]
+    scenes: Vec<PathBuf>,
+    /// Methods to compare, comma-separated, each NAME or NAME:OPTION=VALUE,OPTION=VALUE (a part
+    /// with `=` and no `:` is an option of the method before it: `lightcuts:bounces=2,jitter=true,rsm`
+    /// is two methods); repeatable. Default: every method of the table but the path tracer.
+    #[arg(long = "methods", value_name = "LIST")]
+    methods: Vec<String>,
+    /// Image size WIDTHxHEIGHT.
+    #[arg(long, default_value = "320x240", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Paths per pixel of the reference, split into two independent halves whose difference
+    /// measures its noise.
+    #[arg(long, default_value_t = 1024)]
+    samples: u32,
+    /// Indirect bounces of the reference and of every method with a `bounces` option that does
+    /// not set it (the methods without one compute a single bounce).
+    #[arg(long, default_value_t = 1)]
+    bounces: u32,
+    /// Frames each GPU method renders before its image is measured, the camera at rest (ssil's
+    /// temporal filter converges over a few).
+    #[arg(long, default_value_t = 1)]
+    frames: u32,
+    /// Exposure in stops of every tone-mapped image and of FLIP.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Shadow-map resolution in texels per side.
+    #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
+    shadow_resolution: u32,
+    /// Atlas resolution of the .cssm baked in memory for the methods that need one (32 to 1024).
+    #[arg(long, default_value_t = 64)]
+    atlas: u32,
+    /// Cube-map face resolution of that bake (8 to 128).
+    #[arg(long, default_value_t = 32)]
+    cube: u32,
+    /// Directory of the page (created; only the page's own files in it are replaced):
+    /// index.html, chart.svg, compare.csv, compare.json, compare.md, images/ and
+    /// reference-cache/.
+    #[arg(long, default_value = "compare")]
+    out: PathBuf,
+    /// Path trace the references again even where OUT/reference-cache/ holds one of the same
+    /// scene files and settings.
+    #[arg(long)]
+    no_cache: bool,
+}
+
+/// `cssm compare`, checked.
+pub struct CompareConfig {
+    /// Scene directories; empty: the built-in scenes.
+    pub scenes: Vec<PathBuf>,
+    /// The methods, in the order given.
+    pub variants: Vec<Variant>,
+    /// Image size, exposure (a multiplier) and shadow-map resolution, checked.
+    pub frame: runtime::frame::FrameSettings,
+    /// Exposure in stops, as given.
+    pub exposure_stops: f32,
+    /// The reference's options (`samples`, `bounces`), checked by its table entry.
+    pub reference: Resolved,
+    /// The in-memory bake of the methods that need a `.cssm`.
+    pub bake: bake::BakeOptions,
+    /// Page directory.
+    pub out: PathBuf,
+    /// Whether cached references may be reused.
+    pub reuse_references: bool,
+    /// Frames rendered per GPU method, 1..=[`MAX_FRAMES`].
+    pub frames: u32,
+}
+
+impl CompareArgs {
+    /// The methods split ([`split_methods`]), parsed and resolved against the method table, and
+    /// the shared flags checked; an error names the method or the flag.
+    pub fn config(self) -> Result<CompareConfig, String> {
+        let checked = MeasureFlags {
+            samples: self.samples,
+            bounces: self.bounces,
+            size: self.size,
+            exposure: self.exposure,
+            shadow_resolution: self.shadow_resolution,
+            atlas: self.atlas,
+            cube: self.cube,
+            frames: self.frames,
+        }
+        .check()?;
+        let specs: Vec<String> = if self.methods.is_empty() {
+            runtime::METHODS
+                .iter()
+                .filter(|m| m.on_gpu())
+                .map(|m| m.name.to_string())
+                .collect()
+        } else {
+            self.methods.iter().flat_map(|l| split_methods(l)).collect()
+        };
+        if specs.is_empty() {
+            return Err("--methods: no method given".into());
+        }
+        Ok(CompareConfig {
+            scenes: self.scenes,
+            variants: parse_variants(&specs, self.bounces, self.samples)?,
+            frame: checked.frame,
+            exposure_stops: self.exposure,
+            reference: checked.reference,
+            bake: checked.bake,
             out: self.out,
-            reference_cache: self.reference_cache,
+            reuse_references: !self.no_cache,
             frames: self.frames,
         })
     }
+}
+
+/// A `--methods` list split into method specs: at each comma, unless the part after it holds
+/// `=` and no `:` (an option of the method before it). Empty parts are dropped.
+fn split_methods(list: &str) -> Vec<String> {
+    let mut specs: Vec<String> = Vec::new();
+    for part in list.split(',') {
+        let part = part.trim();
+        if part.is_empty() {
+            continue;
+        }
+        match specs.last_mut() {
+            Some(last) if part.contains('=') && !part.contains(':') && last.contains(':') => {
+                last.push(',');
+                last.push_str(part);
+            }
+            _ => specs.push(part.to_string()),
+        }
+    }
+    specs
 }
 
 /// `NAME` or `NAME:OPTION=VALUE,OPTION=VALUE`, checked against the method table; `bounces` and
@@ -754,6 +969,22 @@ mod tests {
 
     /// A spec's options are parsed by the method's table, the flags fill `bounces` and
     /// `samples` where the spec leaves them, and the spec is kept as written, trimmed.
+    #[test]
+    fn method_lists_split_at_methods_not_at_options() {
+        assert_eq!(
+            super::split_methods("lightcuts:bounces=2,jitter=true,rsm, vct:resolution=64"),
+            [
+                "lightcuts:bounces=2,jitter=true",
+                "rsm",
+                "vct:resolution=64"
+            ]
+        );
+        assert_eq!(super::split_methods("direct,,ssil"), ["direct", "ssil"]);
+        // An option with no method before it stays a spec of its own (and fails to parse).
+        assert_eq!(super::split_methods("bounces=2,rsm"), ["bounces=2", "rsm"]);
+        assert_eq!(super::split_methods("rsm,bounces=2"), ["rsm", "bounces=2"]);
+    }
+
     #[test]
     fn method_specs_parse_against_the_table() {
         let v = super::parse_variant(" lightcuts : threshold=0.5 , jitter=on", 2, 64).unwrap();

@@ -1,7 +1,8 @@
 //! The `cssm` command line: a thin layer over the `cssm-formats`, `cssm-bake` and
 //! `cssm-runtime` libraries. [`cli`] holds the clap definitions and turns each command's
 //! arguments into a config of library types, checked by the libraries; `bake_cmd`,
-//! `check_cmd`, `render` and `error_cmd` (`cssm report error`) run the commands, `inspect`
+//! `check_cmd`, `render`, `error_cmd` (`cssm report error`) and `compare_cmd` (`cssm compare`)
+//! run the commands, on what [`measure`] shares, `inspect`
 //! and the other reports are here. What `bake`, `inspect` and `check` print, text or
 //! `--json`, is [`cssm::summary`].
 //!
@@ -15,7 +16,9 @@ use std::{
 mod bake_cmd;
 mod check_cmd;
 mod cli;
+mod compare_cmd;
 mod error_cmd;
+mod measure;
 mod render;
 
 use clap::Parser;
@@ -33,6 +36,7 @@ fn main() -> ExitCode {
         Command::Report(ReportCommand::Heads(args)) => run_heads(args),
         Command::Report(ReportCommand::Church(args)) => run_church(args),
         Command::Report(ReportCommand::Error(args)) => args.config().and_then(error_cmd::run_error),
+        Command::Compare(args) => args.config().and_then(compare_cmd::run_compare),
     };
     match result {
         Ok(code) => code,

@@ -24,6 +24,23 @@ pub fn required_limits() -> wgpu::Limits {
     }
 }
 
+/// The bytes of GPU memory `device`'s buffers and textures hold now, as wgpu's allocator counts
+/// them (wgpu's `counters` feature; each resource's own allocation, not the blocks around it).
+/// The difference before and after a [`crate::Renderer`] is built and renders is the memory it
+/// holds. 0 on a backend that does not count (WebGPU, GL).
+///
+/// ```no_run
+/// # fn demo(device: &wgpu::Device) {
+/// let before = cssm_runtime::gpu_memory_bytes(device);
+/// // ... build a renderer and render a frame ...
+/// let held = cssm_runtime::gpu_memory_bytes(device).saturating_sub(before);
+/// # }
+/// ```
+pub fn gpu_memory_bytes(device: &wgpu::Device) -> u64 {
+    let hal = device.get_internal_counters().hal;
+    (hal.buffer_memory.read() + hal.texture_memory.read()).max(0) as u64
+}
+
 /// A device and queue with what the runtime learned about them.
 pub struct Gpu {
     /// The adapter the device was created on.

@@ -83,6 +83,6 @@ method_table! {
     reference => [METHOD],
 }
 
-pub use device::{Gpu, required_limits};
+pub use device::{Gpu, gpu_memory_bytes, required_limits};
 pub use error::RuntimeError;
 pub use renderer::{Renderer, RendererSettings};

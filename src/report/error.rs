@@ -164,12 +164,13 @@ pub fn combine(half1: &[[f32; 4]], n1: u32, half2: &[[f32; 4]], n2: u32) -> Vec<
         .collect()
 }
 
-/// Mean FLIP error (0 to 1) of `test` against `reference`, both tone-mapped RGBA8 images of
-/// `width` x `height` (alpha is ignored), at nv-flip's default viewing distance.
+/// FLIP (Andersson et al. 2020, `nv-flip`) of `test` against `reference`, both tone-mapped RGBA8
+/// images of `width` x `height` (alpha is ignored), at nv-flip's default viewing distance: the
+/// per-pixel error map (0 to 1).
 ///
 /// # Panics
 /// When a buffer is not `width * height * 4` bytes.
-pub fn mean_flip(width: u32, height: u32, reference: &[u8], test: &[u8]) -> f32 {
+fn flip_error(width: u32, height: u32, reference: &[u8], test: &[u8]) -> nv_flip::FlipImageFloat {
     let rgb = |rgba: &[u8]| -> Vec<u8> {
         assert_eq!(
             rgba.len(),
@@ -182,8 +183,103 @@ pub fn mean_flip(width: u32, height: u32, reference: &[u8], test: &[u8]) -> f32 
     };
     let reference = nv_flip::FlipImageRgb8::with_data(width, height, &rgb(reference));
     let test = nv_flip::FlipImageRgb8::with_data(width, height, &rgb(test));
-    let error_map = nv_flip::flip(reference, test, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
-    nv_flip::FlipPool::from_image(&error_map).mean()
+    nv_flip::flip(reference, test, nv_flip::DEFAULT_PIXELS_PER_DEGREE)
+}
+
+/// Mean FLIP error (0 to 1) of `test` against `reference`, both tone-mapped RGBA8 images of
+/// `width` x `height` (alpha is ignored), at nv-flip's default viewing distance.
+///
+/// # Panics
+/// When a buffer is not `width * height * 4` bytes.
+pub fn mean_flip(width: u32, height: u32, reference: &[u8], test: &[u8]) -> f32 {
+    nv_flip::FlipPool::from_image(&flip_error(width, height, reference, test)).mean()
+}
+
+/// The FLIP error map of `test` against `reference` (as [`mean_flip`]) in the magma colour map
+/// of the FLIP paper (black: no visible difference; yellow: the largest), RGBA8.
+///
+/// # Panics
+/// When a buffer is not `width * height * 4` bytes.
+pub fn flip_map(width: u32, height: u32, reference: &[u8], test: &[u8]) -> Vec<u8> {
+    flip_error(width, height, reference, test)
+        .apply_color_lut(&nv_flip::magma_lut())
+        .to_vec()
+        .chunks_exact(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect()
+}
+
+/// The reference's own noise in each figure, from its two independent halves: what a method
+/// equal to the converged image would measure against it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ReferenceNoise {
+    /// [`noise_floor`]: its relative RMSE against the converged image.
+    pub relative_rmse: Option<f64>,
+    /// Mean FLIP of the whole against its first half. The difference `whole - half1` is
+    /// `n2 / N (half2 - half1)`, of the whole's own variance for equal halves: the FLIP an image
+    /// as far from the reference as the reference is from the converged one would show.
+    pub flip: Option<f32>,
+    /// The standard deviation of the reference's total luminance relative to it, the noise of
+    /// [`mean_bias`]: `|L1 - L2| sqrt(n1 n2) / N / L` (the halves' mean luminances `L1`, `L2`,
+    /// the whole's `L`), a one-sample estimate.
+    pub bias: Option<f64>,
+}
+
+impl ReferenceNoise {
+    /// The noise of the reference of `size` made of `half1` (`n1` paths per pixel) and `half2`
+    /// (`n2`), whose whole and first half are tone-mapped to `display` (`whole`, `half1`).
+    ///
+    /// # Panics
+    /// When the images differ in size.
+    pub fn measure(
+        size: (u32, u32),
+        half1: (&[[f32; 4]], u32),
+        half2: (&[[f32; 4]], u32),
+        display: (&[u8], &[u8]),
+    ) -> Self {
+        let (n1, n2) = (half1.1, half2.1);
+        let relative_rmse = noise_floor(half1.0, n1, half2.0, n2);
+        let flip = (n1 > 0 && n2 > 0).then(|| mean_flip(size.0, size.1, display.0, display.1));
+        let lum = |image: &[[f32; 4]]| image.iter().map(luminance).sum::<f64>();
+        let (l1, l2) = (lum(half1.0), lum(half2.0));
+        let n = (n1 + n2) as f64;
+        let whole = (n1 as f64 * l1 + n2 as f64 * l2) / n;
+        let bias = (n1 > 0 && n2 > 0 && whole > 0.0)
+            .then(|| (l1 - l2).abs() * (n1 as f64 * n2 as f64).sqrt() / n / whole);
+        Self {
+            relative_rmse,
+            flip,
+            bias,
+        }
+    }
+}
+
+/// The relative RMSE a method has against the converged image, the reference's noise taken
+/// out: `sqrt(max(0, e^2 - f^2))` for the measured relative RMSE `e` and the noise floor `f`.
+/// The reference's noise is independent of the method's image and of mean zero, so the squared
+/// error against the reference is the squared error against the converged image plus the
+/// reference's own, on average. `None` without both.
+///
+/// ```
+/// use cssm::report::error::without_noise;
+/// assert_eq!(without_noise(Some(0.5), Some(0.3)), Some(0.4));
+/// assert_eq!(without_noise(Some(0.1), Some(0.3)), Some(0.0));
+/// ```
+pub fn without_noise(relative_rmse: Option<f64>, floor: Option<f64>) -> Option<f64> {
+    let (e, f) = (relative_rmse?, floor?);
+    Some((e * e - f * f).max(0.0).sqrt())
+}
+
+/// The share of the squared relative RMSE `e` that the reference's noise floor `f` accounts
+/// for, `min(1, f^2 / e^2)`; `None` without both or when `e` is 0.
+///
+/// ```
+/// use cssm::report::error::noise_share;
+/// assert_eq!(noise_share(Some(0.5), Some(0.25)), Some(0.25));
+/// ```
+pub fn noise_share(relative_rmse: Option<f64>, floor: Option<f64>) -> Option<f64> {
+    let (e, f) = (relative_rmse?, floor?);
+    (e > 0.0).then(|| (f * f / (e * e)).min(1.0))
 }
 
 /// Every figure of one method against the reference.
@@ -353,6 +449,61 @@ mod tests {
         let floor = noise_floor(&h1, 8, &h2, 8).unwrap();
         let actual = relative_rmse(&combine(&h1, 8, &h2, 8), &truth).unwrap();
         assert!((floor / actual - 1.0).abs() < 0.1, "{floor} vs {actual}");
+    }
+
+    #[test]
+    fn reference_noise_from_halves() {
+        let r = reference();
+        let e = 0.05f32;
+        let h1: Vec<_> = r.iter().map(|c| c.map(|v| v + e)).collect();
+        let h2: Vec<_> = r.iter().map(|c| c.map(|v| v - e)).collect();
+        let bytes = |v: u8| vec![v; 4 * r.len()];
+        let noise = ReferenceNoise::measure((4, 2), (&h1, 8), (&h2, 8), (&bytes(9), &bytes(9)));
+        assert_eq!(noise.relative_rmse, noise_floor(&h1, 8, &h2, 8));
+        assert_eq!(noise.flip, Some(0.0));
+        // Luminance sums L1 = L + 8e, L2 = L - 8e over 8 pixels: |L1 - L2| / 2 / L.
+        let l: f64 = r.iter().map(luminance).sum();
+        let expected = 16.0 * e as f64 / 2.0 / l;
+        assert!((noise.bias.unwrap() - expected).abs() < 1e-6, "{noise:?}");
+        // Halves that agree have no noise; a half of no paths gives no estimate.
+        let quiet = ReferenceNoise::measure((4, 2), (&r, 4), (&r, 4), (&bytes(9), &bytes(9)));
+        assert_eq!((quiet.relative_rmse, quiet.bias), (Some(0.0), Some(0.0)));
+        let none = ReferenceNoise::measure((4, 2), (&r, 4), (&r, 0), (&bytes(9), &bytes(9)));
+        assert_eq!(none, ReferenceNoise::default());
+    }
+
+    #[test]
+    fn noise_comes_out_in_quadrature() {
+        // A method 0.3 from the truth against a reference with floor 0.4 measures 0.5.
+        assert!((without_noise(Some(0.5), Some(0.4)).unwrap() - 0.3).abs() < 1e-12);
+        assert!((noise_share(Some(0.5), Some(0.4)).unwrap() - 0.64).abs() < 1e-12);
+        assert_eq!(noise_share(Some(0.1), Some(0.4)), Some(1.0));
+        assert_eq!(noise_share(Some(0.0), Some(0.4)), None);
+        assert_eq!(without_noise(None, Some(0.4)), None);
+    }
+
+    #[test]
+    fn flip_map_is_black_where_equal() {
+        let a = vec![40u8; 16 * 12 * 4];
+        let mut b = a.clone();
+        for p in b.chunks_exact_mut(4).take(16) {
+            p[..3].copy_from_slice(&[250, 250, 250]);
+        }
+        let map = flip_map(16, 12, &a, &a);
+        assert_eq!(map.len(), 16 * 12 * 4);
+        let black = &map[..4];
+        assert!(
+            map.chunks_exact(4).all(|p| p == black),
+            "no difference: one colour"
+        );
+        let map = flip_map(16, 12, &a, &b);
+        // The changed first row is brighter in the map than the untouched bottom row.
+        let lum = |p: &[u8]| p[0] as u32 + p[1] as u32 + p[2] as u32;
+        assert!(
+            lum(&map[..4]) > lum(&map[map.len() - 4..]),
+            "{:?}",
+            &map[..8]
+        );
     }
 
     #[test]

@@ -26,8 +26,8 @@ pub struct Measured {
     /// Its error against the reference.
     pub figures: Figures,
     /// GPU milliseconds of its frame: the passes every frame runs (G-buffer, direct light, the
-    /// method's frame passes, compose, tone mapping), by timestamp queries; `None` on the CPU or
-    /// without timestamp queries.
+    /// method's frame passes, compose, tone mapping), by timestamp queries in a frame after the
+    /// image's; `None` on the CPU or without timestamp queries.
     pub gpu_ms: Option<f64>,
     /// GPU milliseconds of the passes that run before the first frame and after a light moves
     /// (shadow maps, radiosity over the atlas).
@@ -45,6 +45,10 @@ pub struct SceneReference {
     pub scene: String,
     /// Its noise floor ([`super::error::noise_floor`]).
     pub noise_floor: Option<f64>,
+    /// Its noise in mean FLIP ([`super::error::ReferenceNoise::flip`]).
+    pub flip_floor: Option<f32>,
+    /// Its noise in the bias ([`super::error::ReferenceNoise::bias`]).
+    pub bias_noise: Option<f64>,
     /// Seconds it took to path trace (when it was not cached).
     pub seconds: f64,
     /// Whether it came from `--reference-cache`.
@@ -161,6 +165,12 @@ pub struct ReferenceSidecar {
     pub settings: ReferenceSettings,
     /// Its noise floor.
     pub noise_floor: Option<f64>,
+    /// Its noise in mean FLIP (absent in sidecars of cssm before `cssm compare`).
+    #[serde(default)]
+    pub flip_floor: Option<f32>,
+    /// Its noise in the bias (absent in sidecars of cssm before `cssm compare`).
+    #[serde(default)]
+    pub bias_noise: Option<f64>,
     /// Seconds the path tracing took.
     pub seconds: f64,
 }
@@ -248,8 +258,9 @@ pub fn markdown(r: &ErrorReport) -> String {
           from its two halves: a method equal to the converged image would measure about this, \
           `--method reference` with as many paths about 1.4 times it; the leak has a floor of \
           its own in noise (the `reference` row shows it). *GPU ms*: the passes every frame \
-          runs, by timestamp queries, without those before the first frame (shadow maps, \
-          radiosity: `gpu_prepare_ms` in the CSV), on the device named above (on lavapipe, a CPU \
+          runs, by timestamp queries in a frame after the image's (warm), without those that run \
+          before the first frame and when a light moves (shadow maps, radiosity: \
+          `gpu_prepare_ms` in the CSV), on the device named above (on lavapipe, a CPU \
           emulation, these times say nothing about a GPU). *Time*: wall clock of the render \
           (the reference: its path tracing).\n\n";
     s += &table(r);
@@ -339,6 +350,8 @@ mod tests {
             references: vec![SceneReference {
                 scene: "box".into(),
                 noise_floor: Some(0.05),
+                flip_floor: Some(0.01),
+                bias_noise: Some(0.002),
                 seconds: 1.0,
                 cached: false,
             }],

@@ -16,9 +16,14 @@
 //! is uncompressed / GPU-resident size, as in the paper; the file ratio is a column beside it.
 //!
 //! `cssm report error` measures each method's image against the reference path tracer's: the
-//! figures are [`error`], the files beside the images [`error_write`].
+//! figures are [`error`], the files beside the images [`error_write`]. `cssm compare` puts
+//! every method of the table side by side on each scene, full image and indirect light, the
+//! reference's noise taken out: its data and files are [`compare`], its page and chart
+//! [`compare_html`].
 
 pub mod church;
+pub mod compare;
+pub mod compare_html;
 pub mod error;
 pub mod error_write;
 pub mod heads;

@@ -1,0 +1,258 @@
+//! `cssm compare`: per scene the reference path tracer's full image and indirect light (cached
+//! in `OUT/reference-cache/`), then every method's, measured against them
+//! ([`cssm::report::error`], the reference's noise taken out by [`cssm::report::compare`]) and
+//! written as a page ([`cssm::report::compare_html`]), CSV, JSON and Markdown. The rendering is
+//! [`crate::measure`]'s.
+
+use std::{
+    path::{Path, PathBuf},
+    process::ExitCode,
+    time::Instant,
+};
+
+use cssm::{
+    formats::{CssmFile, Scene},
+    report::{
+        compare::{
+            self, CompareReport, CompareSettings, ComponentFigures, Components, MethodComparison,
+            MethodImages, MethodMeasured, ReferenceEntry, SceneComparison,
+        },
+        compare_html,
+        error::{self, Figures},
+        error_write::file_stem,
+    },
+    runtime::{self, common::compose::Component, common::readback::Image},
+};
+
+use crate::{
+    CliResult,
+    cli::{CompareConfig, Variant},
+    measure::{self, ReferenceFiles, ReferenceSpec, RenderSpec, write_text},
+    render::{save_png, save_rgba_png},
+};
+
+/// The page's own files in OUT, which a run replaces (besides `images/` and
+/// `reference-cache/`).
+const PAGE_FILES: [&str; 5] = [
+    "index.html",
+    "chart.svg",
+    "compare.csv",
+    "compare.json",
+    "compare.md",
+];
+
+pub fn run_compare(config: CompareConfig) -> CliResult {
+    let start = Instant::now();
+    let out = &config.out;
+    if out.exists() && !out.is_dir() {
+        return Err(format!(
+            "--out {}: exists and is not a directory",
+            out.display()
+        ));
+    }
+    let scenes = measure::load_scenes(&config.scenes)?;
+    let cache = out.join("reference-cache");
+    for dir in [out.clone(), cache.clone()] {
+        std::fs::create_dir_all(&dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
+    }
+    for name in PAGE_FILES {
+        let path = out.join(name);
+        if path.exists() && !path.is_file() {
+            return Err(format!(
+                "{}: exists and is not a file (the page would write it)",
+                path.display()
+            ));
+        }
+    }
+
+    let mut gpu: Option<runtime::Gpu> = None;
+    let mut comparisons = Vec::new();
+    for scene in &scenes {
+        comparisons.push(compare_scene(&config, scene, &cache, &mut gpu)?);
+    }
+    let report = CompareReport {
+        command: measure::command_line(),
+        commit: cssm::report::commit(),
+        machine: cssm::report::machine(),
+        device: gpu.as_ref().map(runtime::Gpu::describe),
+        settings: CompareSettings {
+            width: config.frame.width,
+            height: config.frame.height,
+            samples: config.reference.count("samples"),
+            bounces: config.reference.count("bounces"),
+            frames: config.frames,
+            exposure_stops: config.exposure_stops,
+            shadow_resolution: config.frame.shadow_resolution,
+            atlas: config.bake.atlas_resolution,
+            cube: config.bake.cube_resolution,
+        },
+        scenes: comparisons,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    // The chart and the data first, the page that links them last.
+    write_text(&out.join("chart.svg"), &compare_html::chart_svg(&report)?)?;
+    write_text(&out.join("compare.csv"), &compare::csv(&report))?;
+    write_text(&out.join("compare.json"), &compare::json(&report)?)?;
+    let md = compare::markdown(&report);
+    write_text(&out.join("compare.md"), &md)?;
+    write_text(&out.join("index.html"), &compare_html::html(&report))?;
+    print!("{md}");
+    let failed: Vec<String> = report
+        .scenes
+        .iter()
+        .flat_map(|s| {
+            s.methods
+                .iter()
+                .filter(|m| m.measured.is_none())
+                .map(move |m| format!("{} on {}", m.spec, s.name))
+        })
+        .collect();
+    eprintln!("wrote {}", out.join("index.html").display());
+    if !failed.is_empty() {
+        return Err(format!(
+            "{} of {} renders failed ({}; see {})",
+            failed.len(),
+            report.scenes.iter().map(|s| s.methods.len()).sum::<usize>(),
+            failed.join(", "),
+            out.join("index.html").display()
+        ));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The reference cache's file of `scene`'s `component` reference at these settings, with
+/// `ext`: one file per scene, component and settings, so runs at other sizes keep theirs.
+fn cache_file(
+    cache: &Path,
+    scene: &Scene,
+    component: Component,
+    config: &CompareConfig,
+) -> impl Fn(&str) -> PathBuf {
+    let stem = format!(
+        "{}-{component}-{}x{}-{}spp-{}b",
+        scene.name,
+        config.frame.width,
+        config.frame.height,
+        config.reference.count("samples"),
+        config.reference.count("bounces")
+    );
+    let cache = cache.to_path_buf();
+    move |ext| cache.join(format!("{stem}.{ext}"))
+}
+
+/// Both references of `scene` and every method's figures against them; its images written
+/// under `OUT/images/SCENE/`.
+fn compare_scene(
+    config: &CompareConfig,
+    scene: &Scene,
+    cache: &Path,
+    gpu: &mut Option<runtime::Gpu>,
+) -> Result<SceneComparison, String> {
+    let out = &config.out;
+    let images_rel = format!("images/{}", scene.name);
+    let images = out.join(&images_rel);
+    std::fs::create_dir_all(&images).map_err(|e| format!("{}: {e}", images.display()))?;
+    let (w, h) = (config.frame.width, config.frame.height);
+
+    let mut references = Vec::new();
+    for component in [Component::Full, Component::Indirect] {
+        let file = cache_file(cache, scene, component, config);
+        let png_rel = format!("{images_rel}/reference-{component}.png");
+        let reference = measure::reference_image(
+            scene,
+            &ReferenceSpec {
+                frame: config.frame,
+                samples: config.reference.count("samples"),
+                bounces: config.reference.count("bounces"),
+                component,
+            },
+            &ReferenceFiles {
+                exr: file("exr"),
+                json: file("json"),
+                png: out.join(&png_rel),
+            },
+            config.reuse_references,
+        )?;
+        let entry = ReferenceEntry::new(&reference.summary, png_rel);
+        references.push((reference.image, entry));
+    }
+    let (indirect_ref, full_ref) = (references.pop().unwrap(), references.pop().unwrap());
+
+    let mut cssm: Option<Result<CssmFile, String>> = None;
+    let mut methods = Vec::new();
+    for variant in &config.variants {
+        let mut render = |component| {
+            let spec = RenderSpec {
+                frame: config.frame,
+                component,
+                frames: config.frames,
+                bake: &config.bake,
+            };
+            measure::render_variant(&spec, scene, variant, gpu, &mut cssm)
+        };
+        let stem = file_stem(&variant.spec);
+        let measured = render(Component::Full).and_then(|full| {
+            let indirect = render(Component::Indirect)?;
+            let against = |image: &Image, reference: &(Image, ReferenceEntry)| {
+                let figures = Figures::measure(
+                    w,
+                    h,
+                    (&image.radiance, &image.display),
+                    (&reference.0.radiance, &reference.0.display),
+                );
+                ComponentFigures::new(&figures, &reference.1)
+            };
+            let paths = MethodImages {
+                full: format!("{images_rel}/{stem}-full.png"),
+                indirect: format!("{images_rel}/{stem}-indirect.png"),
+                indirect_error: format!("{images_rel}/{stem}-indirect-error.png"),
+            };
+            save_png(&out.join(&paths.full), &full.image)?;
+            save_png(&out.join(&paths.indirect), &indirect.image)?;
+            let map = error::flip_map(w, h, &indirect_ref.0.display, &indirect.image.display);
+            save_rgba_png(&out.join(&paths.indirect_error), w, h, map)?;
+            Ok(MethodMeasured {
+                figures: Components {
+                    full: against(&full.image, &full_ref),
+                    indirect: against(&indirect.image, &indirect_ref),
+                },
+                gpu_frame_ms: full.gpu.as_ref().map(|t| t.frame),
+                gpu_prepare_ms: full.gpu.as_ref().map(|t| t.prepare),
+                passes: full.gpu.map(|t| t.passes).unwrap_or_default(),
+                memory_bytes: full.memory,
+                seconds: full.seconds,
+                images: paths,
+            })
+        });
+        methods.push(comparison(scene, variant, measured));
+    }
+    Ok(SceneComparison {
+        name: scene.name.clone(),
+        reference: Components {
+            full: full_ref.1,
+            indirect: indirect_ref.1,
+        },
+        methods,
+    })
+}
+
+fn comparison(
+    scene: &Scene,
+    variant: &Variant,
+    measured: Result<MethodMeasured, String>,
+) -> MethodComparison {
+    if let Err(e) = &measured {
+        eprintln!("error: {} with {}: {e}", scene.name, variant.spec);
+    }
+    let (measured, error) = match measured {
+        Ok(m) => (Some(m), None),
+        Err(e) => (None, Some(e)),
+    };
+    MethodComparison {
+        spec: variant.spec.clone(),
+        method: variant.method.name.to_string(),
+        on_gpu: variant.method.on_gpu(),
+        error,
+        measured,
+    }
+}
