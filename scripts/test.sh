@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The project's test command (README): every test of the workspace, release build.
 # GPU tests need a Vulkan device; where none is installed this installs Mesa's lavapipe (a
-# Vulkan implementation on the CPU), so the GPU tests run instead of failing.
+# Vulkan implementation on the CPU), so the GPU tests run instead of failing; the page test
+# needs Chromium, installed the same way.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -10,12 +11,18 @@ has_vulkan_icd() {
         compgen -G "/etc/vulkan/icd.d/*.json" >/dev/null ||
         [[ -n "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ]]
 }
+SUDO=""
+[[ $(id -u) -ne 0 ]] && SUDO="sudo"
 if ! has_vulkan_icd; then
     echo "no Vulkan driver found: installing Mesa's lavapipe (mesa-vulkan-drivers)" >&2
-    SUDO=""
-    [[ $(id -u) -ne 0 ]] && SUDO="sudo"
     $SUDO apt-get update -qq
     $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1
+fi
+# tests/compare.rs opens `cssm compare`'s page in a real browser: Debian's Chromium, headless.
+if [[ -z "${CSSM_CHROMIUM:-}" ]] && ! command -v chromium >/dev/null 2>&1; then
+    echo "no Chromium found: installing Debian's chromium (the page test, tests/compare.rs)" >&2
+    $SUDO apt-get update -qq
+    $SUDO apt-get install -y -qq chromium
 fi
 
 cargo test --workspace --release "$@"

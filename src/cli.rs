@@ -493,13 +493,13 @@ impl MeasureFlags {
             exposure: self.exposure.exp2(),
             shadow_resolution: self.shadow_resolution,
         };
-        frame.check().map_err(|e| e.to_string())?;
-        if !self.exposure.is_finite() {
+        if !(-64.0..=64.0).contains(&self.exposure) {
             return Err(format!(
-                "--exposure {}: must be a finite number",
+                "--exposure {}: must be a number of stops from -64 to 64",
                 self.exposure
             ));
         }
+        frame.check().map_err(|e| e.to_string())?;
         let bake = bake::BakeOptions {
             atlas_resolution: self.atlas,
             cube_resolution: self.cube,

@@ -331,6 +331,7 @@ fn help_explains_every_command() {
         vec!["report", "heads", "--help"],
         vec!["report", "church", "--help"],
         vec!["report", "error", "--help"],
+        vec!["compare", "--help"],
     ] {
         let o = cssm(&cmd);
         let text = String::from_utf8_lossy(&o.stdout);

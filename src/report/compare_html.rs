@@ -138,7 +138,7 @@ pub fn url_path(path: &str) -> String {
 fn img(src: &str, alt: &str, width: u32, height: u32) -> String {
     let k = scale(width);
     format!(
-        "<img src=\"{}\" alt=\"{}\" width=\"{}\" height=\"{}\" loading=\"lazy\">",
+        "<img src=\"{}\" alt=\"{}\" width=\"{}\" height=\"{}\">",
         url_path(src),
         escape(alt),
         width * k,
@@ -219,9 +219,9 @@ fn method_row(r: &CompareReport, m: &MethodComparison) -> String {
     let (w, h) = (r.settings.width, r.settings.height);
     let mut s = format!("<tr><th>{}", escape(&m.spec));
     let Some(x) = &m.measured else {
-        let _ = write!(
+        let _ = writeln!(
             s,
-            "</th><td colspan=\"3\" class=\"failed\">failed: {}</td></tr>\n",
+            "</th><td colspan=\"3\" class=\"failed\">failed: {}</td></tr>",
             escape(m.error.as_deref().unwrap_or("no figures"))
         );
         return s;
@@ -292,9 +292,9 @@ fn scene_grid(r: &CompareReport, scene: &SceneComparison) -> String {
             }
         )
     };
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<tr><th>reference<br>{} paths per pixel</th><td>{}{}</td><td>{}{}</td><td></td></tr>\n",
+        "<tr><th>reference<br>{} paths per pixel</th><td>{}{}</td><td>{}{}</td><td></td></tr>",
         r.settings.samples,
         img(&reference.full.image, "reference full", w, h),
         escape(&noise(&reference.full)),
@@ -317,9 +317,9 @@ pub fn html(r: &CompareReport) -> String {
     );
     s += STYLE;
     s += "</style></head><body>\n<h1>Every method against the path tracer</h1>\n";
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<p class=\"meta\"><code>{}</code><br>Commit {}; {}; GPU methods on {}.<br>{}. Took {:.0} s.</p>\n",
+        "<p class=\"meta\"><code>{}</code><br>Commit {}; {}; GPU methods on {}.<br>{}. Took {:.0} s.</p>",
         escape(&r.command),
         escape(&r.commit),
         escape(&r.machine),
@@ -327,9 +327,9 @@ pub fn html(r: &CompareReport) -> String {
         escape(&compare::settings_line(&r.settings)),
         r.seconds
     );
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<p>Scenes: {}.</p>\n",
+        "<p>Scenes: {}.</p>",
         r.scenes
             .iter()
             .map(|sc| format!("<a href=\"#scene-{0}\">{0}</a>", escape(&sc.name)))
@@ -340,7 +340,7 @@ pub fn html(r: &CompareReport) -> String {
           indirect light against GPU milliseconds per frame\" width=\"900\" height=\"500\"></p>\n";
     s += "<h2>Every figure</h2>\n<p class=\"note\">Click a column to sort by it.</p>\n";
     s += &figures_table(r);
-    let _ = write!(s, "<p class=\"note\">{}</p>\n", definitions_html());
+    let _ = writeln!(s, "<p class=\"note\">{}</p>", definitions_html());
     for scene in &r.scenes {
         s += &scene_grid(r, scene);
     }
