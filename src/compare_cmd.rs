@@ -44,12 +44,7 @@ const PAGE_FILES: [&str; 5] = [
 pub fn run_compare(config: CompareConfig) -> CliResult {
     let start = Instant::now();
     let out = &config.out;
-    if out.exists() && !out.is_dir() {
-        return Err(format!(
-            "--out {}: exists and is not a directory",
-            out.display()
-        ));
-    }
+    measure::check_out_dir(out)?;
     let scenes = measure::load_scenes(&config.scenes)?;
     let cache = out.join("reference-cache");
     for dir in [out.clone(), cache.clone()] {

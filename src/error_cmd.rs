@@ -24,12 +24,7 @@ use crate::{
 pub fn run_error(config: ErrorConfig) -> CliResult {
     let start = Instant::now();
     let out = &config.out;
-    if out.exists() && !out.is_dir() {
-        return Err(format!(
-            "--out {}: exists and is not a directory",
-            out.display()
-        ));
-    }
+    measure::check_out_dir(out)?;
     let scenes = measure::load_scenes(&config.scenes)?;
     std::fs::create_dir_all(out).map_err(|e| format!("--out {}: {e}", out.display()))?;
 

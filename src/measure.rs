@@ -63,6 +63,18 @@ pub fn load_scenes(dirs: &[PathBuf]) -> Result<Vec<Scene>, String> {
     Ok(scenes)
 }
 
+/// Refuses an `--out` directory that exists as something else (a report never replaces a
+/// file of the user's with a directory).
+pub fn check_out_dir(out: &Path) -> Result<(), String> {
+    if out.exists() && !out.is_dir() {
+        return Err(format!(
+            "--out {}: exists and is not a directory",
+            out.display()
+        ));
+    }
+    Ok(())
+}
+
 /// The command line as typed (`cssm` and its arguments), for a report to name.
 pub fn command_line() -> String {
     std::iter::once("cssm".to_string())
