@@ -233,10 +233,11 @@ pub fn rmse_cell(f: &ComponentFigures) -> String {
     }
 }
 
-/// `-0.12 ± 0.01`: the bias and the reference's noise in it.
+/// `-0.120 ± 0.0004`: the bias and the reference's noise in it (one more digit: at a thousand
+/// paths per pixel it is small).
 pub fn bias_cell(f: &ComponentFigures) -> String {
     match (f.bias, f.bias_noise) {
-        (Some(b), Some(n)) => format!("{b:+.3} ± {n:.3}"),
+        (Some(b), Some(n)) => format!("{b:+.3} ± {n:.4}"),
         (b, _) => b.map_or("–".into(), |b| format!("{b:+.3}")),
     }
 }
@@ -564,7 +565,7 @@ pub(crate) mod tests {
         assert!((f.indirect.relative_rmse_without_noise.unwrap() - 0.4).abs() < 1e-12);
         assert!((f.indirect.noise_share.unwrap() - 0.36).abs() < 1e-12);
         assert_eq!(rmse_cell(&f.indirect), "0.400 (0.500, 36% noise)");
-        assert_eq!(bias_cell(&f.indirect), "-0.100 ± 0.010");
+        assert_eq!(bias_cell(&f.indirect), "-0.100 ± 0.0100");
         assert_eq!(flip_cell(&f.indirect), "0.100 (floor 0.020)");
         // Below the floor: no error of its own to see.
         assert_eq!(f.full.relative_rmse_without_noise, Some(0.0));

@@ -424,8 +424,11 @@ pub fn chart_svg(r: &CompareReport) -> Result<String, String> {
                 r.device.as_deref().unwrap_or("no GPU")
             )
         };
-        let mut chart = ChartBuilder::on(&root)
-            .caption(caption, ("sans-serif", 16))
+        // The caption across the top, the legends in a column of their own on the right, so
+        // that they never hide a point.
+        let body = root.titled(&caption, ("sans-serif", 16)).map_err(err)?;
+        let (plot, side) = body.split_horizontally(720);
+        let mut chart = ChartBuilder::on(&plot)
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(56)
@@ -446,12 +449,6 @@ pub fn chart_svg(r: &CompareReport) -> Result<String, String> {
                     .filter(move |p| p.spec == *spec && p.scene % 4 == shape)
                     .map(|p| (p.ms, p.rmse))
             };
-            // The legend's entry, then the points scene by scene in their markers.
-            chart
-                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
-                .map_err(err)?
-                .label(spec.to_string())
-                .legend(move |(x, y)| Circle::new((x + 6, y), 4, c.filled()));
             chart
                 .draw_series(at(0).map(|p| Circle::new(p, 5, c.filled())))
                 .map_err(err)?;
@@ -469,32 +466,35 @@ pub fn chart_svg(r: &CompareReport) -> Result<String, String> {
                 )
                 .map_err(err)?;
         }
+        let font = ("sans-serif", 12);
+        let mut y = 16;
         if !specs.is_empty() {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .draw()
+            side.draw(&Text::new("methods (colour)", (8, y), font))
                 .map_err(err)?;
+            for (k, spec) in specs.iter().enumerate() {
+                y += 18;
+                let c = PALETTE[k % PALETTE.len()];
+                side.draw(&Circle::new((14, y + 6), 5, c.filled()))
+                    .map_err(err)?;
+                side.draw(&Text::new(spec.to_string(), (26, y), font))
+                    .map_err(err)?;
+            }
+            y += 36;
         }
-        // Which marker is which scene, under the caption.
+        side.draw(&Text::new("scenes (marker)", (8, y), font))
+            .map_err(err)?;
         for (i, scene) in r.scenes.iter().enumerate() {
-            let y = 36 + 16 * i as i32;
-            let at = (80, y);
+            y += 18;
+            let at = (14, y + 6);
             match i % 4 {
-                0 => root.draw(&Circle::new(at, 5, BLACK.filled())),
-                1 => root.draw(&TriangleMarker::new(at, 6, BLACK.filled())),
-                2 => root.draw(&Cross::new(at, 5, BLACK.stroke_width(2))),
-                _ => root.draw(&Rectangle::new([(76, y - 4), (84, y + 4)], BLACK.filled())),
+                0 => side.draw(&Circle::new(at, 5, BLACK.filled())),
+                1 => side.draw(&TriangleMarker::new(at, 6, BLACK.filled())),
+                2 => side.draw(&Cross::new(at, 5, BLACK.stroke_width(2))),
+                _ => side.draw(&Rectangle::new([(10, y + 2), (18, y + 10)], BLACK.filled())),
             }
             .map_err(err)?;
-            root.draw(&Text::new(
-                scene.name.clone(),
-                (92, y - 6),
-                ("sans-serif", 12),
-            ))
-            .map_err(err)?;
+            side.draw(&Text::new(scene.name.clone(), (26, y), font))
+                .map_err(err)?;
         }
         root.present().map_err(err)?;
     }
