@@ -92,6 +92,13 @@ measure)
         .carry/vf_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
             --out "$out/runtime-vf-sibenik.md" | tee "$out/runtime-vf-sibenik.txt"
     fi
+    # Every method side by side (issue 27): `cssm compare` on the built-in boxes at 640x480,
+    # GPU ms per pass and memory on the real GPU, the references path traced on the device's
+    # cores; the page stays in /tmp, its figures come back.
+    .carry/cssm compare --size 640x480 --samples 512 --out /tmp/compare \
+        > "$out/runtime-compare.txt" 2>&1 || true
+    cp /tmp/compare/compare.md /tmp/compare/compare.csv /tmp/compare/compare.json \
+        /tmp/compare/chart.svg "$out/" 2>/dev/null || echo "compare wrote no page"
     # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
     # lightmap, 1 and 2 bounces, 640x480.
     if [ -d .carry/scenes/sibenik ]; then

@@ -1272,3 +1272,28 @@ fn a_scene_with_broken_objects_is_an_error() {
     .expect("refused");
     assert!(err.to_string().contains("cornell-box"), "{err}");
 }
+
+/// `gpu_memory_bytes` counts a buffer's bytes while it lives and not after (a device of its own,
+/// so that the other tests' allocations do not count).
+#[test]
+fn gpu_memory_counts_what_is_allocated() {
+    let gpu = Gpu::new_headless().expect("a Vulkan device");
+    gpu.wait().unwrap();
+    let before = cssm_runtime::gpu_memory_bytes(&gpu.device);
+    let size = 4u64 << 20;
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("counted"),
+        size,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    gpu.wait().unwrap();
+    let during = cssm_runtime::gpu_memory_bytes(&gpu.device) - before;
+    assert!(
+        during >= size && during < size + (64 << 10),
+        "{during} bytes for a buffer of {size}"
+    );
+    drop(buffer);
+    gpu.wait().unwrap();
+    assert_eq!(cssm_runtime::gpu_memory_bytes(&gpu.device), before);
+}
