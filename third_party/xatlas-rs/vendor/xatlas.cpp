@@ -2642,6 +2642,18 @@ private:
 					current_num > schd->m_params.max_running_threads) {
 					WaitFor wf;
 					schd->m_workers[id].wake_up = &wf;
+					// cssm patch: stop() may have cleared m_running and taken every published
+					// wake_up pointer between the check above and the store just made; it
+					// would then never wake this thread, and its join would hang. Check again
+					// now that the pointer is published (both sequentially consistent: either
+					// this load sees the stop, or stop's exchange sees the pointer).
+					if (!schd->m_running) {
+						// Take the pointer back; if stop() took it first, its signal is coming
+						// and wf must outlive it.
+						if (schd->m_workers[id].wake_up.exchange(nullptr) == nullptr)
+							wf.wait();
+						return;
+					}
 					wf.wait();
 					if (!schd->m_running)
 						return;
