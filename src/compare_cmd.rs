@@ -149,8 +149,7 @@ fn compare_scene(
     std::fs::create_dir_all(&images).map_err(|e| format!("{}: {e}", images.display()))?;
     let (w, h) = (config.frame.width, config.frame.height);
 
-    let mut references = Vec::new();
-    for component in [Component::Full, Component::Indirect] {
+    let reference = |component: Component| -> Result<(Image, ReferenceEntry), String> {
         let file = cache_file(cache, scene, component, config);
         let png_rel = format!("{images_rel}/reference-{component}.png");
         let reference = measure::reference_image(
@@ -169,9 +168,10 @@ fn compare_scene(
             config.reuse_references,
         )?;
         let entry = ReferenceEntry::new(&reference.summary, png_rel);
-        references.push((reference.image, entry));
-    }
-    let (indirect_ref, full_ref) = (references.pop().unwrap(), references.pop().unwrap());
+        Ok((reference.image, entry))
+    };
+    let full_ref = reference(Component::Full)?;
+    let indirect_ref = reference(Component::Indirect)?;
 
     let mut cssm: Option<Result<CssmFile, String>> = None;
     let mut methods = Vec::new();
