@@ -946,10 +946,20 @@ window.addEventListener('load', function () {
     var up = column();
     header.click();
     var down = column();
+    // A failed method's row, as the page writes one (the names, then one cell saying why),
+    // sorts last by any column.
+    var failed = doc.createElement('tr');
+    failed.innerHTML = '<td>s</td><td>m</td><td data-value="" colspan="12">failed</td>';
+    doc.querySelector('#figures tbody').appendChild(failed);
+    var headers = doc.querySelectorAll('#figures th');
+    headers[headers.length - 2].click();
+    var rows = doc.querySelectorAll('#figures tbody tr');
+    var failedLast = rows[rows.length - 1] === failed;
     out.textContent = 'RESULT ' + JSON.stringify({images: images.length, broken: broken,
       rows: up.length,
       ascending: up.every(function (v, i) { return i === 0 || up[i - 1] <= v; }),
-      descending: down.every(function (v, i) { return i === 0 || down[i - 1] >= v; })});
+      descending: down.every(function (v, i) { return i === 0 || down[i - 1] >= v; }),
+      failedLast: failedLast});
   } catch (e) {
     out.textContent = 'RESULT ' + JSON.stringify({error: String(e)});
   }
@@ -1111,6 +1121,7 @@ fn compare_every_method_and_open_the_page_in_a_browser() {
     assert_eq!(result["rows"], 2 * n, "{result}");
     assert_eq!(result["ascending"], true, "{result}");
     assert_eq!(result["descending"], true, "{result}");
+    assert_eq!(result["failedLast"], true, "{result}");
 
     // A screenshot of the page, kept for a person to look at.
     let shot = Path::new(env!("CARGO_TARGET_TMPDIR")).join("compare-page.png");

@@ -72,7 +72,7 @@ details { font-size: 0.85em; }
 ";
 
 /// Sorts a table of class `figures` by the clicked column: numbers by `data-value` (cells
-/// without one last), text otherwise; a second click reverses.
+/// without one, and the rows of failed methods, last), text otherwise; a second click reverses.
 const SCRIPT: &str = "
 document.querySelectorAll('table.figures').forEach(function (table) {
   var headers = table.querySelectorAll('th');
@@ -85,6 +85,7 @@ document.querySelectorAll('table.figures').forEach(function (table) {
       var rows = Array.prototype.slice.call(body.rows);
       var key = function (row) {
         var cell = row.cells[column];
+        if (!cell) { return null; } // a failed method's row: one cell past the names
         var v = cell.getAttribute('data-value');
         return v === null ? cell.textContent : (v === '' ? null : parseFloat(v));
       };
@@ -154,6 +155,7 @@ fn figures_table(r: &CompareReport) -> String {
          <th title=\"as measured against the reference\">measured</th>\
          <th title=\"share of the measured squared error that is the reference's noise\">noise</th>\
          <th>indirect FLIP</th><th>indirect bias</th>\
+         <th title=\"light where the reference is dark, relative to the reference there\">indirect leak</th>\
          <th>full RMSE</th><th>full FLIP</th>\
          <th>GPU ms (frame)</th><th>GPU ms (prepare)</th><th>memory MiB</th><th>wall s</th>\
          </tr></thead><tbody>\n",
@@ -181,6 +183,7 @@ fn figures_table(r: &CompareReport) -> String {
                     );
                     s += &number_td(Some(i.mean_flip.into()), flip_cell(i));
                     s += &number_td(i.bias, bias_cell(i));
+                    s += &number_td(i.leak, fixed(i.leak, 3));
                     s += &number_td(
                         f.relative_rmse_without_noise,
                         fixed(f.relative_rmse_without_noise, 3),
@@ -194,7 +197,7 @@ fn figures_table(r: &CompareReport) -> String {
                 None => {
                     let _ = write!(
                         s,
-                        "<td class=\"name failed\" data-value=\"\" colspan=\"11\">failed: {}</td>",
+                        "<td class=\"name failed\" data-value=\"\" colspan=\"12\">failed: {}</td>",
                         escape(m.error.as_deref().unwrap_or("no figures"))
                     );
                 }
