@@ -27,6 +27,7 @@ use runtime::{
         cssm inspect cornell.cssm\n  \
         cssm check cornell.cssm --min-agreement 0.98\n  \
         cssm render --cssm cornell.cssm --method lightcuts --out gi.png\n  \
+        cssm compare --out compare                 # every method against the path tracer\n  \
         cssm report compression --quick --out /tmp"
 )]
 pub struct Cli {
@@ -57,10 +58,11 @@ pub enum Command {
         after_help = render_after_help()
     )]
     Render(RenderArgs),
-    /// Measure the toolchain against the paper and write a report.
-    /// Render every method of the table on each scene beside the reference path tracer and
-    /// write a page (index.html) that answers which method, at what cost, how far from the
-    /// ground truth: every method's full image, indirect light and error map, its relative
+    /// Render every method side by side against the path tracer and write a page (index.html).
+    ///
+    /// Every method of the table on each scene beside the reference path tracer: a page that
+    /// answers which method, at what cost, how far from the ground truth: every method's full
+    /// image, indirect light and error map, its relative
     /// RMSE, FLIP and bias against the path tracer with the reference's own noise taken out,
     /// its GPU milliseconds per pass and GPU memory, and a chart of error against time; the
     /// same figures as compare.csv, compare.json and compare.md.
@@ -72,6 +74,7 @@ pub enum Command {
     /// nothing about a GPU).
     #[command(after_help = compare_after_help())]
     Compare(CompareArgs),
+    /// Measure the toolchain against the paper and write a report.
     #[command(
         subcommand,
         after_help = "Examples:\n  \

@@ -308,6 +308,19 @@ fn an_obj_without_mtl_bakes_with_a_warning() {
 
 #[test]
 fn help_explains_every_command() {
+    // Every command is listed with a line that says what it does.
+    let o = cssm(&["--help"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    for (command, about) in [
+        ("compare", "Render every method side by side"),
+        ("report", "Measure the toolchain against the paper"),
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start().starts_with(command) && l.contains(about)),
+            "{command}: {text}"
+        );
+    }
     for cmd in [
         vec!["--help"],
         vec!["bake", "--help"],
