@@ -46,10 +46,6 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
     let out = &config.out;
     measure::check_out_dir(out)?;
     let scenes = measure::load_scenes(&config.scenes)?;
-    let cache = out.join("reference-cache");
-    for dir in [out.clone(), cache.clone()] {
-        std::fs::create_dir_all(&dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
-    }
     for name in PAGE_FILES {
         let path = out.join(name);
         if path.exists() && !path.is_file() {
@@ -58,6 +54,11 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
                 path.display()
             ));
         }
+    }
+
+    let cache = out.join("reference-cache");
+    for dir in [out.clone(), cache.clone()] {
+        std::fs::create_dir_all(&dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
     }
 
     let mut gpu: Option<runtime::Gpu> = None;
@@ -176,12 +177,14 @@ fn compare_scene(
     let mut cssm: Option<Result<CssmFile, String>> = None;
     let mut methods = Vec::new();
     for variant in &config.variants {
+        // The full image's render is timed; the indirect light's is the same passes again.
         let mut render = |component| {
             let spec = RenderSpec {
                 frame: config.frame,
                 component,
                 frames: config.frames,
                 bake: &config.bake,
+                timed: component == Component::Full,
             };
             measure::render_variant(&spec, scene, variant, gpu, &mut cssm)
         };

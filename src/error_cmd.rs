@@ -59,6 +59,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
                 component: config.component,
                 frames: config.frames,
                 bake: &config.bake,
+                timed: true,
             };
             let outcome = measure::render_variant(&spec, scene, variant, &mut gpu, &mut cssm)
                 .and_then(|rendered| {

@@ -226,29 +226,29 @@ pub fn reference_image(
         );
     }
     bar.finish_and_clear();
-    let (radiance, noise) = match images.as_slice() {
-        [a, b] => {
-            let whole = error::combine(a, halves[0], b, halves[1]);
-            let tone = |radiance: &[[f32; 4]]| {
-                Image::from_cpu(w, h, radiance.to_vec(), spec.frame.exposure).display
-            };
-            let noise = ReferenceNoise::measure(
-                (w, h),
-                (a, halves[0]),
-                (b, halves[1]),
-                (&tone(&whole), &tone(a)),
-            );
-            (whole, noise)
-        }
-        [a] => (a.clone(), ReferenceNoise::default()),
+    let radiance = match images.as_slice() {
+        [a, b] => error::combine(a, halves[0], b, halves[1]),
+        [a] => a.clone(),
         _ => unreachable!("at least one path per pixel"),
+    };
+    let image = Image::from_cpu(w, h, radiance, spec.frame.exposure);
+    let noise = match images.as_slice() {
+        [a, b] => ReferenceNoise::measure(
+            (w, h),
+            (a, halves[0]),
+            (b, halves[1]),
+            (
+                &image.display,
+                &Image::from_cpu(w, h, a.clone(), spec.frame.exposure).display,
+            ),
+        ),
+        _ => ReferenceNoise::default(),
     };
     let seconds = start.elapsed().as_secs_f64();
     eprintln!(
         "{}: reference ({}) at {w}x{h}, {samples} paths per pixel, in {seconds:.1} s",
         scene.name, spec.component
     );
-    let image = Image::from_cpu(w, h, radiance, spec.frame.exposure);
     // The sidecar goes first and comes back last, so a sidecar never describes another EXR.
     if files.json.exists() {
         std::fs::remove_file(&files.json).map_err(|e| format!("{}: {e}", files.json.display()))?;
@@ -316,7 +316,8 @@ pub struct GpuTimes {
 pub struct Rendered {
     /// The image after the last frame.
     pub image: Image,
-    /// GPU times of a warm frame that runs every pass; `None` on the CPU or without timestamp queries.
+    /// GPU times of a warm frame that runs every pass; `None` on the CPU, without timestamp
+    /// queries, or when not [`RenderSpec::timed`].
     pub gpu: Option<GpuTimes>,
     /// Bytes of GPU memory its renderer held after its frames ([`runtime::gpu_memory_bytes`]);
     /// `None` on the CPU or where the backend counts none.
@@ -335,6 +336,9 @@ pub struct RenderSpec<'a> {
     pub frames: u32,
     /// The in-memory bake of the methods that need a `.cssm`.
     pub bake: &'a bake::BakeOptions,
+    /// Whether to time every pass in one more frame ([`Rendered::gpu`]); a second render of
+    /// the same method (another component) needs no times of its own.
+    pub timed: bool,
 }
 
 /// Renders one variant of `scene`: a CPU method directly, a GPU method through a
@@ -430,7 +434,11 @@ pub fn render_variant(
             let seconds = start.elapsed().as_secs_f64();
             let held = runtime::gpu_memory_bytes(&gpu.device).saturating_sub(memory_before);
             let memory = (held > 0).then_some(held);
-            let gpu_times = warm_times(&mut renderer, scene, gpu).map_err(fail)?;
+            let gpu_times = if spec.timed {
+                warm_times(&mut renderer, scene, gpu).map_err(fail)?
+            } else {
+                None
+            };
             Ok(Rendered {
                 image,
                 gpu: gpu_times,
