@@ -126,7 +126,7 @@ fn cache_file(
 ) -> impl Fn(&str) -> PathBuf {
     let stem = format!(
         "{}-{component}-{}x{}-{}spp-{}b",
-        scene.name,
+        file_stem(&scene.name),
         config.frame.width,
         config.frame.height,
         config.reference.count("samples"),
@@ -145,7 +145,9 @@ fn compare_scene(
     gpu: &mut Option<runtime::Gpu>,
 ) -> Result<SceneComparison, String> {
     let out = &config.out;
-    let images_rel = format!("images/{}", scene.name);
+    // The scene's name as one path component: a name with `/` or `..` in it (it comes from the
+    // scene's own file) writes nowhere outside OUT.
+    let images_rel = format!("images/{}", file_stem(&scene.name));
     let images = out.join(&images_rel);
     std::fs::create_dir_all(&images).map_err(|e| format!("{}: {e}", images.display()))?;
     let (w, h) = (config.frame.width, config.frame.height);

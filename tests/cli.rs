@@ -1191,6 +1191,24 @@ fn compare_refuses_bad_input_and_writes_nothing() {
         assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
         assert!(!out.exists(), "{args:?}: nothing is written");
     }
+    // A scene named to climb out of OUT writes only inside it.
+    let scene = dir.path().join("scene");
+    std::fs::create_dir_all(&scene).unwrap();
+    for file in ["cornell-box.obj", "cornell-box.mtl"] {
+        std::fs::copy(cornell().join(file), scene.join(file)).unwrap();
+    }
+    let toml = std::fs::read_to_string(cornell().join("scene.toml")).unwrap();
+    write(
+        &scene,
+        "scene.toml",
+        &toml.replace("name = \"cornell-box\"", "name = \"../../escaped\""),
+    );
+    let o = small_compare(&out, &[scene.to_str().unwrap(), "--methods", "direct"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!dir.path().join("escaped").exists() && !out.join("../escaped").exists());
+    assert!(out.join("images/.._.._escaped/direct-full.png").is_file());
+    std::fs::remove_dir_all(&out).unwrap();
+
     let file = dir.path().join("notes.txt");
     std::fs::write(&file, "keep me").unwrap();
     let o = cssm(&[
