@@ -1,26 +1,35 @@
 //! GPU visibility queries per second (issue: runtime core, "Speed"): CSSM queries in the access
 //! pattern of a final gather and for fully random pairs, next to exact ray casting of the same
-//! random pairs by a BVH traversal kernel on the same GPU, on the Cornell box and (when present)
-//! the Sibenik cathedral.
+//! random pairs by a BVH traversal kernel on the same GPU, on every scene of the report: the
+//! Cornell box, and from `--scenes` (when there) the Cornell heads, the church at the paper's
+//! 3,700 faces and the full Sibenik cathedral.
 //!
 //! ```text
 //! cargo bench --bench gpu_queries -- [--scenes DIR] [--atlas 128] [--cube 32]
 //!     [--pairs 4194304] [--receivers 65536] [--senders 256] [--reps 5] [--csv FILE]
 //! ```
 //!
+//! Each scene bakes at `--atlas`, or at the next power of two that holds its charts (the
+//! Sibenik cathedral's 6,913 charts need 256); the row names the atlas used and how many
+//! storage bindings its runs span. The pair and receiver counts are cut to what one storage
+//! binding of the adapter holds (the row says so), so the harness runs on any device.
+//!
 //! Times come from GPU timestamp queries (best of `--reps`). They mean something only on a real
 //! GPU: on lavapipe this checks that the harness runs. Run `../shared/tools/gpu-limit` in the
 //! same device call to state each figure as a fraction of the memory ceiling of the pattern
 //! (`reports/runtime.sh` does both).
 
-use std::{io::Write, path::PathBuf};
+use std::{
+    io::Write,
+    path::{Path, PathBuf},
+};
 
-use cssm::{bake, formats, runtime};
+use cssm::{bake, formats, report, runtime};
 use runtime::{
     Gpu,
     common::timestamps::PassTimer,
     load::CssmGpu,
-    visibility::{QueryKernel, bvh::BvhKernel, gather::GatherKernel, gather::Receiver},
+    visibility::{QueryKernel, QueryPair, bvh::BvhKernel, gather::GatherKernel, gather::Receiver},
 };
 
 fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
@@ -46,6 +55,67 @@ fn best_ms(gpu: &Gpu, reps: u32, mut work: impl FnMut(&mut PassTimer)) -> Option
     best
 }
 
+/// The largest atlas a scene is tried at before its rows are skipped.
+const LARGEST_ATLAS: u32 = 1024;
+
+/// The scenes of the report that exist here: the built-in Cornell box, then from `scenes` the
+/// Cornell heads (teapot and bunny), the church simplified to 3,700 faces and the full Sibenik
+/// cathedral; a missing one is a row saying why.
+fn scenes(scenes_dir: &Path, work: &Path) -> Vec<(&'static str, Result<PathBuf, String>)> {
+    let cornell = cssm::builtin::cornell_box().expect("built-in scene");
+    let sibenik = scenes_dir.join("sibenik");
+    let missing = |p: &Path| format!("{} not found", p.display());
+    let parts = ["teapot", "bunny"].map(|s| scenes_dir.join(s));
+    let heads = match parts.iter().find(|p| !p.is_dir()) {
+        Some(absent) => Err(missing(absent)),
+        None => report::heads::build(&cornell, scenes_dir, &work.join("heads")).map(|h| h.dir),
+    };
+    let (church, full) = if sibenik.is_dir() {
+        (
+            report::church::build(&sibenik, &work.join("church3700")).map(|c| c.dir),
+            Ok(sibenik),
+        )
+    } else {
+        (Err(missing(&sibenik)), Err(missing(&sibenik)))
+    };
+    vec![
+        ("cornell-box", Ok(cornell)),
+        ("heads", heads),
+        ("church3700", church),
+        ("sibenik", full),
+    ]
+}
+
+/// Bakes `scene` at `atlas`, doubling it while the charts do not fit: the file and its atlas.
+fn bake_fitting(
+    scene: &formats::Scene,
+    atlas: u32,
+    cube: u32,
+) -> Result<(formats::CssmFile, u32), String> {
+    let mut atlas = atlas;
+    loop {
+        let options = bake::BakeOptions {
+            atlas_resolution: atlas,
+            cube_resolution: cube,
+            ..Default::default()
+        };
+        match bake::bake(scene, &options, &mut |_, _| {}) {
+            Ok(baked) => return Ok((baked.file, atlas)),
+            Err(bake::BakeError::Atlas(e))
+                if e.contains("could not fit") && atlas < LARGEST_ATLAS =>
+            {
+                println!(
+                    "({}: charts do not fit atlas {atlas}; trying {})",
+                    scene.name,
+                    2 * atlas
+                );
+                atlas *= 2;
+            }
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let scenes_dir: PathBuf = arg(
@@ -55,8 +125,8 @@ fn main() {
     );
     let atlas = arg(&args, "--atlas", 128u32);
     let cube = arg(&args, "--cube", 32u32);
-    let pairs = arg(&args, "--pairs", 1usize << 22);
-    let receivers = arg(&args, "--receivers", 1usize << 16);
+    let asked_pairs = arg(&args, "--pairs", 1usize << 22);
+    let asked_receivers = arg(&args, "--receivers", 1usize << 16);
     let senders = arg(&args, "--senders", 256u32);
     let reps = arg(&args, "--reps", 5u32);
     let csv: Option<PathBuf> = args
@@ -71,36 +141,53 @@ fn main() {
         println!("this adapter has no timestamp queries: nothing to time");
         return;
     }
-    let scenes = [
-        (
-            "cornell-box",
-            cssm::builtin::cornell_box().expect("built-in scene"),
-        ),
-        ("sibenik", scenes_dir.join("sibenik")),
-    ];
-    let mut rows =
-        vec!["scene,atlas,cube,maps,gpu_bytes,pattern,queries,ms,queries_per_s".to_string()];
-    println!("| scene | pattern | queries | GPU ms | queries/s |\n| --- | --- | --- | --- | --- |");
-    for (name, dir) in scenes {
-        if !dir.is_dir() {
-            println!("| {name} | skipped: {} not found | | | |", dir.display());
-            continue;
+    // One storage binding holds the pairs (the largest item per query); so many and no more.
+    let limits = gpu.device.limits();
+    let binding = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    let fits = |asked: usize, item: usize, what: &str| {
+        let most = (binding / item as u64) as usize;
+        if asked > most {
+            println!(
+                "({what}: {asked} asked, {most} fit one storage binding of {binding} bytes: {most})"
+            );
         }
-        let scene = formats::Scene::load(&dir).expect("scene loads");
-        let options = bake::BakeOptions {
-            atlas_resolution: atlas,
-            cube_resolution: cube,
-            ..Default::default()
-        };
-        let file = match bake::bake(&scene, &options, &mut |_, _| {}) {
-            Ok(baked) => baked.file,
-            Err(e) => {
-                println!("| {name} | skipped: {e} | | | |");
+        asked.min(most)
+    };
+    let pairs = fits(asked_pairs, size_of::<QueryPair>(), "pairs");
+    let receivers = fits(asked_receivers, size_of::<Receiver>(), "receivers");
+    let work = tempfile::tempdir().expect("a temporary directory");
+    let mut rows = vec![
+        "scene,atlas,cube,maps,gpu_bytes,run_bindings,pattern,queries,ms,queries_per_s".to_string(),
+    ];
+    println!(
+        "| scene | atlas | pattern | queries | GPU ms | queries/s |\n| --- | --- | --- | --- | --- | --- |"
+    );
+    for (name, dir) in scenes(&scenes_dir, work.path()) {
+        let skipped = |why: &str| println!("| {name} | | skipped: {why} | | | |");
+        let dir = match dir {
+            Ok(dir) => dir,
+            Err(why) => {
+                skipped(&why);
                 continue;
             }
         };
-        let cssm =
-            CssmGpu::new(&gpu.device, &gpu.queue, &file, Default::default()).expect("upload");
+        let scene = formats::Scene::load(&dir).expect("scene loads");
+        let (file, atlas) = match bake_fitting(&scene, atlas, cube) {
+            Ok(baked) => baked,
+            Err(e) => {
+                skipped(&e);
+                continue;
+            }
+        };
+        let cssm = match CssmGpu::new(&gpu.device, &gpu.queue, &file, Default::default()) {
+            Ok(cssm) => cssm,
+            Err(e) => {
+                skipped(&e.to_string());
+                continue;
+            }
+        };
         let (query_pairs, segments) = runtime::visibility::random_pairs(&scene, pairs, 1);
         let query = QueryKernel::new(&gpu, &cssm);
         let bvh = BvhKernel::new(&gpu, &scene).expect("bvh");
@@ -149,12 +236,12 @@ fn main() {
             let ms = ms.unwrap_or(f64::NAN);
             let rate = queries as f64 / (ms * 1e-3);
             println!(
-                "| {name} | {pattern} | {queries} | {ms:.3} | {:.3e} |",
+                "| {name} | {atlas} | {pattern} | {queries} | {ms:.3} | {:.3e} |",
                 rate
             );
             rows.push(format!(
-                "{name},{atlas},{cube},{},{},{pattern},{queries},{ms:.4},{rate:.4e}",
-                file.runs.map_count, cssm.run_bytes
+                "{name},{atlas},{cube},{},{},{},{pattern},{queries},{ms:.4},{rate:.4e}",
+                file.runs.map_count, cssm.run_bytes, cssm.run_bindings
             ));
         }
     }

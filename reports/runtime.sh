@@ -3,126 +3,243 @@
 # Here: build, then carry .gl and .carry. There: run this script from the repository root.
 #
 #   Here:   reports/runtime.sh prepare
-#   Device: reports/runtime.sh measure      (writes $OUT/runtime-*.txt and CSV)
+#   Device: reports/runtime.sh measure      (writes $OUT/runtime-*.txt, *.md and CSV)
+#
+#   Anywhere: reports/runtime.sh smoke      (the whole harness at small sizes on this machine's
+#                                            device, lavapipe included, into a temporary carry
+#                                            folder; fails if any step fails: scripts/test.sh
+#                                            runs it so that no device time goes to a broken
+#                                            script)
+#
+# `prepare --small` and `measure --small` are the two halves of `smoke`. CSSM_CARRY names the
+# carry folder (default .carry). Every step of `measure` runs even when one before it failed
+# (the device's time is short: whatever worked comes back); the failed ones are listed in
+# $OUT/runtime-failures.txt and the script exits non-zero.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-case "${1:-}" in
-prepare)
+
+carry=${CSSM_CARRY:-.carry}
+small=0
+[ "${2:-}" = "--small" ] && small=1
+benches="gpu_queries frame_time rsm_time vct_time ssil_time vf_time"
+gpu_limit=../shared/tools/gpu-limit
+shared_scenes=../shared/scenes
+
+if [ $small = 1 ]; then
+    # Small enough for lavapipe on two cores; the same steps and options as the full run.
+    bake_cornell="--atlas 32 --cube 8"
+    bake_table1="--atlas 128 --cube 8"
+    bake_sibenik="--atlas 256 --cube 8"
+    queries="--atlas 128 --cube 8 --pairs 4096 --receivers 1024 --senders 16 --reps 2"
+    limit_args="--small"
+    frames=2
+    one_shots=1
+    frame_size=32x24
+    view_sizes="32x24 48x32"
+    wide=32x24
+    shadow="--shadow-resolution 256"
+    vct_cornell=32,64
+    vct_sibenik=32
+    compare="--size 32x24 --samples 2"
+    gi_size=32x24
+else
+    bake_cornell="--atlas 128 --cube 32"
+    bake_table1="--atlas 128 --cube 32"
+    bake_sibenik="--atlas 256 --cube 32"
+    queries="--atlas 128 --cube 32"
+    limit_args="--sizes-mb 8,512 --r 64,256 --qlog2 26 --reps 20"
+    frames=20
+    one_shots=5
+    frame_size=640x480
+    view_sizes="640x480 1280x720"
+    wide=1280x720
+    shadow=""
+    vct_cornell=64,128,256
+    vct_sibenik=128,256,512
+    compare="--size 640x480 --samples 512"
+    gi_size=640x480
+fi
+
+prepare() {
     cargo build --release
-    cargo bench --bench gpu_queries --no-run 2>&1 | tail -1
-    cargo bench --bench frame_time --no-run 2>&1 | tail -1
-    cargo bench --bench rsm_time --no-run 2>&1 | tail -1
-    cargo bench --bench vct_time --no-run 2>&1 | tail -1
-    cargo bench --bench ssil_time --no-run 2>&1 | tail -1
-    cargo bench --bench vf_time --no-run 2>&1 | tail -1
-    bench=$(ls -t target/release/deps/gpu_queries-* | grep -v '\.d$' | head -1)
-    frame_bench=$(ls -t target/release/deps/frame_time-* | grep -v '\.d$' | head -1)
-    rsm_bench=$(ls -t target/release/deps/rsm_time-* | grep -v '\.d$' | head -1)
-    vct_bench=$(ls -t target/release/deps/vct_time-* | grep -v '\.d$' | head -1)
-    ssil_bench=$(ls -t target/release/deps/ssil_time-* | grep -v '\.d$' | head -1)
-    vf_bench=$(ls -t target/release/deps/vf_time-* | grep -v '\.d$' | head -1)
-    (cd ../shared/tools/gpu-limit && cargo build --release)
-    mkdir -p .carry/scenes
-    cp target/release/cssm "$bench" ../shared/tools/gpu-limit/target/release/gpu-limit .carry/
-    mv ".carry/$(basename "$bench")" .carry/gpu_queries
-    cp "$frame_bench" .carry/frame_time
-    cp "$rsm_bench" .carry/rsm_time
-    cp "$vct_bench" .carry/vct_time
-    cp "$ssil_bench" .carry/ssil_time
-    cp "$vf_bench" .carry/vf_time
-    mkdir -p .carry/scenes/sibenik-view && cp reports/scenes/sibenik/scene.toml .carry/scenes/sibenik-view/
-    sed -i 's|mesh = .*|mesh = "../sibenik/sibenik.obj"|' .carry/scenes/sibenik-view/scene.toml
-    cp -r ../shared/scenes/sibenik .carry/scenes/ 2>/dev/null || echo "no sibenik: its rows will be skipped"
-    # GI scenes (Table 1: 128x128 texels): the Cornell box and the heads baked here; the church
-    # is baked on the device (16 cores), its atlas needing 256.
-    target/release/cssm bake -o .carry/cornell.cssm --atlas 128 --cube 32
-    if target/release/cssm report heads --scenes ../shared/scenes --out .carry/scenes/heads; then
-        target/release/cssm bake .carry/scenes/heads -o .carry/heads.cssm --atlas 128 --cube 32
+    mkdir -p "$carry/scenes"
+    cp target/release/cssm "$carry/"
+    for bench in $benches; do
+        # cargo names the executable it built: "Executable benches/NAME.rs (target/...)".
+        exe=$(cargo bench --bench "$bench" --no-run 2>&1 | sed -n 's/.*Executable .*(\(.*\)).*/\1/p')
+        [ -x "$exe" ] || { echo "cargo built no executable for the $bench bench" >&2; exit 1; }
+        cp "$exe" "$carry/$bench"
+    done
+    if [ $small = 0 ]; then
+        (cd "$gpu_limit" && cargo build --release)
     fi
-    du -sh .carry
-    ;;
-measure)
-    for f in .gl/*.deb; do dpkg -x "$f" /; done
-    ldconfig
-    export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-    export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+    if [ -x "$gpu_limit/target/release/gpu-limit" ]; then
+        cp "$gpu_limit/target/release/gpu-limit" "$carry/"
+    else
+        echo "no $gpu_limit/target/release/gpu-limit: the ceiling is not measured" >&2
+    fi
+    for scene in sibenik bunny teapot; do
+        if [ -d "$shared_scenes/$scene" ]; then
+            cp -r "$shared_scenes/$scene" "$carry/scenes/"
+        else
+            echo "no $shared_scenes/$scene: its rows will be skipped" >&2
+        fi
+    done
+    if [ -d "$carry/scenes/sibenik" ]; then
+        mkdir -p "$carry/scenes/sibenik-view"
+        cp reports/scenes/sibenik/scene.toml "$carry/scenes/sibenik-view/"
+        sed -i 's|mesh = .*|mesh = "../sibenik/sibenik.obj"|' "$carry/scenes/sibenik-view/scene.toml"
+    fi
+    # GI scenes (Table 1: 128x128 texels): the Cornell box, the heads and the church at the
+    # paper's 3,700 faces baked here; the full Sibenik cathedral is baked on the device (16
+    # cores), its charts needing atlas 256.
+    # shellcheck disable=SC2086
+    "$carry/cssm" bake -o "$carry/cornell.cssm" $bake_cornell
+    if [ -d "$carry/scenes/bunny" ] && [ -d "$carry/scenes/teapot" ]; then
+        "$carry/cssm" report heads --scenes "$carry/scenes" --out "$carry/scenes/heads"
+        # shellcheck disable=SC2086
+        "$carry/cssm" bake "$carry/scenes/heads" -o "$carry/heads.cssm" $bake_table1
+    fi
+    if [ -d "$carry/scenes/sibenik" ]; then
+        "$carry/cssm" report church --scenes "$carry/scenes" --out "$carry/scenes/church"
+        # shellcheck disable=SC2086
+        "$carry/cssm" bake "$carry/scenes/church" -o "$carry/church.cssm" $bake_table1
+    fi
+    du -sh "$carry"
+}
+
+measure() {
+    if [ -d .gl ] && [ -f /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json ]; then
+        for f in .gl/*.deb; do dpkg -x "$f" /; done
+        ldconfig
+        export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+        export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+    fi
     out=${OUT:-/tmp/out}
+    work=$(mktemp -d)
     mkdir -p "$out"
+    failures=()
+    # run NAME COMMAND...: the command's output into $out/runtime-NAME.txt; a failure is noted,
+    # and every step's wall time goes to $out/runtime-steps.txt (to plan the next device call).
+    run() {
+        local name=$1 start=$SECONDS status=ok
+        shift
+        echo "== $name: $*"
+        if ! "$@" 2>&1 | tee "$out/runtime-$name.txt"; then
+            echo "== $name FAILED" | tee -a "$out/runtime-$name.txt"
+            failures+=("$name")
+            status=FAILED
+        fi
+        echo "$name $((SECONDS - start)) s $status" >> "$out/runtime-steps.txt"
+    }
+    local c=$carry
+    local sibenik=$c/scenes/sibenik-view
     nvidia-smi -L > "$out/runtime-device.txt" 2>&1 || true
-    .carry/gpu-limit --sizes-mb 8,512 --r 64,256 --qlog2 26 --reps 20 | tee "$out/runtime-gpu-limit.txt"
-    .carry/gpu_queries --scenes .carry/scenes --atlas 128 --cube 32 --csv "$out/runtime-queries.csv" \
-        | tee "$out/runtime-queries.txt"
+    if [ -x "$c/gpu-limit" ]; then
+        # shellcheck disable=SC2086
+        run gpu-limit "$c/gpu-limit" $limit_args
+    fi
+    # shellcheck disable=SC2086
+    run queries "$c/gpu_queries" --scenes "$c/scenes" $queries --csv "$out/runtime-queries.csv"
     # The persistent renderer's frame against a one-shot render (issue 16), with GPU ms per pass.
-    .carry/frame_time --size 640x480 --frames 20 --one-shots 5 --out "$out/runtime-frame-time.md" \
-        | tee "$out/runtime-frame-time.txt"
-    for size in 640x480 1280x720; do
-        .carry/cssm render --size "$size" --timings --out "$out/direct-$size.png" \
-            | tee "$out/runtime-direct-$size.txt"
+    run frame-time "$c/frame_time" --size $frame_size --frames $frames --one-shots $one_shots \
+        --out "$out/runtime-frame-time.md"
+    for size in $view_sizes; do
+        run "direct-$size" "$c/cssm" render --size "$size" --timings --out "$out/direct-$size.png"
     done
     # RSM with and without the micro linear buffer (issue 17; target: 1 ms at 1280x720 with
     # visibility), static and moving light, GPU ms per pass.
-    .carry/rsm_time --size 1280x720 --frames 20 --out "$out/runtime-rsm-cornell.md" \
-        | tee "$out/runtime-rsm-cornell.txt"
-    if [ -d .carry/scenes/sibenik ]; then
-        .carry/rsm_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
-            --out "$out/runtime-rsm-sibenik.md" | tee "$out/runtime-rsm-sibenik.txt"
+    # shellcheck disable=SC2086
+    run rsm-cornell "$c/rsm_time" --size $wide --frames $frames $shadow \
+        --out "$out/runtime-rsm-cornell.md"
+    if [ -d "$sibenik" ]; then
+        # shellcheck disable=SC2086
+        run rsm-sibenik "$c/rsm_time" --scene "$sibenik" --size $wide --frames $frames $shadow \
+            --out "$out/runtime-rsm-sibenik.md"
     fi
     # VCT per voxel resolution (issue 18; target: 2 ms at 1280x720 on the Cornell box), static
     # and moving light, GPU ms per pass, and the pools' memory against a dense grid.
-    .carry/vct_time --size 1280x720 --frames 20 --resolutions 64,128,256 \
-        --out "$out/runtime-vct-cornell.md" | tee "$out/runtime-vct-cornell.txt"
-    if [ -d .carry/scenes/sibenik ]; then
-        .carry/vct_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
-            --resolutions 128,256,512 --out "$out/runtime-vct-sibenik.md" \
-            | tee "$out/runtime-vct-sibenik.txt"
+    # shellcheck disable=SC2086
+    run vct-cornell "$c/vct_time" --size $wide --frames $frames --resolutions $vct_cornell $shadow \
+        --out "$out/runtime-vct-cornell.md"
+    if [ -d "$sibenik" ]; then
+        # shellcheck disable=SC2086
+        run vct-sibenik "$c/vct_time" --scene "$sibenik" --size $wide --frames $frames \
+            --resolutions $vct_sibenik $shadow --out "$out/runtime-vct-sibenik.md"
     fi
     # SSIL at Fig. 9's settings with and without visibility (issue 19; targets at 1280x720:
     # 0.5 ms without, 1.5 ms with visibility), GPU ms per pass.
-    .carry/ssil_time --size 1280x720 --frames 20 --out "$out/runtime-ssil-cornell.md" \
-        | tee "$out/runtime-ssil-cornell.txt"
-    if [ -d .carry/scenes/sibenik ]; then
-        .carry/ssil_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
-            --out "$out/runtime-ssil-sibenik.md" | tee "$out/runtime-ssil-sibenik.txt"
+    # shellcheck disable=SC2086
+    run ssil-cornell "$c/ssil_time" --size $wide --frames $frames $shadow \
+        --out "$out/runtime-ssil-cornell.md"
+    if [ -d "$sibenik" ]; then
+        # shellcheck disable=SC2086
+        run ssil-sibenik "$c/ssil_time" --scene "$sibenik" --size $wide --frames $frames $shadow \
+            --out "$out/runtime-ssil-sibenik.md"
     fi
     # VF at Table 1's marching sizes with and without the filter (issue 20; target: 2 ms at
     # 1280x720 on the Cornell box), GPU ms per pass.
-    .carry/vf_time --size 1280x720 --frames 20 --out "$out/runtime-vf-cornell.md" \
-        | tee "$out/runtime-vf-cornell.txt"
-    if [ -d .carry/scenes/sibenik ]; then
-        .carry/vf_time --scene .carry/scenes/sibenik-view --size 1280x720 --frames 20 \
-            --out "$out/runtime-vf-sibenik.md" | tee "$out/runtime-vf-sibenik.txt"
+    # shellcheck disable=SC2086
+    run vf-cornell "$c/vf_time" --size $wide --frames $frames $shadow \
+        --out "$out/runtime-vf-cornell.md"
+    if [ -d "$sibenik" ]; then
+        # shellcheck disable=SC2086
+        run vf-sibenik "$c/vf_time" --scene "$sibenik" --size $wide --frames $frames $shadow \
+            --out "$out/runtime-vf-sibenik.md"
     fi
-    # Every method side by side (issue 27): `cssm compare` on the built-in boxes at 640x480,
-    # GPU ms per pass and memory on the real GPU, the references path traced on the device's
-    # cores; the page stays in /tmp, its figures come back.
-    .carry/cssm compare --size 640x480 --samples 512 --out /tmp/compare \
-        > "$out/runtime-compare.txt" 2>&1 || true
-    cp /tmp/compare/compare.md /tmp/compare/compare.csv /tmp/compare/compare.json \
-        /tmp/compare/chart.svg "$out/" 2>/dev/null || echo "compare wrote no page"
+    # Every method side by side (issue 27): `cssm compare` on the built-in boxes, GPU ms per
+    # pass and memory on the real GPU, the references path traced on the device's cores; the
+    # page stays in $work, its figures come back.
+    # shellcheck disable=SC2086
+    run compare "$c/cssm" compare $compare --out "$work/compare"
+    for f in compare.md compare.csv compare.json chart.svg; do
+        if [ -f "$work/compare/$f" ]; then cp "$work/compare/$f" "$out/"; fi
+    done
     # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
-    # lightmap, 1 and 2 bounces, 640x480.
-    if [ -d .carry/scenes/sibenik ]; then
-        .carry/cssm bake .carry/scenes/sibenik -o /tmp/church.cssm --atlas 256 --cube 32 \
-            | tail -3 | tee "$out/runtime-church-bake.txt"
+    # lightmap, 1 and 2 bounces.
+    if [ -d "$c/scenes/sibenik" ]; then
+        # shellcheck disable=SC2086
+        run sibenik-bake "$c/cssm" bake "$c/scenes/sibenik" -o "$work/sibenik.cssm" $bake_sibenik
     fi
-    for scene in cornell heads church; do
+    for scene in cornell heads church sibenik; do
         case $scene in
-        cornell) dir="" cssm=.carry/cornell.cssm ;;
-        heads) dir=.carry/scenes/heads cssm=.carry/heads.cssm ;;
-        church) dir=.carry/scenes/sibenik cssm=/tmp/church.cssm ;;
+        cornell) dir="" cssm=$c/cornell.cssm ;;
+        heads) dir=$c/scenes/heads cssm=$c/heads.cssm ;;
+        church) dir=$c/scenes/church cssm=$c/church.cssm ;;
+        sibenik) dir=$c/scenes/sibenik cssm=$work/sibenik.cssm ;;
         esac
         [ -f "$cssm" ] || { echo "no $scene: its GI rows are skipped"; continue; }
         for method in lightcuts lightmap; do
             for bounces in 1 2; do
                 name=gi-$scene-$method-$bounces
-                .carry/cssm render $dir --cssm "$cssm" --method $method --bounces $bounces \
-                    --size 640x480 --timings --out "$out/$name.png" | tee "$out/runtime-$name.txt"
+                # shellcheck disable=SC2086
+                run "$name" "$c/cssm" render $dir --cssm "$cssm" --method $method \
+                    --bounces $bounces --size $gi_size --timings --out "$out/$name.png"
             done
         done
     done
+    rm -rf "$work"
+    if [ ${#failures[@]} -gt 0 ]; then
+        printf '%s\n' "${failures[@]}" > "$out/runtime-failures.txt"
+        echo "failed: ${failures[*]} (their output: $out/runtime-NAME.txt)" >&2
+        return 1
+    fi
+}
+
+case "${1:-}" in
+prepare) prepare ;;
+measure) measure ;;
+smoke)
+    small=1
+    smoke=$(mktemp -d)
+    trap 'rm -rf "$smoke"' EXIT
+    CSSM_CARRY="$smoke/carry" OUT="$smoke/out" "$0" prepare --small
+    CSSM_CARRY="$smoke/carry" OUT="$smoke/out" "$0" measure --small
+    cat "$smoke/out/runtime-steps.txt"
+    echo "runtime harness: every step ran ($(find "$smoke/out" -type f | wc -l) files)"
     ;;
 *)
-    echo "usage: $0 prepare|measure" >&2
+    echo "usage: $0 prepare|measure [--small] | smoke" >&2
     exit 2
     ;;
 esac

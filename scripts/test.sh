@@ -42,3 +42,8 @@ target/release/bake-library scenes/cornell-box "$examples_out/cornell-box.cssm"
 XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$examples_out}" target/release/embed-runtime scenes/cornell-box "$examples_out/cornell-box.cssm" \
     "$examples_out/embedded.png"
 test -s "$examples_out/embedded.png"
+
+# The GPU benchmark harness (reports/runtime.sh: every benchmark and render the GPU machine runs)
+# end to end at small sizes on this machine's device, so that no device time goes to a broken
+# script.
+reports/runtime.sh smoke

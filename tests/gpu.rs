@@ -552,6 +552,127 @@ fn gather_kernel_matches_cpu() {
     assert!(worst <= 1.0, "largest difference {worst}");
 }
 
+/// A `.cssm` whose runs exceed one storage binding loads with them spread over several, and
+/// every pass that queries it answers exactly as with one binding: the query and gather
+/// kernels on the same pairs, and the images of `lightmap` (the radiosity gather and the atlas
+/// lookup; `hrc` has the same passes) and `lightcuts` (the final gather). The binding limit is
+/// lowered on a device of its own so that the Cornell box's runs need three bindings (the
+/// Sibenik cathedral at atlas 256 needs two at WebGPU's default 128 MiB).
+#[test]
+fn runs_spread_over_several_bindings_answer_as_one() {
+    use cssm_runtime::{
+        load::MAX_RUN_BINDINGS,
+        radiosity::HierarchyGpu,
+        visibility::gather::{GatherKernel, Receiver},
+    };
+    let whole = gpu();
+    let (scene, file) = cornell();
+    let options = QueryOptions::default();
+    let one = CssmGpu::new(&whole.device, &whole.queue, file, options).unwrap();
+    assert_eq!(one.run_bindings, 1);
+    let hierarchy = HierarchyGpu::new(&whole.device, &file.hierarchy).unwrap();
+    let run_bytes = 4 * file.runs.runs.len() as u64;
+    // Every other buffer still fits one binding; the runs need three.
+    let largest_other = [
+        &one.texels,
+        &one.grid,
+        &one.triangle_uvs,
+        &one.offsets,
+        &hierarchy.nodes,
+        &hierarchy.leaves,
+        &hierarchy.pull_order,
+    ]
+    .iter()
+    .map(|b| b.size())
+    .max()
+    .unwrap();
+    let limit = largest_other.max(run_bytes.div_ceil(3)).next_multiple_of(4);
+    eprintln!(
+        "runs {run_bytes} bytes, largest other buffer {largest_other}, binding limit {limit}"
+    );
+    let lowered = |limit: u64| {
+        let adapter = &whole.adapter;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("lowered binding limit"),
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+            required_limits: wgpu::Limits {
+                max_storage_buffer_binding_size: limit,
+                ..adapter.limits()
+            },
+            ..Default::default()
+        }))
+        .expect("a device with a lowered binding limit");
+        Gpu::from_device(adapter.clone(), device, queue)
+    };
+    let split_gpu = lowered(limit);
+    let split = CssmGpu::new(&split_gpu.device, &split_gpu.queue, file, options).unwrap();
+    assert!(
+        (2..=3).contains(&split.run_bindings),
+        "{} bindings",
+        split.run_bindings
+    );
+    assert_eq!(split.runs.len(), split.run_bindings as usize);
+    assert!(split.runs.iter().all(|b| b.size() <= limit));
+
+    // As many pairs as one binding of the lowered limit holds.
+    let pairs = random_pairs(scene, 10_000, 23);
+    let answers = |gpu: &Gpu, cssm: &CssmGpu| {
+        QueryKernel::new(gpu, cssm)
+            .run(gpu, cssm, &pairs, None)
+            .unwrap()
+    };
+    let (expected, got) = (answers(whole, &one), answers(&split_gpu, &split));
+    assert!(expected.iter().any(|&v| v > 0.0) && expected.contains(&0.0));
+    assert_eq!(got, expected, "the query over split runs differs");
+
+    let receivers: Vec<Receiver> = pairs
+        .iter()
+        .take(2_000)
+        .enumerate()
+        .map(|(i, q)| Receiver {
+            position: q.receiver,
+            first_sender: (i as u32 / 64) * 37,
+            normal: q.receiver_normal,
+            _pad: 0,
+        })
+        .collect();
+    let sums = |gpu: &Gpu, cssm: &CssmGpu| {
+        GatherKernel::new(gpu, cssm)
+            .run(gpu, cssm, &receivers, 64, None)
+            .unwrap()
+    };
+    assert_eq!(sums(&split_gpu, &split), sums(whole, &one));
+
+    let render_options = RenderOptions {
+        width: 32,
+        height: 24,
+        ..Default::default()
+    };
+    for method in ["lightmap", "lightcuts"] {
+        let expected = render(whole, scene, Some(file), method, &render_options).unwrap();
+        let got = render(&split_gpu, scene, Some(file), method, &render_options)
+            .unwrap_or_else(|e| panic!("{method} over split runs: {e}"));
+        assert!(expected.display.iter().any(|&b| b > 0), "{method}: black");
+        assert_eq!(
+            got.display, expected.display,
+            "{method} over split runs differs"
+        );
+    }
+
+    // Runs beyond MAX_RUN_BINDINGS bindings: a clear error, not a validation error (the runs
+    // are checked before the other tables).
+    let tiny_limit = run_bytes
+        .div_ceil(u64::from(MAX_RUN_BINDINGS) + 2)
+        .next_multiple_of(4);
+    let tiny = lowered(tiny_limit);
+    let refused = CssmGpu::new(&tiny.device, &tiny.queue, file, options).err();
+    let message = refused.map(|e| e.to_string()).unwrap_or_default();
+    assert!(
+        message.contains("more than 8 storage bindings"),
+        "{message}"
+    );
+}
+
 // ---- Global illumination (§4): radiosity, final gather, lightmap ----
 
 /// The bake the GI tests run at: atlas 32, cube 64, Hilbert traversal (the default).

@@ -86,18 +86,36 @@ impl Gpu {
             adapter: adapter.get_info().name,
             reason: e.to_string(),
         })?;
+        Ok(Self::from_device(adapter, device, queue))
+    }
+
+    /// A device of your own (say, one requested with other limits) with the runtime's error
+    /// capture: GPU errors outside an error scope are kept for [`Gpu::wait`] instead of
+    /// panicking.
+    ///
+    /// ```no_run
+    /// # fn demo(adapter: wgpu::Adapter) {
+    /// let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+    ///     required_limits: cssm_runtime::required_limits(),
+    ///     ..Default::default()
+    /// }))
+    /// .expect("device");
+    /// let gpu = cssm_runtime::Gpu::from_device(adapter, device, queue);
+    /// # let _ = gpu; }
+    /// ```
+    pub fn from_device(adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Self {
         let errors = Arc::new(Mutex::new(None));
         let sink = errors.clone();
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
             let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
             slot.get_or_insert_with(|| e.to_string());
         }));
-        Ok(Self {
+        Self {
             adapter,
             device,
             queue,
             errors,
-        })
+        }
     }
 
     /// "name (backend, driver)" of the adapter.

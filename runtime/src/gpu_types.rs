@@ -134,8 +134,10 @@ pub struct GpuCssmParams {
     pub flags: u32,
     /// Number of scene triangles with atlas coordinates.
     pub triangle_count: u32,
-    /// Unused.
-    pub _pad: u32,
+    /// Runs each storage binding of the run data holds (all of them where one binding holds
+    /// the file's runs): run `i` is element `i % runs_per_binding` of binding
+    /// `i / runs_per_binding` ([`crate::load::CssmGpu::run_bindings`]).
+    pub runs_per_binding: u32,
 }
 
 /// One node of the texel hierarchy (§4.2.1): the file's own node, uploaded as it is (64 bytes,
@@ -291,6 +293,10 @@ mod tests {
                 ("bias_relative", offset_of!(GpuCssmParams, bias_relative)),
                 ("flags", offset_of!(GpuCssmParams, flags)),
                 ("triangle_count", offset_of!(GpuCssmParams, triangle_count)),
+                (
+                    "runs_per_binding",
+                    offset_of!(GpuCssmParams, runs_per_binding),
+                ),
             ],
         );
     }

@@ -31,12 +31,12 @@
 //! # Example: query visibility on your own device
 //! ```no_run
 //! # fn demo(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<(), Box<dyn std::error::Error>> {
-//! use cssm_runtime::{load::{read_cssm, CssmGpu}, visibility::library_wgsl};
+//! use cssm_runtime::load::{read_cssm, CssmGpu};
 //! let scene = cssm_formats::Scene::load("scenes/cornell-box".as_ref())?;
 //! let file = read_cssm("cornell-box.cssm".as_ref(), &scene)?;
 //! let cssm = CssmGpu::new(device, queue, &file, Default::default())?;
 //! // Your compute or fragment shader: the library first, bound at group 1.
-//! let source = library_wgsl(1) + r#"
+//! let source = cssm.library_wgsl(1) + r#"
 //!     @compute @workgroup_size(64) fn main() {
 //!         let seen = cssm_visible(0u, vec3f(0.3, 0.3, 0.4), vec3f(100.0, 200.0, 300.0), vec3f(0.0));
 //!     }"#;

@@ -54,13 +54,46 @@ pub(crate) fn limit_check(
     what: &'static str,
     bytes: u64,
 ) -> Result<(), RuntimeError> {
-    let limit = device.limits().max_storage_buffer_binding_size;
+    let limits = device.limits();
+    let limit = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
     if bytes > limit {
         return Err(RuntimeError::TooLarge {
             what,
             needed: bytes,
             limit,
         });
+    }
+    Ok(())
+}
+
+/// Whether a device of `limits` can bind run data spanning `run_bindings` storage bindings
+/// (`run_bytes` in all): at most [`MAX_RUN_BINDINGS`], and the passes that query the CSSM
+/// (the radiosity gather binds the most: [`crate::required_limits`]) still within the
+/// device's storage buffers per shader stage.
+fn check_run_bindings(
+    limits: &wgpu::Limits,
+    run_bindings: u32,
+    run_bytes: u64,
+) -> Result<(), RuntimeError> {
+    let binding = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    if run_bindings > MAX_RUN_BINDINGS {
+        return Err(RuntimeError::Unsupported(format!(
+            "the runs need {run_bytes} bytes, more than {MAX_RUN_BINDINGS} storage bindings of \
+             {binding} bytes (the GPU's limit per binding) hold; bake at a smaller atlas or cube"
+        )));
+    }
+    let needed = crate::required_limits().max_storage_buffers_per_shader_stage + run_bindings - 1;
+    if run_bindings > 1 && limits.max_storage_buffers_per_shader_stage < needed {
+        return Err(RuntimeError::Unsupported(format!(
+            "the runs need {run_bytes} bytes, spread over {run_bindings} storage bindings of \
+             {binding} bytes (the GPU's limit per binding); the passes that query them would \
+             bind {needed} storage buffers per shader stage, the GPU allows {}",
+            limits.max_storage_buffers_per_shader_stage
+        )));
     }
     Ok(())
 }
@@ -119,8 +152,14 @@ pub struct CssmGpu {
     pub triangle_uvs: wgpu::Buffer,
     /// Run offsets (binding 4).
     pub offsets: wgpu::Buffer,
-    /// Runs (binding 5).
-    pub runs: wgpu::Buffer,
+    /// The runs, in order: binding 5, then 6, 7, ... when they exceed one storage binding
+    /// ([`Self::run_bindings`] buffers of [`GpuCssmParams::runs_per_binding`] runs, the last
+    /// one the rest).
+    pub runs: Vec<wgpu::Buffer>,
+    /// Storage bindings the runs span (1 unless they exceed the device's
+    /// `max_storage_buffer_binding_size`; at most [`MAX_RUN_BINDINGS`]). The modules that
+    /// import the query are composed for it ([`crate::shaders::Shader::create_for`]).
+    pub run_bindings: u32,
     /// Layout of [`Self::bind_group`].
     pub bind_group_layout: wgpu::BindGroupLayout,
     /// The bind group.
@@ -131,9 +170,27 @@ pub struct CssmGpu {
     pub run_bytes: u64,
 }
 
+/// Most storage bindings the runs of one `.cssm` may span (`CSSM_RUN_BINDINGS` in
+/// `visibility/cssm.wgsl`): 1 GiB of runs at WebGPU's default 128 MiB per binding.
+pub const MAX_RUN_BINDINGS: u32 = 8;
+
+/// How the runs of `run_count` runs are spread over storage bindings on a device whose buffers
+/// may bind at most `binding_bytes`: (runs per binding, bindings). The runs are cut at any
+/// index, not at segment or pixel boundaries: the query finds a run's binding from its index
+/// alone (`cssm_run` in `visibility/cssm.wgsl`).
+pub fn run_split(run_count: u64, binding_bytes: u64) -> (u32, u32) {
+    let per_binding = (binding_bytes / 4).clamp(1, u64::from(u32::MAX));
+    let bindings = run_count.div_ceil(per_binding).max(1);
+    (per_binding as u32, bindings.min(u64::from(u32::MAX)) as u32)
+}
+
 impl CssmGpu {
-    /// Bind group layout entries of the CSSM bind group, visible to `stages`.
-    pub fn layout_entries(stages: wgpu::ShaderStages) -> [wgpu::BindGroupLayoutEntry; 6] {
+    /// Bind group layout entries of the CSSM bind group, visible to `stages`, for run data
+    /// spanning `run_bindings` storage bindings ([`Self::run_bindings`]).
+    pub fn layout_entries(
+        stages: wgpu::ShaderStages,
+        run_bindings: u32,
+    ) -> Vec<wgpu::BindGroupLayoutEntry> {
         let storage = |binding| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: stages,
@@ -159,24 +216,38 @@ impl CssmGpu {
             storage(2),
             storage(3),
             storage(4),
-            storage(5),
         ]
+        .into_iter()
+        .chain((0..run_bindings.max(1)).map(|k| storage(5 + k)))
+        .collect()
+    }
+
+    /// The WGSL visibility library for this file's layout, its bindings at `@group(group)`:
+    /// [`crate::visibility::library_wgsl`] with [`Self::run_bindings`].
+    pub fn library_wgsl(&self, group: u32) -> String {
+        crate::visibility::library_wgsl(group, self.run_bindings)
     }
 
     /// Uploads `file` (which `cssm::read` or `cssm::decode` validated) with query `options`.
     ///
+    /// Runs larger than one storage binding spread over several (up to [`MAX_RUN_BINDINGS`]);
+    /// the other tables must each fit one.
+    ///
     /// # Errors
-    /// [`RuntimeError::TooLarge`] when a buffer exceeds the device's storage binding limit.
+    /// [`RuntimeError::TooLarge`] when a table other than the runs exceeds the device's storage
+    /// binding limit, [`RuntimeError::Unsupported`] when the runs need more than
+    /// [`MAX_RUN_BINDINGS`] bindings or more storage buffers per shader stage than the device
+    /// allows.
     ///
     /// # Example
     /// ```no_run
     /// # fn demo(device: &wgpu::Device, queue: &wgpu::Queue) -> Result<(), Box<dyn std::error::Error>> {
-    /// use cssm_runtime::{load::CssmGpu, visibility};
+    /// use cssm_runtime::load::CssmGpu;
     /// let scene = cssm_formats::Scene::load("scenes/cornell-box".as_ref())?;
     /// let file = cssm_runtime::load::read_cssm("cornell-box.cssm".as_ref(), &scene)?;
     /// let cssm = CssmGpu::new(device, queue, &file, Default::default())?;
     /// // Bind `cssm.bind_group` at group 1 of your pipeline and prepend the library:
-    /// let source = visibility::library_wgsl(1) + "/* your shader calling cssm_visible(...) */";
+    /// let source = cssm.library_wgsl(1) + "/* your shader calling cssm_visible(...) */";
     /// # let _ = (cssm, source); Ok(()) }
     /// ```
     pub fn new(
@@ -214,6 +285,13 @@ impl CssmGpu {
             .iter()
             .flat_map(|c| [c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]])
             .collect();
+        let limits = device.limits();
+        let binding_bytes = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let (runs_per_binding, run_bindings) =
+            run_split(file.runs.runs.len() as u64, binding_bytes);
+        check_run_bindings(&limits, run_bindings, 4 * file.runs.runs.len() as u64)?;
         let p = &file.params;
         let params = GpuCssmParams {
             atlas_resolution: r,
@@ -228,7 +306,7 @@ impl CssmGpu {
             bias_relative: options.bias_relative,
             flags: u32::from(options.pcf) | (u32::from(options.sender_filter) << 1),
             triangle_count: file.triangle_uvs.len() as u32,
-            _pad: 0,
+            runs_per_binding,
         };
         let texel_bytes: &[u8] = bytemuck::cast_slice(&texels);
         limit_check(device, "the texel table", texel_bytes.len() as u64)?;
@@ -237,7 +315,6 @@ impl CssmGpu {
             "the run offsets",
             4 * file.runs.offsets.len() as u64,
         )?;
-        limit_check(device, "the runs", 4 * file.runs.runs.len() as u64)?;
         limit_check(
             device,
             "the triangle atlas coordinates",
@@ -256,11 +333,20 @@ impl CssmGpu {
             "cssm offsets",
             bytemuck::cast_slice(&file.runs.offsets),
         );
-        let runs = storage_buffer(device, "cssm runs", bytemuck::cast_slice(&file.runs.runs));
+        let runs: Vec<wgpu::Buffer> = if file.runs.runs.is_empty() {
+            vec![storage_buffer(device, "cssm runs", &[])]
+        } else {
+            file.runs
+                .runs
+                .chunks(runs_per_binding as usize)
+                .map(|part| storage_buffer(device, "cssm runs", bytemuck::cast_slice(part)))
+                .collect()
+        };
         let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cssm"),
             entries: &Self::layout_entries(
                 wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT,
+                run_bindings,
             ),
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -272,9 +358,9 @@ impl CssmGpu {
                 grid.as_entire_binding(),
                 triangle_uvs.as_entire_binding(),
                 offsets.as_entire_binding(),
-                runs.as_entire_binding(),
             ]
             .into_iter()
+            .chain(runs.iter().map(wgpu::Buffer::as_entire_binding))
             .enumerate()
             .map(|(i, resource)| wgpu::BindGroupEntry {
                 binding: i as u32,
@@ -289,6 +375,7 @@ impl CssmGpu {
             triangle_uvs,
             offsets,
             runs,
+            run_bindings,
             bind_group_layout,
             bind_group,
             params,

@@ -84,12 +84,18 @@ pub const CSSM_GROUP: u32 = 1;
 pub const SVO_GROUP: u32 = 1;
 
 /// The shader definitions every module is composed with: the workgroup sizes
-/// (`#{WORKGROUP_1D}`, `#{WORKGROUP_2D}`) and the CSSM library's bind group (`#{CSSM_GROUP}`).
-fn shader_defs(cssm_group: u32) -> HashMap<String, ShaderDefValue> {
+/// (`#{WORKGROUP_1D}`, `#{WORKGROUP_2D}`), the CSSM library's bind group (`#{CSSM_GROUP}`) and
+/// the number of storage bindings its run data spans (`CSSM_RUN_BINDINGS`, 1 unless a loaded
+/// file's runs exceed one binding: [`crate::load::CssmGpu::run_bindings`]).
+fn shader_defs(cssm_group: u32, run_bindings: u32) -> HashMap<String, ShaderDefValue> {
     HashMap::from([
         ("WORKGROUP_1D".into(), ShaderDefValue::UInt(WORKGROUP_1D)),
         ("WORKGROUP_2D".into(), ShaderDefValue::UInt(WORKGROUP_2D)),
         ("CSSM_GROUP".into(), ShaderDefValue::UInt(cssm_group)),
+        (
+            "CSSM_RUN_BINDINGS".into(),
+            ShaderDefValue::UInt(run_bindings),
+        ),
         ("SVO_GROUP".into(), ShaderDefValue::UInt(SVO_GROUP)),
     ])
 }
@@ -104,7 +110,13 @@ pub fn composer() -> Result<Composer, String> {
         let added = composer.add_composable_module(ComposableModuleDescriptor {
             source,
             file_path,
-            shader_defs: shader_defs(CSSM_GROUP),
+            // CSSM_RUN_BINDINGS is left to each composed module (naga_oil refuses a definition
+            // whose value differs between a library and the module importing it).
+            shader_defs: {
+                let mut defs = shader_defs(CSSM_GROUP, 1);
+                defs.remove("CSSM_RUN_BINDINGS");
+                defs
+            },
             ..Default::default()
         });
         if let Err(e) = added {
@@ -385,6 +397,15 @@ impl Shader {
     /// # Errors
     /// naga_oil's message (a bug: the registry test composes every module).
     pub fn module(self) -> Result<naga::Module, String> {
+        self.module_for(1)
+    }
+
+    /// The module composed for a CSSM whose run data spans `run_bindings` storage bindings
+    /// ([`crate::load::CssmGpu::run_bindings`]; [`Self::module`] is `module_for(1)`).
+    ///
+    /// # Errors
+    /// naga_oil's message (a bug: the registry test composes every module).
+    pub fn module_for(self, run_bindings: u32) -> Result<naga::Module, String> {
         // One composer for the process: the libraries are parsed once, and naga_oil keeps each
         // composed import, so a renderer's start-up does not parse them again per module.
         static COMPOSER: OnceLock<Result<Mutex<Composer>, String>> = OnceLock::new();
@@ -399,7 +420,7 @@ impl Shader {
             .make_naga_module(NagaModuleDescriptor {
                 source,
                 file_path,
-                shader_defs: shader_defs(CSSM_GROUP),
+                shader_defs: shader_defs(CSSM_GROUP, run_bindings),
                 ..Default::default()
             })
             .map_err(|e| e.emit_to_string(&composer))
@@ -408,7 +429,14 @@ impl Shader {
     /// The module on `device`. Should composition fail (a bug the registry test catches), the
     /// uncomposed source goes to wgpu, whose validation error names the module.
     pub fn create(self, device: &wgpu::Device) -> wgpu::ShaderModule {
-        let source = match self.module() {
+        self.create_for(device, 1)
+    }
+
+    /// The module on `device` for a CSSM whose run data spans `run_bindings` storage bindings:
+    /// what the modules that import `cssm::visibility` are built with
+    /// (`Shader::Query.create_for(device, cssm.run_bindings)`).
+    pub fn create_for(self, device: &wgpu::Device, run_bindings: u32) -> wgpu::ShaderModule {
+        let source = match self.module_for(run_bindings) {
             Ok(module) => wgpu::ShaderSource::Naga(Cow::Owned(module)),
             Err(_) => wgpu::ShaderSource::Wgsl(self.source().1.into()),
         };

@@ -55,7 +55,7 @@ struct CssmParams {
     bias_relative: f32,
     flags: u32,
     triangle_count: u32,
-    padding: u32,
+    runs_per_binding: u32,
 }
 
 struct Node {

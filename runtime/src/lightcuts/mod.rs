@@ -60,7 +60,7 @@ impl FinalGather {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = Shader::FinalGather.create(device);
+        let module = Shader::FinalGather.create_for(device, cssm.query.run_bindings);
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),

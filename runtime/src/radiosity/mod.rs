@@ -195,7 +195,7 @@ impl Radiosity {
         let c = wgpu::ShaderStages::COMPUTE;
 
         // Gather: group 0 its own buffers, group 1 the CSSM.
-        let module = Shader::RadiosityGather.create(device);
+        let module = Shader::RadiosityGather.create_for(device, cssm.run_bindings);
         let entries = [
             layout::uniform(0, c),
             layout::storage(1, true, c),

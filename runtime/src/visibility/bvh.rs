@@ -141,6 +141,11 @@ impl BvhKernel {
             return Ok(Vec::new());
         }
         let device = &gpu.device;
+        crate::load::limit_check(
+            device,
+            "the segments",
+            std::mem::size_of_val(segments) as u64,
+        )?;
         let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("segments"),
             contents: bytemuck::cast_slice(segments),

@@ -19,6 +19,29 @@
 // runs packed as start_in_segment << 16 | depth16.
 @group(#{CSSM_GROUP}) @binding(4) var<storage, read> cssm_offsets: array<u32>;
 @group(#{CSSM_GROUP}) @binding(5) var<storage, read> cssm_runs: array<u32>;
+// A file whose runs exceed one storage binding has them spread over several, in order,
+// `cssm.runs_per_binding` runs each (load::CssmGpu; CSSM_RUN_BINDINGS of them, at most 8).
+#if CSSM_RUN_BINDINGS > 1
+@group(#{CSSM_GROUP}) @binding(6) var<storage, read> cssm_runs_1: array<u32>;
+#endif
+#if CSSM_RUN_BINDINGS > 2
+@group(#{CSSM_GROUP}) @binding(7) var<storage, read> cssm_runs_2: array<u32>;
+#endif
+#if CSSM_RUN_BINDINGS > 3
+@group(#{CSSM_GROUP}) @binding(8) var<storage, read> cssm_runs_3: array<u32>;
+#endif
+#if CSSM_RUN_BINDINGS > 4
+@group(#{CSSM_GROUP}) @binding(9) var<storage, read> cssm_runs_4: array<u32>;
+#endif
+#if CSSM_RUN_BINDINGS > 5
+@group(#{CSSM_GROUP}) @binding(10) var<storage, read> cssm_runs_5: array<u32>;
+#endif
+#if CSSM_RUN_BINDINGS > 6
+@group(#{CSSM_GROUP}) @binding(11) var<storage, read> cssm_runs_6: array<u32>;
+#endif
+#if CSSM_RUN_BINDINGS > 7
+@group(#{CSSM_GROUP}) @binding(12) var<storage, read> cssm_runs_7: array<u32>;
+#endif
 
 const CSSM_NONE: u32 = 0xffffffffu;
 const CSSM_DEPTH_MAX: u32 = 65535u;
@@ -27,12 +50,45 @@ const CSSM_FLAG_SENDER_FILTER: u32 = 2u;
 // Stands for "nothing within the far plane": larger than any receiver depth.
 const CSSM_FAR_AWAY: f32 = 3.0e38;
 
+// Run `i` of the file's run array (RunData::runs), in whichever binding holds it. With one
+// binding (every file that fits one, the common case) this is a plain load.
+fn cssm_run(i: u32) -> u32 {
+#if CSSM_RUN_BINDINGS > 1
+    let binding = i / cssm.runs_per_binding;
+    let j = i - binding * cssm.runs_per_binding;
+    switch binding {
+        case 1u: { return cssm_runs_1[j]; }
+#if CSSM_RUN_BINDINGS > 2
+        case 2u: { return cssm_runs_2[j]; }
+#endif
+#if CSSM_RUN_BINDINGS > 3
+        case 3u: { return cssm_runs_3[j]; }
+#endif
+#if CSSM_RUN_BINDINGS > 4
+        case 4u: { return cssm_runs_4[j]; }
+#endif
+#if CSSM_RUN_BINDINGS > 5
+        case 5u: { return cssm_runs_5[j]; }
+#endif
+#if CSSM_RUN_BINDINGS > 6
+        case 6u: { return cssm_runs_6[j]; }
+#endif
+#if CSSM_RUN_BINDINGS > 7
+        case 7u: { return cssm_runs_7[j]; }
+#endif
+        default: { return cssm_runs[j]; }
+    }
+#else
+    return cssm_runs[i];
+#endif
+}
+
 // One step of cssm_lookup's binary search over runs [first, first + count).
 fn cssm_search_step(first: ptr<function, u32>, count: ptr<function, u32>, local: u32) {
     if *count > 0u {
         let step = *count / 2u;
         let i = *first + step;
-        if (cssm_runs[i] >> 16u) <= local {
+        if (cssm_run(i) >> 16u) <= local {
             *first = i + 1u;
             *count -= step + 1u;
         } else {
@@ -71,7 +127,7 @@ fn cssm_lookup(map: u32, pixel: u32) -> u32 {
     cssm_search_step(&first, &count, local);
     cssm_search_step(&first, &count, local);
     cssm_search_step(&first, &count, local);
-    return cssm_runs[max(first, lo + 1u) - 1u] & 0xffffu;
+    return cssm_run(max(first, lo + 1u) - 1u) & 0xffffu;
 }
 
 // DepthQuantizer::depth.

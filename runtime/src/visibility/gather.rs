@@ -62,7 +62,7 @@ impl GatherKernel {
     /// The kernel for CSSMs bound with `cssm`'s layout.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
         let device = &gpu.device;
-        let module = crate::shaders::Shader::Gather.create(device);
+        let module = crate::shaders::Shader::Gather.create_for(device, cssm.run_bindings);
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,
@@ -98,6 +98,11 @@ impl GatherKernel {
             return Ok(vec![0.0; receivers.len()]);
         }
         let device = &gpu.device;
+        crate::load::limit_check(
+            device,
+            "the receivers",
+            std::mem::size_of_val(receivers) as u64,
+        )?;
         let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("receivers"),
             contents: bytemuck::cast_slice(receivers),

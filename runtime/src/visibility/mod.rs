@@ -22,20 +22,42 @@ use crate::{
     load::CssmGpu,
 };
 
-/// The WGSL visibility library as plain WGSL, its bindings at `@group(group)`, preceded by the
-/// shared struct declarations (`types.wgsl`): append your own shader code to it. This is for a
-/// shader of your own composed without naga_oil; with naga_oil, add the libraries of
-/// [`crate::shaders::composer`] and `#import cssm::visibility::{cssm_visible, ...}` as the
-/// runtime's own modules do. Here the lines naga_oil reads (`#define_import_path`, `#import`)
-/// are dropped and the bind group filled in.
-pub fn library_wgsl(group: u32) -> String {
+/// The WGSL visibility library as plain WGSL, its bindings at `@group(group)` for run data
+/// spanning `run_bindings` storage bindings ([`CssmGpu::run_bindings`]; or call
+/// [`CssmGpu::library_wgsl`]), preceded by the shared struct declarations (`types.wgsl`):
+/// append your own shader code to it. This is for a shader of your own composed without
+/// naga_oil; with naga_oil, add the libraries of [`crate::shaders::composer`] and
+/// `#import cssm::visibility::{cssm_visible, ...}` as the runtime's own modules do. Here the
+/// lines naga_oil reads (`#define_import_path`, `#import`) are dropped, the bind group filled
+/// in and the library's `#if CSSM_RUN_BINDINGS > K` blocks kept or dropped.
+pub fn library_wgsl(group: u32, run_bindings: u32) -> String {
     let group = group.to_string();
-    [TYPES_WGSL, include_str!("cssm.wgsl")]
+    // Whether each enclosing `#if` holds; a line is kept when all do.
+    let mut open: Vec<bool> = Vec::new();
+    let mut out = String::new();
+    for line in [TYPES_WGSL, include_str!("cssm.wgsl")]
         .iter()
         .flat_map(|source| source.lines())
-        .filter(|line| !line.starts_with("#define_import_path") && !line.starts_with("#import"))
-        .map(|line| line.replace("#{CSSM_GROUP}", &group) + "\n")
-        .collect()
+    {
+        let directive = line.trim_start();
+        if let Some(k) = directive.strip_prefix("#if CSSM_RUN_BINDINGS > ") {
+            let k: u32 = k.trim().parse().expect("the library's #if has a number");
+            open.push(run_bindings > k);
+        } else if directive.starts_with("#else") {
+            if let Some(last) = open.last_mut() {
+                *last = !*last;
+            }
+        } else if directive.starts_with("#endif") {
+            open.pop();
+        } else if !directive.starts_with("#define_import_path")
+            && !directive.starts_with("#import")
+            && open.iter().all(|&kept| kept)
+        {
+            out.push_str(&line.replace("#{CSSM_GROUP}", &group));
+            out.push('\n');
+        }
+    }
+    out
 }
 
 /// One query: is `receiver` (with normal `receiver_normal`, or zero when unknown) visible from
@@ -118,7 +140,7 @@ impl QueryKernel {
     /// Builds the kernel for CSSMs bound with `cssm`'s layout.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
         let device = &gpu.device;
-        let module = crate::shaders::Shader::Query.create(device);
+        let module = crate::shaders::Shader::Query.create_for(device, cssm.run_bindings);
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,
@@ -150,6 +172,11 @@ impl QueryKernel {
             return Ok(Vec::new());
         }
         let device = &gpu.device;
+        crate::load::limit_check(
+            device,
+            "the query pairs",
+            std::mem::size_of_val(pairs) as u64,
+        )?;
         let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("query pairs"),
             contents: bytemuck::cast_slice(pairs),
@@ -302,5 +329,97 @@ mod tests {
             size_of::<Segment>(),
             &[("a", offset_of!(Segment, a)), ("b", offset_of!(Segment, b))],
         );
+    }
+
+    /// The storage bindings of the CSSM group a module declares.
+    fn cssm_bindings(module: &naga::Module) -> Vec<u32> {
+        let mut bindings: Vec<u32> = module
+            .global_variables
+            .iter()
+            .filter_map(|(_, v)| v.binding.as_ref())
+            .filter(|b| b.group == crate::shaders::CSSM_GROUP)
+            .map(|b| b.binding)
+            .collect();
+        bindings.sort_unstable();
+        bindings
+    }
+
+    /// Every module that queries the CSSM composes and validates for runs spread over 1 to
+    /// MAX_RUN_BINDINGS bindings, and declares exactly the bindings the loader's layout has.
+    #[test]
+    fn query_modules_compose_for_every_run_binding_count() {
+        use crate::{load::MAX_RUN_BINDINGS, shaders::tests::CAPABILITIES};
+        for shader in [
+            Shader::Query,
+            Shader::Gather,
+            Shader::RadiosityGather,
+            Shader::AtlasLookup,
+            Shader::FinalGather,
+        ] {
+            for n in 1..=MAX_RUN_BINDINGS {
+                let module = shader
+                    .module_for(n)
+                    .unwrap_or_else(|e| panic!("{} for {n}: {e}", shader.label()));
+                naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
+                    .validate(&module)
+                    .unwrap_or_else(|e| panic!("{} for {n}: {e:?}", shader.label()));
+                let declared = cssm_bindings(&module);
+                // naga_oil brings in the globals a module uses: a module that reads the runs
+                // (`cssm_run`) reads every run binding.
+                if declared.contains(&5) {
+                    let runs: Vec<u32> = declared.into_iter().filter(|&b| b >= 5).collect();
+                    assert_eq!(runs, (5..5 + n).collect::<Vec<_>>(), "{}", shader.label());
+                }
+            }
+        }
+    }
+
+    /// The plain-WGSL library parses and validates for every binding count, with the
+    /// bindings of `CssmGpu::layout_entries`.
+    #[test]
+    fn plain_library_matches_the_layout() {
+        use crate::load::{CssmGpu, MAX_RUN_BINDINGS};
+        for n in 1..=MAX_RUN_BINDINGS {
+            let source = super::library_wgsl(2, n)
+                + "@compute @workgroup_size(1) fn main() { let v = cssm_visibility(0u, vec3f(0.3), vec3f(1.0), vec3f(0.0)); }";
+            assert!(!source.contains('#'), "a directive was left in:\n{source}");
+            let module = naga::front::wgsl::parse_str(&source)
+                .unwrap_or_else(|e| panic!("{n}: {}", e.emit_to_string(&source)));
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                crate::shaders::tests::CAPABILITIES,
+            )
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{n}: {e:?}"));
+            let mut declared: Vec<u32> = module
+                .global_variables
+                .iter()
+                .filter_map(|(_, v)| v.binding.as_ref())
+                .inspect(|b| assert_eq!(b.group, 2))
+                .map(|b| b.binding)
+                .collect();
+            declared.sort_unstable();
+            let layout: Vec<u32> = CssmGpu::layout_entries(wgpu::ShaderStages::COMPUTE, n)
+                .iter()
+                .map(|e| e.binding)
+                .collect();
+            assert_eq!(declared, layout, "{n} run bindings");
+        }
+    }
+
+    #[test]
+    fn runs_split_by_the_binding_limit() {
+        use crate::load::run_split;
+        // Fits one binding (and an empty file still has one).
+        assert_eq!(run_split(100, 400), (100, 1));
+        assert_eq!(run_split(0, 400), (100, 1));
+        // One run over: a second binding.
+        assert_eq!(run_split(101, 400), (100, 2));
+        // Sibenik at atlas 256, cube 32: 137.6 MiB of runs over WebGPU's 128 MiB.
+        let runs = (137.6 * 1024.0 * 1024.0 / 4.0) as u64;
+        assert_eq!(run_split(runs, 128 << 20), (32 << 20, 2));
+        // A limit that is not a multiple of 4 rounds down; a huge one stays within u32.
+        assert_eq!(run_split(10, 7), (1, 10));
+        assert_eq!(run_split(10, u64::MAX).0, u32::MAX);
     }
 }
