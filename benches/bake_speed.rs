@@ -68,7 +68,7 @@ fn main() {
             traversal: formats::Traversal::Spiral,
             ..Default::default()
         };
-        let baked = bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
+        let baked = bake::bake(&scene, &options, &mut |_| {}).expect("bake");
         let out = std::env::temp_dir().join(format!("cssm-bench-{}.cssm", std::process::id()));
         formats::cssm::write_atomic(&out, &baked.file).expect("write");
         let _ = std::fs::remove_file(&out);

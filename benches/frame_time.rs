@@ -50,7 +50,7 @@ fn main() {
         cube_resolution: cube,
         ..Default::default()
     };
-    let file = bake::bake(&scene, &options, &mut |_, _| {})
+    let file = bake::bake(&scene, &options, &mut |_| {})
         .expect("bake")
         .file;
     let settings = RendererSettings {

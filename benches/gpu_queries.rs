@@ -99,7 +99,7 @@ fn bake_fitting(
             cube_resolution: cube,
             ..Default::default()
         };
-        match bake::bake(scene, &options, &mut |_, _| {}) {
+        match bake::bake(scene, &options, &mut |_| {}) {
             Ok(baked) => return Ok((baked.file, atlas)),
             Err(bake::BakeError::Atlas(e))
                 if e.contains("could not fit") && atlas < LARGEST_ATLAS =>

@@ -14,17 +14,33 @@ pub fn bake_with_progress(
     options: &bake::BakeOptions,
 ) -> Result<bake::Baked, bake::BakeError> {
     let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, {per_sec}, eta {eta}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    bar.set_message(scene.name.clone());
-    let baked = bake::bake(scene, options, &mut |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
+    let style = |template: &str| {
+        indicatif::ProgressStyle::with_template(template)
+            .expect("valid template")
+            .progress_chars("=> ")
+    };
+    let name = crate::printable(&scene.name);
+    let mut stage = None;
+    let baked = bake::bake(scene, options, &mut |p| {
+        bar.set_length(p.total);
+        bar.set_position(p.done);
+        // Each stage its own style: a bar where the stage can tell how far it is.
+        if stage != Some(p.stage) {
+            stage = Some(p.stage);
+            bar.set_style(style(match p.stage {
+                bake::Stage::Maps => {
+                    "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, {per_sec}, eta {eta}"
+                }
+                bake::Stage::Charts | bake::Stage::Parameterize => {
+                    "{spinner} baking {msg} [{bar:32}] {pos}%, {elapsed}"
+                }
+                bake::Stage::Pack => "{spinner} baking {msg}, attempt {pos}, {elapsed}",
+                bake::Stage::Order => "{spinner} baking {msg}, {elapsed}",
+            }));
+            bar.set_message(format!("{name}: {}", p.stage.describe()));
+            bar.reset_elapsed();
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        }
     })?;
     bar.finish_and_clear();
     Ok(baked)
@@ -34,10 +50,11 @@ pub fn run_bake(config: BakeConfig) -> CliResult {
     let start = Instant::now();
     let dir = scene_dir(config.scene)?;
     let scene = load_scene(&dir)?;
+    // The default name is the scene's as one safe file name in the current directory.
     let output = config
         .output
-        .unwrap_or_else(|| format!("{}.cssm", scene.name).into());
-    check_writable(&output)?;
+        .unwrap_or_else(|| format!("{}.cssm", cssm::safe_file_stem(&scene.name)).into());
+    check_writable(&output, &scene.input_files())?;
     // What the options' check could not tell without the scene (the near distance against its
     // size) or the atlas refuses: the error names the scene directory, and a flag where one is
     // to blame.

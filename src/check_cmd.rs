@@ -22,12 +22,12 @@ pub fn run_check(config: CheckConfig) -> CliResult {
         ));
     }
     let scene = load_scene(&dir)?;
-    // The runtime's check that a file belongs to its scene (triangle count and content hash);
-    // the message says which directory and both hashes.
+    // The runtime's check that a file belongs to its scene (triangle count, content hash, the
+    // indices into the scene); its message says whether this is another scene or the same one
+    // changed, and here both hashes follow.
     runtime::load::check_scene(&config.file, &file, &scene).map_err(|e| match e {
         runtime::RuntimeError::SceneMismatch { .. } => format!(
-            "{}: the scene in {} has changed since the bake (content hash {} now, {} when baked); bake again",
-            config.file.display(),
+            "{e} (scene in {}: content hash {} now, {} when baked)",
             dir.display(),
             formats::scene::hash_hex(&scene.content_hash),
             formats::scene::hash_hex(&file.scene.content_hash)

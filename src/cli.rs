@@ -199,7 +199,7 @@ pub struct BakeArgs {
     file_coding: FileCoding,
     /// Distance the cube maps sit off the surface, in scene units. Default: 0.2% of the scene
     /// diameter.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_f32)]
     near: Option<f32>,
     /// Print the summary as one JSON object.
     #[arg(long)]
@@ -274,14 +274,14 @@ pub struct CheckArgs {
     #[arg(long)]
     no_sender_filter: bool,
     /// Constant depth bias, in multiples of the bake's near distance.
-    #[arg(long, default_value_t = QueryOptions::default().bias_near)]
+    #[arg(long, default_value_t = QueryOptions::default().bias_near, value_parser = bias)]
     bias_near: f32,
     /// Depth bias proportional to the query depth.
-    #[arg(long, default_value_t = QueryOptions::default().bias_relative)]
+    #[arg(long, default_value_t = QueryOptions::default().bias_relative, value_parser = bias)]
     bias_relative: f32,
     /// Exit with status 1 when the agreement over the pairs that exchange light is below this
     /// fraction.
-    #[arg(long)]
+    #[arg(long, value_parser = fraction)]
     min_agreement: Option<f64>,
     /// Print the result as one JSON object.
     #[arg(long)]
@@ -366,7 +366,7 @@ pub struct ErrorArgs {
     component: Component,
     /// Exposure in stops of every PNG, the strip and the FLIP images (radiance is scaled by
     /// 2^EV before tone mapping; also the oracle's tone mapping of hrc, lightmap, lightcuts).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = stops)]
     exposure: f32,
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
@@ -496,12 +496,6 @@ impl MeasureFlags {
             exposure: self.exposure.exp2(),
             shadow_resolution: self.shadow_resolution,
         };
-        if !(-64.0..=64.0).contains(&self.exposure) {
-            return Err(format!(
-                "--exposure {}: must be a number of stops from -64 to 64",
-                self.exposure
-            ));
-        }
         frame.check().map_err(|e| e.to_string())?;
         let bake = bake::BakeOptions {
             atlas_resolution: self.atlas,
@@ -578,7 +572,7 @@ pub struct CompareArgs {
     #[arg(long, default_value_t = 1)]
     frames: u32,
     /// Exposure in stops of every tone-mapped image and of FLIP.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = stops)]
     exposure: f32,
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
@@ -773,7 +767,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
     /// Exposure in stops (radiance is scaled by 2^EV before tone mapping).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = stops)]
     exposure: f32,
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
@@ -792,7 +786,7 @@ pub struct RenderArgs {
     bounces: Option<u32>,
     /// Oracle threshold (the option `threshold`, §4.3): a sender is refined while the
     /// tone-mapped upper bound of what it sends is above this; smaller is slower and closer.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite_f32)]
     threshold: Option<f32>,
     /// Paths per pixel of `--method reference` (the option `samples`).
     #[arg(long)]
@@ -815,6 +809,47 @@ fn parse_method(s: &str) -> Result<&'static MethodEntry, String> {
 }
 
 /// `WIDTHxHEIGHT`; the range is the renderer's to check.
+/// A flag's number, finite: NaN passes no comparison (`--min-agreement NaN` would never
+/// fail) and an infinity poisons every pixel it reaches.
+fn finite_f32(s: &str) -> Result<f32, String> {
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("'{s}' is not a finite number"))
+    }
+}
+
+/// A depth bias: finite and not negative.
+fn bias(s: &str) -> Result<f32, String> {
+    match finite_f32(s)? {
+        v if v >= 0.0 => Ok(v),
+        v => Err(format!("{v} is negative; a bias is 0 or more")),
+    }
+}
+
+/// An exposure in stops, from -64 to 64 (2^64 is beyond any radiance this renders).
+fn stops(s: &str) -> Result<f32, String> {
+    match finite_f32(s)? {
+        v if (-64.0..=64.0).contains(&v) => Ok(v),
+        v => Err(format!("{v} is not a number of stops from -64 to 64")),
+    }
+}
+
+/// A fraction from 0 to 1.
+fn fraction(s: &str) -> Result<f64, String> {
+    let v = f64::from(finite_f32(s)?);
+    if (0.0..=1.0).contains(&v) {
+        // The decimal the user wrote, not its f32 rounding.
+        Ok(s.trim().parse().unwrap_or(v))
+    } else {
+        Err(format!("{v} is not a fraction from 0 to 1"))
+    }
+}
+
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])

@@ -32,7 +32,9 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
     let mut gpu: Option<runtime::Gpu> = None;
     let (mut references, mut rows) = (Vec::new(), Vec::new());
     for scene in &scenes {
-        let files = |ext: &str| out.join(format!("{}-reference.{ext}", scene.name));
+        // File names from the scene's name as one safe component (it may hold `/` or `..`).
+        let scene_stem = cssm::safe_file_stem(&scene.name);
+        let files = |ext: &str| out.join(format!("{scene_stem}-reference.{ext}"));
         let measure::Reference {
             image: reference,
             summary,
@@ -71,7 +73,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
                         (&reference.radiance, &reference.display),
                     );
                     let stem = error_write::file_stem(&variant.spec);
-                    save_png(&out.join(format!("{}-{stem}.png", scene.name)), &image)?;
+                    save_png(&out.join(format!("{scene_stem}-{stem}.png")), &image)?;
                     strip.push(image.display);
                     Ok(Measured {
                         figures,
@@ -93,7 +95,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
         let images: Vec<&[u8]> = strip.iter().map(Vec::as_slice).collect();
         let (strip_w, pixels) = error_write::strip(w, h, &images);
         save_rgba_png(
-            &out.join(format!("{}-strip.png", scene.name)),
+            &out.join(format!("{scene_stem}-strip.png")),
             strip_w,
             h,
             pixels,

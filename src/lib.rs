@@ -14,7 +14,7 @@
 //! use cssm::{bake, formats};
 //!
 //! let scene = formats::Scene::load(std::path::Path::new("scenes/cornell-box"))?;
-//! let baked = bake::bake(&scene, &bake::BakeOptions::default(), &mut |_, _| {})?;
+//! let baked = bake::bake(&scene, &bake::BakeOptions::default(), &mut |_| {})?;
 //! formats::cssm::write_atomic(std::path::Path::new("cornell-box.cssm"), &baked.file)?;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -52,6 +52,42 @@ pub fn flag_error(e: &bake::BakeError) -> String {
             format!("{flag} {value} {problem}")
         }
         other => other.to_string(),
+    }
+}
+
+/// `name` (a scene's or a method's) as one safe file-name component: path separators, `:` and
+/// control characters become `_`, leading dots are dropped (no hidden file, no `..`), at most
+/// 200 bytes are kept, and an empty result is `scene`. Default output names are built from
+/// it, so a crafted scene name cannot write outside the directory it is meant for.
+///
+/// ```
+/// assert_eq!(cssm::safe_file_stem("Cornell box"), "Cornell box");
+/// assert_eq!(cssm::safe_file_stem("../../etc/passwd"), "_.._etc_passwd");
+/// assert_eq!(cssm::safe_file_stem("/abs\u{1b}[31m"), "_abs_[31m");
+/// assert_eq!(cssm::safe_file_stem(".."), "scene");
+/// assert_eq!(cssm::safe_file_stem(""), "scene");
+/// ```
+pub fn safe_file_stem(name: &str) -> String {
+    let mapped: String = name
+        .chars()
+        .map(|c| match c {
+            '/' | '\\' | ':' => '_',
+            c if c.is_control() => '_',
+            c => c,
+        })
+        .collect();
+    let mut stem = mapped.trim_start_matches('.').to_string();
+    if stem.len() > 200 {
+        let mut end = 200;
+        while !stem.is_char_boundary(end) {
+            end -= 1;
+        }
+        stem.truncate(end);
+    }
+    if stem.trim().is_empty() {
+        "scene".into()
+    } else {
+        stem
     }
 }
 

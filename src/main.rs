@@ -38,13 +38,21 @@ fn main() -> ExitCode {
         Command::Report(ReportCommand::Error(args)) => args.config().and_then(error_cmd::run_error),
         Command::Compare(args) => args.config().and_then(compare_cmd::run_compare),
     };
-    match result {
+    let code = match result {
         Ok(code) => code,
         Err(message) => {
-            eprintln!("error: {message}");
+            eprintln!("error: {}", printable(&message));
             ExitCode::from(2)
         }
-    }
+    };
+    // The private XDG_RUNTIME_DIR of `quiet_mesa_wsi`, if one was made, goes with the process.
+    drop(
+        WSI_DIR
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .take(),
+    );
+    code
 }
 
 type CliResult = Result<ExitCode, String>;
@@ -58,10 +66,17 @@ fn scene_dir(scene: Option<PathBuf>) -> Result<PathBuf, String> {
     }
 }
 
+/// Loads the scene at `dir` with a spinner on a terminal (parsing a large OBJ takes seconds)
+/// and prints its warnings.
 fn load_scene(dir: &Path) -> Result<Scene, String> {
-    let scene = Scene::load(dir).map_err(|e| e.to_string())?;
+    let spinner = indicatif::ProgressBar::new_spinner()
+        .with_message(format!("loading {}", printable(&dir.display().to_string())));
+    spinner.enable_steady_tick(std::time::Duration::from_millis(200));
+    let scene = Scene::load(dir).map_err(|e| e.to_string());
+    spinner.finish_and_clear();
+    let scene = scene?;
     for w in &scene.warnings {
-        eprintln!("warning: {w}");
+        eprintln!("warning: {}", printable(w));
     }
     Ok(scene)
 }
@@ -70,28 +85,46 @@ fn read_file(path: &Path) -> Result<CssmFile, String> {
     formats::cssm::read(path).map_err(|e| e.to_string())
 }
 
+/// The private directory [`quiet_mesa_wsi`] made, removed when `main` returns.
+static WSI_DIR: std::sync::Mutex<Option<tempfile::TempDir>> = std::sync::Mutex::new(None);
+
 /// Mesa's Vulkan drivers print "error: XDG_RUNTIME_DIR is invalid or not set" on machines
 /// without a desktop session although a headless render never needs it; point it at a private
-/// directory of ours so users are not alarmed by an error that is not one.
+/// directory of ours (mode 0700, removed when the command ends) so users are not alarmed by an
+/// error that is not one.
 pub(crate) fn quiet_mesa_wsi() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
         return;
     }
-    let dir = std::env::temp_dir().join(format!("cssm-runtime-{}", std::process::id()));
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::DirBuilderExt;
-        if std::fs::DirBuilder::new().mode(0o700).create(&dir).is_err() {
-            return;
-        }
-    }
+    let Ok(dir) = tempfile::Builder::new().prefix("cssm-runtime-").tempdir() else {
+        return;
+    };
     // SAFETY: called from the main thread before the GPU instance or any worker thread exists.
-    unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+    unsafe { std::env::set_var("XDG_RUNTIME_DIR", dir.path()) };
+    *WSI_DIR
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(dir);
 }
 
-/// Fails early, before a long bake, when the output cannot be written.
-fn check_writable(output: &Path) -> Result<(), String> {
-    let parent = match output.parent() {
+/// Fails early, before any work, when `output` cannot or must not be written: what is there is
+/// not a regular file (a device, a FIFO, a directory: [`formats::cssm::destination`]), it is one
+/// of the command's own `inputs` (through any link), its name is too long, or its directory
+/// does not exist or cannot be written.
+fn check_writable(output: &Path, inputs: &[PathBuf]) -> Result<(), String> {
+    let target = formats::cssm::destination(output).map_err(|e| match e {
+        formats::cssm::CssmError::Io { error, .. } => {
+            format!("cannot write {}: {error}", output.display())
+        }
+        other => format!("cannot write {}: {other}", output.display()),
+    })?;
+    if let Some(input) = inputs.iter().find(|input| same_file(&target, input)) {
+        return Err(format!(
+            "cannot write {}: it is {}, which this command reads; write the output elsewhere",
+            output.display(),
+            input.display()
+        ));
+    }
+    let parent = match target.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
@@ -102,16 +135,39 @@ fn check_writable(output: &Path) -> Result<(), String> {
             parent.display()
         ));
     }
-    if output.is_dir() {
-        return Err(format!(
-            "cannot write {}: it is a directory",
-            output.display()
-        ));
-    }
     let probe = parent.join(format!(".cssm-write-probe-{}", std::process::id()));
     std::fs::write(&probe, b"").map_err(|e| format!("cannot write {}: {e}", output.display()))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
+}
+
+/// Whether `a` and `b` are the same file (the same device and inode: through links, `..` and
+/// hard links alike). A path that does not exist is no file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        #[cfg(unix)]
+        (Ok(ma), Ok(mb)) => {
+            use std::os::unix::fs::MetadataExt;
+            (ma.dev(), ma.ino()) == (mb.dev(), mb.ino())
+        }
+        #[cfg(not(unix))]
+        (Ok(_), Ok(_)) => std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok(),
+        _ => false,
+    }
+}
+
+/// `text` safe to print on a terminal: control characters (escape sequences among them, which
+/// a crafted scene name or file name could carry) written as `\u{..}`; newlines and tabs kept.
+fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() && c != '\n' && c != '\t' {
+                c.escape_unicode().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 fn run_inspect(args: InspectArgs) -> CliResult {

@@ -21,11 +21,21 @@ use crate::{
 pub fn run_render(config: RenderConfig) -> CliResult {
     let dir = scene_dir(config.scene.clone())?;
     let method = config.method;
-    check_writable(&config.out)?;
-    if let Some(exr) = &config.exr {
-        check_writable(exr)?;
-    }
     let scene = load_scene(&dir)?;
+    // Neither output may be an input (the scene's files, the .cssm) or the other output.
+    let mut inputs = scene.input_files();
+    inputs.extend(config.cssm.clone());
+    check_writable(&config.out, &inputs)?;
+    if let Some(exr) = &config.exr {
+        inputs.push(config.out.clone());
+        check_writable(exr, &inputs)?;
+        if formats::cssm::destination(exr).ok() == formats::cssm::destination(&config.out).ok() {
+            return Err(format!(
+                "--out and --exr name the same file ({}); give each its own",
+                exr.display()
+            ));
+        }
+    }
     let (width, height) = config
         .size
         .unwrap_or((scene.camera.resolution[0], scene.camera.resolution[1]));
@@ -46,14 +56,19 @@ pub fn run_render(config: RenderConfig) -> CliResult {
     let image = match method.backend {
         Backend::Cpu(run) => render_on_cpu(&config, &scene, &settings, run)?,
         Backend::Gpu(_) => {
+            crate::quiet_mesa_wsi();
+            let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
+            let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
+            // The device's limits before the .cssm is read or baked.
+            settings
+                .frame
+                .check_limits(&gpu.device.limits(), scene.lights.len())
+                .map_err(gpu_error)?;
             let file = if method.needs_cssm {
                 Some(render_cssm(&config, &scene)?)
             } else {
                 None
             };
-            crate::quiet_mesa_wsi();
-            let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
-            let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
             let mut renderer = Renderer::new(
                 &gpu.device,
                 &gpu.queue,

@@ -55,7 +55,7 @@ fn baked(name: &str, options: BakeOptions) -> (Scene, CssmFile) {
         .join("scenes")
         .join(name);
     let scene = Scene::load(&dir).expect("built-in scene loads");
-    let baked = cssm_bake::bake(&scene, &options, &mut |_, _| {}).expect("bake");
+    let baked = cssm_bake::bake(&scene, &options, &mut |_| {}).expect("bake");
     (scene, baked.file)
 }
 
@@ -1417,4 +1417,45 @@ fn gpu_memory_counts_what_is_allocated() {
     drop(buffer);
     gpu.wait().unwrap();
     assert_eq!(cssm_runtime::gpu_memory_bytes(&gpu.device), before);
+}
+
+/// A device lost mid-render (destroyed here, as a driver reset or an unplugged GPU would lose
+/// it) makes the render an error, not a hang or a panic, and the error says the device was
+/// lost. A device of its own, so that the other tests keep theirs.
+#[test]
+fn a_lost_device_is_an_error_not_a_hang() {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    // The whole render in a thread of its own (the renderer is not Send), watched from here.
+    std::thread::spawn(move || {
+        let own = Gpu::new_headless().expect("a second device");
+        let (scene, _) = cornell();
+        let mut renderer = Renderer::new(
+            &own.device,
+            &own.queue,
+            scene,
+            None,
+            method::find("direct").unwrap(),
+            &Default::default(),
+            &RendererSettings {
+                frame: FrameSettings {
+                    width: 32,
+                    height: 24,
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+        )
+        .expect("renderer");
+        own.device.destroy();
+        let rendered = render_image(&mut renderer, 2).map(|_| ());
+        let waited = own.wait();
+        let _ = sender.send((rendered, waited));
+    });
+    let (rendered, waited) = receiver
+        .recv_timeout(std::time::Duration::from_secs(60))
+        .expect("the render after a device loss returned (no hang, no panic)");
+    let err = rendered.expect_err("a render on a lost device is an error");
+    assert!(err.to_string().contains("device was lost"), "{err}");
+    let err = waited.expect_err("waiting on a lost device is an error");
+    assert!(err.to_string().contains("device was lost"), "{err}");
 }

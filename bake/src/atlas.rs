@@ -10,7 +10,7 @@
 use cssm_formats::{Scene, Texel};
 use glam::{Vec2, Vec3};
 
-use crate::BakeError;
+use crate::{BakeError, Progress, Stage};
 
 use cssm_formats::cssm::ATLAS_RESOLUTION_RANGE;
 
@@ -41,7 +41,11 @@ pub struct Atlas {
 /// xatlas picks its scale from a texels-per-unit figure; we start from the scale that would fill
 /// 75% of the page, shrink it until every chart fits on the single page, then bisect between
 /// the last scale that did not fit and the first that did.
-pub fn build(scene: &Scene, resolution: u32) -> Result<Atlas, BakeError> {
+pub fn build(
+    scene: &Scene,
+    resolution: u32,
+    progress: &mut (dyn FnMut(Progress) + Send),
+) -> Result<Atlas, BakeError> {
     crate::check_range(
         crate::BakeParameter::AtlasResolution,
         resolution,
@@ -54,7 +58,7 @@ pub fn build(scene: &Scene, resolution: u32) -> Result<Atlas, BakeError> {
         return Err(BakeError::Scene("the scene has no surface area".into()));
     }
     let texels_per_unit = (resolution as f64 * (0.75 / area).sqrt()) as f32;
-    let (uvs, charts) = unwrap(scene, area, resolution, texels_per_unit)?;
+    let (uvs, charts) = unwrap(scene, area, resolution, texels_per_unit, progress)?;
     let texels = rasterise(scene, resolution, &uvs, &charts);
     let chart_count = texels.iter().map(|t| t.chart + 1).max().unwrap_or(0);
     Ok(Atlas {
@@ -72,6 +76,7 @@ fn unwrap(
     area: f64,
     resolution: u32,
     mut texels_per_unit: f32,
+    progress: &mut (dyn FnMut(Progress) + Send),
 ) -> Result<(Vec<TriangleUv>, Vec<u32>), BakeError> {
     // xatlas charts connected triangles; vertices split in the OBJ (UV seams, smoothing groups,
     // separate objects) would cut the surface into many more, smaller charts, so vertices at
@@ -108,17 +113,40 @@ fn unwrap(
     } else {
         0.0
     };
-    atlas.compute_charts(xatlas_rs::ChartOptions {
-        max_chart_area,
-        ..Default::default()
-    });
-    atlas.parameterize_charts();
+    // xatlas' steps report a percentage (from its worker threads, one call at a time).
+    fn percent<'a>(
+        stage: Stage,
+        progress: &'a mut (dyn FnMut(Progress) + Send),
+    ) -> impl FnMut(xatlas_rs::ProgressCategory, i32) + Send + 'a {
+        move |_, done| {
+            progress(Progress {
+                stage,
+                done: done.clamp(0, 100) as u64,
+                total: 100,
+            })
+        }
+    }
+    atlas.compute_charts_with_progress(
+        xatlas_rs::ChartOptions {
+            max_chart_area,
+            ..Default::default()
+        },
+        percent(Stage::Charts, progress),
+    );
+    atlas.parameterize_charts_with_progress(percent(Stage::Parameterize, progress));
     // Every defined texel is a depth map, so the page should hold as much surface as it can:
     // charts are packed by their conservative footprint with no padding (no texel centre can
     // fall in two charts, and the query's sender filter keeps to one chart), with many
     // placement attempts, and at the largest scale that fits (bisection once a scale fits).
     // On the 3,604-face church at atlas 128 this holds 6,920 depth maps instead of 4,990.
-    let pack = |atlas: &mut xatlas_rs::Xatlas, texels_per_unit: f32| {
+    let mut attempts = 0;
+    let mut pack = |atlas: &mut xatlas_rs::Xatlas, texels_per_unit: f32| {
+        attempts += 1;
+        progress(Progress {
+            stage: Stage::Pack,
+            done: attempts,
+            total: 0,
+        });
         atlas.pack_charts(xatlas_rs::PackOptions {
             attempts: 4096,
             texels_per_unit,

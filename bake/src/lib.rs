@@ -9,7 +9,7 @@
 //!
 //! let scene = Scene::load(std::path::Path::new("scenes/cornell-box"))?;
 //! let options = BakeOptions { atlas_resolution: 64, cube_resolution: 32, traversal: Traversal::Spiral, ..Default::default() };
-//! let baked = bake(&scene, &options, &mut |_done, _total| {})?;
+//! let baked = bake(&scene, &options, &mut |_progress| {})?;
 //! println!("{} depth maps, ratio {:.1}", baked.file.texels.len(), baked.stats.ratio_gpu());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -234,11 +234,61 @@ pub struct Baked {
     pub stats: BakeStats,
 }
 
-/// Bakes `scene`. `progress(done, total)` is called as depth maps are finished.
+/// A stage of a bake, in the order they run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// xatlas cuts the surface into charts (§3.2.3).
+    Charts,
+    /// xatlas flattens each chart.
+    Parameterize,
+    /// The charts packed onto the page, at shrinking then bisected scales until the largest
+    /// that fits ([`Progress::done`] counts the attempts).
+    Pack,
+    /// The coherent order of the texels (§3.2.3), piloted on small cube maps.
+    Order,
+    /// Depth cube maps ray cast and compressed (§3.2.1, §3.1).
+    Maps,
+}
+
+impl Stage {
+    /// The stage in a few words, for a progress display.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Stage::Charts => "atlas: charts",
+            Stage::Parameterize => "atlas: flattening charts",
+            Stage::Pack => "atlas: packing",
+            Stage::Order => "texel order",
+            Stage::Maps => "depth maps",
+        }
+    }
+}
+
+/// How far a bake is: its stage and, where the stage can tell, how much of it is done.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    /// The stage running.
+    pub stage: Stage,
+    /// Work done: percent for [`Stage::Charts`] and [`Stage::Parameterize`], attempts for
+    /// [`Stage::Pack`], depth maps for [`Stage::Maps`].
+    pub done: u64,
+    /// Work in all, 0 where the stage cannot tell ([`Stage::Pack`], [`Stage::Order`]).
+    pub total: u64,
+}
+
+/// Bakes `scene`, telling `progress` as every stage starts and moves on. `progress` may be
+/// called from xatlas' worker threads during the atlas stages, one call at a time.
+///
+/// ```no_run
+/// # fn demo(scene: &cssm_formats::Scene) -> Result<(), cssm_bake::BakeError> {
+/// let baked = cssm_bake::bake(scene, &cssm_bake::BakeOptions::default(), &mut |p| {
+///     eprintln!("{}: {}/{}", p.stage.describe(), p.done, p.total)
+/// })?;
+/// # let _ = baked; Ok(()) }
+/// ```
 pub fn bake(
     scene: &Scene,
     options: &BakeOptions,
-    progress: &mut dyn FnMut(u64, u64),
+    progress: &mut (dyn FnMut(Progress) + Send),
 ) -> Result<Baked, BakeError> {
     options.check()?;
     let n = options.cube_resolution;
@@ -252,7 +302,7 @@ pub fn bake(
 
     // 1. Atlas (§3.2.3).
     let t0 = Instant::now();
-    let atlas = atlas::build(scene, options.atlas_resolution)?;
+    let atlas = atlas::build(scene, options.atlas_resolution, progress)?;
     stats.atlas_time = t0.elapsed();
     stats.charts = atlas.chart_count;
     stats.defined_texels = atlas.texels.len() as u64;
@@ -269,6 +319,11 @@ pub fn bake(
 
     // 2. Coherent order of the texels (§3.2.3).
     let t0 = Instant::now();
+    progress(Progress {
+        stage: Stage::Order,
+        done: 0,
+        total: 0,
+    });
     let pilot = |orders: &[&[u32]]| {
         let pilot_options = BakeOptions {
             cube_resolution: n.min(PILOT_CUBE_RESOLUTION),
@@ -326,7 +381,11 @@ pub fn bake(
             slots,
         );
         compressor.push(slots);
-        progress((b * batch_maps + ids.len()) as u64, map_count as u64);
+        progress(Progress {
+            stage: Stage::Maps,
+            done: (b * batch_maps + ids.len()) as u64,
+            total: u64::from(map_count),
+        });
     }
     let runs = compressor.finish();
     stats.maps_time = bvh_time + t0.elapsed();

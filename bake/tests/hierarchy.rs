@@ -13,7 +13,7 @@ fn cornell_bake_has_a_valid_hierarchy_that_survives_the_file() {
         cube_resolution: 8,
         ..Default::default()
     };
-    let baked = bake(&scene, &options, &mut |_, _| {}).unwrap();
+    let baked = bake(&scene, &options, &mut |_| {}).unwrap();
     let file = &baked.file;
     let n = file.texels.len();
     assert!(n > 100, "{n} texels");

@@ -8,8 +8,13 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+// The unit tests share test files with the integration tests, which name the crate.
+#[cfg(test)]
+extern crate self as cssm_formats;
+
 pub mod cssm;
 pub mod cube;
+pub mod files;
 pub mod hierarchy;
 pub mod scene;
 pub mod texel;

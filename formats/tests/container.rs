@@ -3,63 +3,16 @@
 
 use std::path::Path;
 
+use cssm_formats::Hierarchy;
 use cssm_formats::cssm::{
-    self, BakeParams, CssmError, CssmFile, FLAG_PACKED_RUNS, FORMAT_VERSION, FileCoding,
-    HEADER_LEN, MAGIC, PackedRuns, RunData, SceneRef,
+    self, CssmError, CssmFile, FLAG_PACKED_RUNS, FORMAT_VERSION, FileCoding, HEADER_LEN, MAGIC,
+    PackedRuns, RunData,
 };
-use cssm_formats::{Hierarchy, Texel, Traversal};
 use proptest::prelude::*;
 
-/// A small hand-built file: 2 texels (so a 3-node hierarchy: root 0, leaves 1 and 2), cube 8
-/// (384 pixels), one run per pixel except pixel 5, which changes depth at map 1.
-fn sample() -> CssmFile {
-    let n = 8u32;
-    let pixel_count = 6 * n * n;
-    let mut offsets = vec![0u32];
-    let mut runs = Vec::new();
-    for p in 0..pixel_count {
-        runs.push(p & 0xFFFF);
-        if p == 5 {
-            runs.push((1 << 16) | 0xABCD);
-        }
-        offsets.push(runs.len() as u32);
-    }
-    let texel = |x: u16, y: u16| Texel {
-        position: [x as f32, y as f32, 0.5],
-        normal: [0.0, 0.0, 1.0],
-        area: 0.25,
-        material: 0,
-        chart: 0,
-        x,
-        y,
-    };
-    let texels = vec![texel(1, 2), texel(3, 4)];
-    CssmFile {
-        hierarchy: Hierarchy::build(&texels),
-        params: BakeParams {
-            atlas_resolution: 32,
-            cube_resolution: n,
-            near: 0.01,
-            far: 10.0,
-            traversal: Traversal::Zigzag,
-        },
-        scene: SceneRef {
-            dir: "/tmp/scene".into(),
-            name: "sample".into(),
-            content_hash: [7; 32],
-            triangle_count: 2,
-        },
-        texels,
-        triangle_uvs: vec![[[0.0, 0.0], [4.0, 0.0], [0.0, 4.0]]; 2],
-        sequence: vec![1, 0],
-        runs: RunData {
-            map_count: 2,
-            pixel_count,
-            offsets,
-            runs,
-        },
-    }
-}
+#[path = "common/sample.rs"]
+mod common_sample;
+use common_sample::sample;
 
 fn root(e: &CssmError) -> &CssmError {
     e.root()
@@ -208,11 +161,27 @@ fn versions_and_flags() {
         "{err}"
     );
     let mut older = bytes.clone();
-    older[8..12].copy_from_slice(&0u32.to_le_bytes());
+    older[8..12].copy_from_slice(&1u32.to_le_bytes());
     assert!(matches!(
         cssm::decode(&older),
-        Err(CssmError::UnsupportedVersion { version: 0 })
+        Err(CssmError::UnsupportedVersion { version: 1 })
     ));
+    // A flipped bit or byte in the version field is corruption, not a newer build's file.
+    for version in [
+        0u32,
+        2 | 1 << 31,
+        2 | 0x80 << 8,
+        2 + 1 + cssm::PLAUSIBLE_NEWER_VERSIONS,
+    ] {
+        let mut corrupt = bytes.clone();
+        corrupt[8..12].copy_from_slice(&version.to_le_bytes());
+        let err = cssm::decode(&corrupt).unwrap_err();
+        assert!(
+            matches!(err, CssmError::CorruptVersion { .. }),
+            "{version:#x}: {err}"
+        );
+        assert!(err.to_string().starts_with("corrupted header"), "{err}");
+    }
     // A version-1 file (written before the hierarchy): the body of a version-1 file, framed
     // with version 1, is refused by its version before anything is decoded.
     let f = sample();

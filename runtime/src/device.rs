@@ -91,7 +91,8 @@ impl Gpu {
 
     /// A device of your own (say, one requested with other limits) with the runtime's error
     /// capture: GPU errors outside an error scope are kept for [`Gpu::wait`] instead of
-    /// panicking.
+    /// panicking, and a device loss is reported by it (this sets the device's uncaptured-error
+    /// handler and its device-lost callback).
     ///
     /// ```no_run
     /// # fn demo(adapter: wgpu::Adapter) {
@@ -110,6 +111,12 @@ impl Gpu {
             let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
             slot.get_or_insert_with(|| e.to_string());
         }));
+        // A lost device is the cause of whatever failed after it: its message wins.
+        let sink = errors.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            let mut slot = sink.lock().unwrap_or_else(|p| p.into_inner());
+            *slot = Some(format!("the GPU device was lost ({reason:?}): {message}"));
+        });
         Self {
             adapter,
             device,

@@ -258,6 +258,71 @@ impl FrameSettings {
     }
 }
 
+/// Bytes per pixel of the frame's own per-pixel storage buffers (one RGBA f32 radiance per
+/// pixel): each must fit one storage binding.
+pub const FRAME_BYTES_PER_PIXEL: u64 = 16;
+
+impl FrameSettings {
+    /// Checks the settings against a device's `limits` before anything is created for a scene
+    /// of `lights` lights: the image sides and the shadow maps against the largest 2D texture,
+    /// a per-pixel buffer ([`FRAME_BYTES_PER_PIXEL`]) against the largest storage binding, one
+    /// shadow-map layer per light against the texture arrays' layers. wgpu would otherwise
+    /// refuse the first resource too large with a validation error in its own words.
+    ///
+    /// ```
+    /// use cssm_runtime::frame::FrameSettings;
+    /// let limits = wgpu::Limits::default(); // WebGPU's: 128 MiB per storage binding
+    /// let huge = FrameSettings { width: 4096, height: 4096, ..Default::default() };
+    /// assert!(huge.check_limits(&limits, 1).is_err());
+    /// assert!(FrameSettings::default().check_limits(&limits, 1).is_ok());
+    /// ```
+    ///
+    /// # Errors
+    /// [`RuntimeError::Unsupported`] naming the setting, the device's limit and what fits.
+    pub fn check_limits(&self, limits: &wgpu::Limits, lights: usize) -> Result<(), RuntimeError> {
+        let (w, h) = (self.width, self.height);
+        let side = limits.max_texture_dimension_2d;
+        if w > side || h > side {
+            return Err(RuntimeError::Unsupported(format!(
+                "image size {w}x{h}: this GPU's textures are at most {side} pixels a side"
+            )));
+        }
+        let binding = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let bytes = u64::from(w) * u64::from(h) * FRAME_BYTES_PER_PIXEL;
+        if bytes > binding {
+            let pixels = binding / FRAME_BYTES_PER_PIXEL;
+            // The same aspect ratio at the most pixels that fit.
+            let scale = (pixels as f64 / (f64::from(w) * f64::from(h))).sqrt();
+            let fit = |v: u32| ((f64::from(v) * scale).floor() as u32).max(1);
+            return Err(RuntimeError::Unsupported(format!(
+                "image size {w}x{h}: a per-pixel buffer of {} MiB is beyond this GPU's {} MiB \
+                 per storage binding; at most {:.1} megapixels here ({}x{} at this aspect)",
+                bytes >> 20,
+                binding >> 20,
+                pixels as f64 / 1e6,
+                fit(w),
+                fit(h)
+            )));
+        }
+        if self.shadow_resolution > side {
+            return Err(RuntimeError::Unsupported(format!(
+                "shadow-resolution {}: this GPU's textures are at most {side} texels a side",
+                self.shadow_resolution
+            )));
+        }
+        let layers = limits.max_texture_array_layers as usize;
+        if lights > layers {
+            return Err(RuntimeError::Unsupported(format!(
+                "the scene has {lights} lights; this GPU's shadow maps hold at most {layers} (one \
+                 texture array layer each)"
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// Refuses image sizes outside 1 to [`MAX_SIDE`].
 pub fn check_size(w: u32, h: u32) -> Result<(), RuntimeError> {
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {

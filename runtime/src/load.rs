@@ -26,27 +26,54 @@ pub fn read_cssm(path: &Path, scene: &Scene) -> Result<CssmFile, RuntimeError> {
     Ok(file)
 }
 
-/// Checks that `file` (read from `path`) was baked from `scene`.
+/// Checks that `file` (read from `path`) was baked from `scene`: the same triangle count and
+/// content hash, and every index into the scene in range
+/// ([`cssm_formats::cssm::validate_for_scene`]).
+///
+/// # Errors
+/// [`RuntimeError::SceneMismatch`] saying whether the file comes from another scene or the
+/// scene's files changed since the bake; [`RuntimeError::Cssm`] for an index out of range.
 pub fn check_scene(path: &Path, file: &CssmFile, scene: &Scene) -> Result<(), RuntimeError> {
     let mismatch = |reason: String| RuntimeError::SceneMismatch {
         path: path.to_path_buf(),
         reason,
     };
-    if file.scene.triangle_count as usize != scene.triangles.len() {
-        return Err(mismatch(format!(
-            "it has {} triangles, the scene '{}' has {}",
+    let same_name = file.scene.name == scene.name;
+    let other_scene = || {
+        format!(
+            "it was baked from the scene '{}' ({} triangles, in {}), this is '{}' ({} triangles)",
+            file.scene.name,
             file.scene.triangle_count,
+            file.scene.dir,
             scene.name,
             scene.triangles.len()
-        )));
+        )
+    };
+    if file.scene.triangle_count as usize != scene.triangles.len() {
+        return Err(mismatch(if same_name {
+            format!(
+                "the scene '{}' has {} triangles now, {} when baked",
+                scene.name,
+                scene.triangles.len(),
+                file.scene.triangle_count
+            )
+        } else {
+            other_scene()
+        }));
     }
     if file.scene.content_hash != scene.content_hash {
-        return Err(mismatch(format!(
-            "the files of scene '{}' changed since the bake",
-            scene.name
-        )));
+        return Err(mismatch(if same_name {
+            format!("the files of scene '{}' changed since the bake", scene.name)
+        } else {
+            other_scene()
+        }));
     }
-    Ok(())
+    cssm::validate_for_scene(file, scene).map_err(|e| {
+        RuntimeError::Cssm(cssm::CssmError::File {
+            path: path.to_path_buf(),
+            inner: Box::new(e),
+        })
+    })
 }
 
 pub(crate) fn limit_check(
@@ -431,10 +458,25 @@ pub fn load_albedo_textures(scene: &Scene) -> Result<(Vec<AlbedoTexture>, Vec<i3
             index.push(i as i32);
             continue;
         }
-        let img = image::open(path).map_err(|e| RuntimeError::Texture {
+        let texture_error = |reason: String| RuntimeError::Texture {
             path: path.clone(),
-            reason: e.to_string(),
-        })?;
+            reason,
+        };
+        // A regular file only (a FIFO would hang the decoder's open), decoded within image's
+        // default limits (512 MiB of allocation).
+        let (file, _) =
+            cssm_formats::files::open_regular(path).map_err(|e| texture_error(e.to_string()))?;
+        // The format from the extension, as `image::open` does; from the contents otherwise.
+        let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
+        match image::ImageFormat::from_path(path) {
+            Ok(format) => reader.set_format(format),
+            Err(_) => {
+                reader = reader
+                    .with_guessed_format()
+                    .map_err(|e| texture_error(e.to_string()))?;
+            }
+        }
+        let img = reader.decode().map_err(|e| texture_error(e.to_string()))?;
         let rgb = image::imageops::resize(
             &img.to_rgb8(),
             TEXTURE_SIZE,

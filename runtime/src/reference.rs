@@ -589,6 +589,7 @@ mod tests {
             },
             lights: vec![spot(Vec3::Y), spot(-Vec3::Y)],
             content_hash: [0; 32],
+            files: Vec::new(),
             warnings: Vec::new(),
         }
     }

@@ -41,6 +41,24 @@ impl Default for RendererSettings {
     }
 }
 
+/// The error of a renderer's resources that wgpu refused: a method's buffer beyond the
+/// storage binding limit (a method may hold more per pixel than the frame's
+/// [`frame::FRAME_BYTES_PER_PIXEL`]) said in words; anything else as wgpu says it.
+fn build_error(e: &wgpu::Error, method: &MethodEntry, frame: &FrameSettings) -> RuntimeError {
+    let text = e.to_string();
+    if text.contains("max_*_buffer_binding_size") || text.contains("max_buffer_size") {
+        RuntimeError::Unsupported(format!(
+            "image size {}x{}: method '{method}' needs a GPU buffer beyond this device's \
+             storage binding limit at this size; render a smaller image (wgpu: {})",
+            frame.width,
+            frame.height,
+            text.lines().last().unwrap_or_default().trim()
+        ))
+    } else {
+        RuntimeError::Gpu(text)
+    }
+}
+
 /// A scene and a method on the GPU, ready to render frame after frame (see the module docs).
 ///
 /// ```no_run
@@ -112,12 +130,15 @@ impl Renderer {
             }
             (false, _) => None,
         };
+        settings
+            .frame
+            .check_limits(&device.limits(), scene.lights.len())?;
         let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let built = Self::build(device, queue, scene, cssm, method, options, settings, build);
         let errors = [memory.pop(), validation.pop()].map(pollster::block_on);
         if let Some(e) = errors.into_iter().flatten().next() {
-            return Err(RuntimeError::Gpu(e.to_string()));
+            return Err(build_error(&e, method, &settings.frame));
         }
         built
     }

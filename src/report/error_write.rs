@@ -93,6 +93,8 @@ pub fn file_stem(spec: &str) -> String {
             c => c,
         })
         .collect();
+    // Control characters and leading dots as for any file name.
+    let stem = crate::safe_file_stem(&stem);
     if stem == "reference" || stem == "strip" {
         format!("{stem}-method")
     } else {

@@ -104,7 +104,7 @@ pub(super) fn sphere() -> &'static (Scene, f32, CssmFile) {
             cube_resolution: 16,
             ..Default::default()
         };
-        let file = cssm_bake::bake(&scene, &options, &mut |_, _| {})
+        let file = cssm_bake::bake(&scene, &options, &mut |_| {})
             .expect("sphere bakes")
             .file;
         (scene, area, file)

@@ -19,7 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         cube_resolution: 32,
         ..Default::default()
     };
-    let baked = cssm_bake::bake(&scene, &options, &mut |_done, _total| {})?;
+    let baked = cssm_bake::bake(&scene, &options, &mut |_progress| {})?;
     // Written under a temporary name and renamed: an interrupted run leaves no partial file.
     cssm_formats::cssm::write_atomic(&out, &baked.file)?;
     println!(

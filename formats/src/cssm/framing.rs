@@ -17,6 +17,16 @@ pub const FORMAT_VERSION: u32 = 2;
 /// Largest uncompressed payload a file may declare (8 GiB); larger ones are refused before any
 /// allocation.
 pub const MAX_UNCOMPRESSED_BYTES: u64 = 8 << 30;
+/// How many versions past [`FORMAT_VERSION`] a header may name and be taken for a newer
+/// build's file; a larger number is a corrupted header.
+pub const PLAUSIBLE_NEWER_VERSIONS: u32 = 64;
+/// Largest ratio of a payload's declared uncompressed size to its compressed size, beyond
+/// [`RATIO_FREE_BYTES`]. Real files' payloads inflate about 2 times (bincode of packed runs;
+/// 2.1 for the Sibenik cathedral at atlas 256, 2.2 for the Cornell box at atlas 64);
+/// zstd itself tops out near 32,000.
+pub const MAX_ZSTD_RATIO: u64 = 1024;
+/// A payload may always declare up to this many uncompressed bytes, whatever its ratio.
+pub const RATIO_FREE_BYTES: u64 = 64 << 20;
 /// zstd compression level of the payload (19 is far too slow for large bakes).
 pub const ZSTD_LEVEL: i32 = 9;
 /// Header flag: the run data is entropy-coded ([`PackedRuns`]) inside the payload.
@@ -103,6 +113,33 @@ pub(super) fn compress_payload<T: Serialize, W: Write>(
     ))
 }
 
+/// The bytes of a `.cssm` file whose payload, once decompressed, is `raw` (the bincode body)
+/// with header flags `flags`: a valid header and checksum around any contents. For tests and
+/// fuzzers that craft a file's contents, so that [`super::decode`] reaches the checks past
+/// the checksum; the tool itself writes files with [`super::encode`].
+///
+/// ```
+/// use cssm_formats::cssm;
+/// // A checksum-valid frame around contents that are not a bake.
+/// let bytes = cssm::frame_payload(0, b"not bincode of a bake").unwrap();
+/// assert!(matches!(cssm::decode(&bytes), Err(cssm::CssmError::Malformed(_))));
+/// ```
+///
+/// # Errors
+/// [`CssmError::Encode`] when zstd fails.
+pub fn frame_payload(flags: u32, raw: &[u8]) -> Result<Vec<u8>, CssmError> {
+    let compressed =
+        zstd::bulk::compress(raw, 1).map_err(|e| CssmError::Encode(format!("zstd: {e}")))?;
+    let mut out = header(
+        flags,
+        raw.len() as u64,
+        compressed.len() as u64,
+        checksum(&compressed),
+    );
+    out.extend_from_slice(&compressed);
+    Ok(out)
+}
+
 /// A writer that counts and BLAKE3-hashes what passes through it.
 struct HashingWriter<W> {
     inner: W,
@@ -147,9 +184,10 @@ fn u64_at(b: &[u8], at: usize) -> u64 {
     u64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"))
 }
 
-/// Checks the header and checksum, decompresses (bounded), and returns the flags and the raw
-/// payload.
-pub(super) fn unframe(bytes: &[u8]) -> Result<(u32, Vec<u8>), CssmError> {
+/// The checks of the fixed header alone (`bytes` holds at least its start): magic, length,
+/// version, flags, and the declared sizes against [`MAX_UNCOMPRESSED_BYTES`] and
+/// [`MAX_ZSTD_RATIO`]. [`super::read`] runs them before it reads the payload.
+pub(super) fn check_header(bytes: &[u8]) -> Result<(), CssmError> {
     if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
         // A short prefix of a real file is "truncated", anything else is foreign.
         if bytes.len() < MAGIC.len() && MAGIC.starts_with(bytes) {
@@ -161,6 +199,11 @@ pub(super) fn unframe(bytes: &[u8]) -> Result<(u32, Vec<u8>), CssmError> {
         return Err(CssmError::TooShort { len: bytes.len() });
     }
     let version = u32_at(bytes, 8);
+    // A flipped bit in the version field is a corrupted file, not one from a newer build:
+    // versions grow one at a time.
+    if version == 0 || version > FORMAT_VERSION + PLAUSIBLE_NEWER_VERSIONS {
+        return Err(CssmError::CorruptVersion { version });
+    }
     if version > FORMAT_VERSION {
         return Err(CssmError::NewerVersion { version });
     }
@@ -171,6 +214,28 @@ pub(super) fn unframe(bytes: &[u8]) -> Result<(u32, Vec<u8>), CssmError> {
     if flags & !FLAG_PACKED_RUNS != 0 {
         return Err(CssmError::UnsupportedFlags { flags });
     }
+    let (uncompressed_len, compressed_len) = (u64_at(bytes, 16), u64_at(bytes, 24));
+    if uncompressed_len > MAX_UNCOMPRESSED_BYTES || uncompressed_len > usize::MAX as u64 / 2 {
+        return Err(CssmError::TooLarge {
+            len: uncompressed_len,
+        });
+    }
+    // A zstd bomb: a small payload that claims to inflate past any real file's ratio is
+    // refused before a byte is inflated.
+    if uncompressed_len > RATIO_FREE_BYTES.max(compressed_len.saturating_mul(MAX_ZSTD_RATIO)) {
+        return Err(CssmError::Malformed(format!(
+            "the payload of {compressed_len} bytes claims to inflate to {uncompressed_len}, \
+             more than {MAX_ZSTD_RATIO} times its size"
+        )));
+    }
+    Ok(())
+}
+
+/// Checks the header and checksum, decompresses (bounded), and returns the flags and the raw
+/// payload.
+pub(super) fn unframe(bytes: &[u8]) -> Result<(u32, Vec<u8>), CssmError> {
+    check_header(bytes)?;
+    let flags = u32_at(bytes, 12);
     let uncompressed_len = u64_at(bytes, 16);
     let compressed_len = u64_at(bytes, 24);
     let sum: [u8; 16] = bytes[32..48].try_into().expect("16 bytes");
@@ -183,11 +248,6 @@ pub(super) fn unframe(bytes: &[u8]) -> Result<(u32, Vec<u8>), CssmError> {
     }
     if checksum(payload) != sum {
         return Err(CssmError::ChecksumMismatch);
-    }
-    if uncompressed_len > MAX_UNCOMPRESSED_BYTES || uncompressed_len > usize::MAX as u64 / 2 {
-        return Err(CssmError::TooLarge {
-            len: uncompressed_len,
-        });
     }
     let mut out = Vec::new();
     out.try_reserve_exact(uncompressed_len as usize)
@@ -210,9 +270,35 @@ pub(super) fn unframe(bytes: &[u8]) -> Result<(u32, Vec<u8>), CssmError> {
 }
 
 /// bincode-decodes the whole of `raw`.
+/// bincode's decode error in words (its own `Display` prints the `Debug` form).
+fn describe_decode_error(e: &bincode::error::DecodeError) -> String {
+    use bincode::error::DecodeError as E;
+    match e {
+        E::UnexpectedEnd { additional } => {
+            format!("the contents end early ({additional} more bytes expected)")
+        }
+        E::LimitExceeded => "a length in the contents is beyond the size limit".into(),
+        E::InvalidIntegerType { .. } | E::NonZeroTypeIsZero { .. } => {
+            "a number in the contents is not encoded as one".into()
+        }
+        E::UnexpectedVariant {
+            type_name, found, ..
+        } => format!("{found} is not a value of {type_name}"),
+        E::Utf8 { .. } | E::InvalidCharEncoding(_) => "text that is not UTF-8".into(),
+        E::InvalidBooleanValue(v) => format!("{v} where a true/false byte belongs"),
+        E::ArrayLengthMismatch { required, found } => {
+            format!("an array of {found} values where {required} belong")
+        }
+        E::OutsideUsizeRange(v) => format!("a length of {v}, beyond this machine's range"),
+        E::Other(message) => (*message).to_string(),
+        E::OtherString(message) => message.clone(),
+        _ => "the contents are not a bake's encoding".into(),
+    }
+}
+
 pub(super) fn decode_body<T: serde::de::DeserializeOwned>(raw: &[u8]) -> Result<T, CssmError> {
     let (body, used): (T, usize) = bincode::serde::decode_from_slice(raw, bincode_config())
-        .map_err(|e| CssmError::Malformed(e.to_string()))?;
+        .map_err(|e| CssmError::Malformed(describe_decode_error(&e)))?;
     if used != raw.len() {
         return Err(CssmError::Malformed(format!(
             "{} trailing bytes after the encoded contents",

@@ -34,7 +34,7 @@ mod runs;
 mod validate;
 mod write;
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -43,11 +43,12 @@ use crate::hierarchy::Hierarchy;
 use crate::texel::{Texel, Traversal};
 
 pub use framing::{
-    FLAG_PACKED_RUNS, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_UNCOMPRESSED_BYTES, ZSTD_LEVEL,
+    FLAG_PACKED_RUNS, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_UNCOMPRESSED_BYTES, MAX_ZSTD_RATIO,
+    PLAUSIBLE_NEWER_VERSIONS, RATIO_FREE_BYTES, ZSTD_LEVEL, frame_payload,
 };
 pub use runs::{PackedRuns, RunData, SEGMENT_MAPS};
-pub use validate::validate;
-pub use write::{write_atomic, write_atomic_with, write_bytes_atomic};
+pub use validate::{validate, validate_for_scene};
+pub use write::{MAX_NAME_BYTES, destination, write_atomic, write_atomic_with, write_bytes_atomic};
 
 use framing::{compress_payload, decode_body, unframe};
 
@@ -201,6 +202,16 @@ pub enum CssmError {
         /// Version found in the header.
         version: u32,
     },
+    /// The version field holds no version any build wrote or is likely to write: the header
+    /// is corrupted.
+    #[error(
+        "corrupted header: the version field holds {version} ({version:#010x}), no version of \
+         the format (this build reads version {FORMAT_VERSION})"
+    )]
+    CorruptVersion {
+        /// Version field found in the header.
+        version: u32,
+    },
     /// The version is older than (or otherwise unknown to) this build.
     #[error(
         "file version {version} is not supported (this build reads version {FORMAT_VERSION}); re-bake it"
@@ -210,7 +221,10 @@ pub enum CssmError {
         version: u32,
     },
     /// Reserved flag bits are set.
-    #[error("unsupported header flags {flags:#x} (this build knows none); corrupted or newer file")]
+    #[error(
+        "unknown header flags {flags:#x} (this build knows {FLAG_PACKED_RUNS:#x}, packed runs): \
+         a corrupted file or one from a newer build"
+    )]
     UnsupportedFlags {
         /// Flags found in the header.
         flags: u32,
@@ -362,13 +376,41 @@ pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
 }
 
 /// Reads and decodes the `.cssm` file at `path`. Every error names the path.
+///
+/// Only a regular file is read (a FIFO or a device is refused before it is opened), and of it
+/// first the header: a foreign file, however large, is refused after its first bytes; a file
+/// longer than its header says is refused before the rest is read.
 pub fn read(path: &Path) -> Result<CssmFile, CssmError> {
-    let bytes = std::fs::read(path).map_err(|error| CssmError::Io {
+    let io = |error| CssmError::Io {
         path: path.to_path_buf(),
         error,
-    })?;
-    decode(&bytes).map_err(|e| CssmError::File {
+    };
+    let in_file = |e| CssmError::File {
         path: path.to_path_buf(),
         inner: Box::new(e),
-    })
+    };
+    let (file, size) = crate::files::open_regular(path).map_err(io)?;
+    let mut reader = std::io::BufReader::new(file);
+    let mut bytes = Vec::new();
+    (&mut reader)
+        .take(HEADER_LEN as u64)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    framing::check_header(&bytes).map_err(in_file)?;
+    // The header is whole and ours: the payload must be exactly what it declares.
+    let total = HEADER_LEN as u64 + u64::from_le_bytes(bytes[24..32].try_into().expect("8 bytes"));
+    if size != total {
+        return Err(in_file(CssmError::LengthMismatch {
+            expected: total - HEADER_LEN as u64,
+            actual: size.saturating_sub(HEADER_LEN as u64),
+        }));
+    }
+    bytes
+        .try_reserve_exact((total as usize).saturating_sub(bytes.len()))
+        .map_err(|_| in_file(CssmError::OutOfMemory { len: total }))?;
+    reader
+        .take(total + 1 - HEADER_LEN as u64)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    decode(&bytes).map_err(in_file)
 }

@@ -163,3 +163,41 @@ pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
     }
     Ok(())
 }
+
+/// The checks of `file` against the scene it is used with, for what [`validate`] cannot see
+/// alone: every index into the scene in range (the texels' materials, the triangle count), so
+/// that a file whose checksum holds but whose contents were crafted or come from another
+/// scene is refused before any renderer indexes with them. The content hash, which says
+/// whether the scene is the one baked, is the caller's to compare (`cssm_runtime::load`).
+///
+/// ```
+/// # fn demo(file: &cssm_formats::CssmFile, scene: &cssm_formats::Scene) {
+/// if let Err(e) = cssm_formats::cssm::validate_for_scene(file, scene) {
+///     eprintln!("{e}");
+/// }
+/// # }
+/// ```
+pub fn validate_for_scene(file: &CssmFile, scene: &crate::Scene) -> Result<(), CssmError> {
+    if file.triangle_uvs.len() != scene.triangles.len() {
+        invalid!(
+            "{} triangles in the file, {} in the scene '{}'",
+            file.triangle_uvs.len(),
+            scene.triangles.len(),
+            scene.name
+        );
+    }
+    let materials = scene.materials.len();
+    if let Some((i, t)) = file
+        .texels
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.material as usize >= materials)
+    {
+        invalid!(
+            "texel {i} has material {}, the scene '{}' has {materials}",
+            t.material,
+            scene.name
+        );
+    }
+    Ok(())
+}

@@ -13,7 +13,6 @@ mod toml;
 mod validate;
 
 use std::collections::HashSet;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use glam::{Affine3A, Vec3};
@@ -96,6 +95,9 @@ pub struct Scene {
     pub lights: Vec<SpotLight>,
     /// BLAKE3 over every file the scene was built from, in a fixed order.
     pub content_hash: [u8; 32],
+    /// Every file the scene was read from (`scene.toml`, OBJ, MTL), in read order; with the
+    /// materials' textures these are [`Scene::input_files`].
+    pub files: Vec<PathBuf>,
     /// Non-fatal things the user should hear about (defaults chosen, missing MTL, ...).
     pub warnings: Vec<String>,
 }
@@ -155,8 +157,16 @@ impl Scene {
             },
             lights: Vec::new(),
             content_hash: [0; 32],
+            files: Vec::new(),
             warnings: Vec::new(),
         }
+    }
+
+    /// Every file the scene reads: [`Scene::files`] and the materials' textures. A command
+    /// never writes onto one of them.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let textures = self.materials.iter().filter_map(|m| m.map_kd.clone());
+        self.files.iter().cloned().chain(textures).collect()
     }
 
     /// Length of the bounding-box diagonal: the far plane of every depth cube map (§3.2.1).
@@ -300,10 +310,12 @@ pub fn hash_hex(hash: &[u8; 32]) -> String {
 struct Hasher {
     dir: PathBuf,
     hasher: blake3::Hasher,
+    files: Vec<PathBuf>,
 }
 
 impl Hasher {
     fn add(&mut self, path: &Path, bytes: &[u8]) {
+        self.files.push(path.to_path_buf());
         // Name relative to the scene directory, so that moving the directory keeps the hash.
         let name = path.strip_prefix(&self.dir).unwrap_or(path);
         let name = name.to_string_lossy();
@@ -315,30 +327,22 @@ impl Hasher {
 }
 
 fn read_bounded(path: &Path) -> Result<Vec<u8>, SceneError> {
-    let io = |error| SceneError::Io {
-        path: path.to_path_buf(),
-        error,
-    };
-    let file = std::fs::File::open(path).map_err(io)?;
-    let size = file.metadata().map_err(io)?.len();
-    if size > MAX_FILE_BYTES {
-        return Err(SceneError::TooLarge {
-            path: path.to_path_buf(),
-            size,
-        });
-    }
-    let mut bytes = Vec::with_capacity(size as usize);
-    // `take` guards against a file that grows while being read.
-    file.take(MAX_FILE_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
-    if bytes.len() as u64 > MAX_FILE_BYTES {
-        return Err(SceneError::TooLarge {
-            path: path.to_path_buf(),
-            size: bytes.len() as u64,
-        });
-    }
-    Ok(bytes)
+    // A regular file only (a FIFO would hang the open, /dev/zero never end), at most
+    // MAX_FILE_BYTES of it.
+    crate::files::read_bounded(path, MAX_FILE_BYTES).map_err(|error| {
+        if error.kind() == std::io::ErrorKind::FileTooLarge {
+            let size = std::fs::metadata(path).map_or(MAX_FILE_BYTES + 1, |m| m.len());
+            SceneError::TooLarge {
+                path: path.to_path_buf(),
+                size,
+            }
+        } else {
+            SceneError::Io {
+                path: path.to_path_buf(),
+                error,
+            }
+        }
+    })
 }
 
 /// The mesh being assembled: all files merged.
@@ -473,12 +477,15 @@ impl Scene {
         let mut hasher = Hasher {
             dir: dir.clone(),
             hasher: blake3::Hasher::new(),
+            files: Vec::new(),
         };
         let mut b = Builder::new();
         let toml_path = dir.join("scene.toml");
+        // A directory's name with control characters (a terminal escape, say) is shown with
+        // them replaced; scene.toml's `name` with one is refused below.
         let dir_name = dir
             .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
+            .map(|n| n.to_string_lossy().replace(char::is_control, "\u{fffd}"))
             .unwrap_or_else(|| "scene".into());
 
         let (name, camera, lights) = if toml_path.exists() {
@@ -493,6 +500,20 @@ impl Scene {
                 message: e.to_string().trim_end().to_string(),
             })?;
             // Check the small things before loading any mesh.
+            if let Some(c) = desc
+                .name
+                .as_deref()
+                .and_then(|n| n.chars().find(|c| c.is_control()))
+            {
+                return Err(SceneError::Toml {
+                    path: toml_path.clone(),
+                    message: format!(
+                        "`name` holds the control character U+{:04X}; scene names are printed \
+                         and become file names",
+                        c as u32
+                    ),
+                });
+            }
             let camera = desc
                 .camera
                 .as_ref()
@@ -648,6 +669,7 @@ impl Scene {
             camera,
             lights,
             content_hash: *hasher.hasher.finalize().as_bytes(),
+            files: hasher.files,
             warnings: b.warnings,
         };
         debug_assert_eq!(scene.check_objects(), Ok(()));

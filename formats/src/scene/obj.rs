@@ -12,6 +12,50 @@ use super::{Builder, Hasher, Material, SceneError, read_bounded};
 /// An MTL library the OBJ asked for: its path and its bytes (or why they could not be read).
 type MtlRead = (PathBuf, Result<Vec<u8>, SceneError>);
 
+/// OBJ files up to this size get the line of a parse error found ([`first_failing_line`]
+/// parses the file about log2(lines) more times).
+const LOCATE_ERRORS_BELOW_BYTES: usize = 256 << 20;
+
+/// The line (1-based) and text of the first line of an OBJ that tobj refuses, which tobj does
+/// not say: the shortest prefix of whole lines that fails to parse ends with it (a line that
+/// fails to parse fails every prefix holding it; a face indexing past the vertices fails as
+/// soon as the prefix ends after it). MTL libraries are not read for the search.
+fn first_failing_line(bytes: &[u8], options: &tobj::LoadOptions) -> Option<(usize, String)> {
+    if bytes.len() > LOCATE_ERRORS_BELOW_BYTES {
+        return None;
+    }
+    let ends: Vec<usize> = bytes
+        .iter()
+        .enumerate()
+        .filter(|&(_, &b)| b == b'\n')
+        .map(|(i, _)| i + 1)
+        .chain((bytes.last() != Some(&b'\n')).then_some(bytes.len()))
+        .collect();
+    let fails = |lines: usize| {
+        let prefix = &bytes[..ends[lines - 1]];
+        std::panic::catch_unwind(|| {
+            tobj::load_obj_buf(&mut &prefix[..], options, |_| {
+                Ok((Vec::new(), Default::default()))
+            })
+            .is_err()
+        })
+        .unwrap_or(true)
+    };
+    // The smallest failing prefix, if the whole file fails without its MTL files.
+    let (mut lo, mut hi) = (1, ends.len());
+    if hi == 0 || !fails(hi) {
+        return None;
+    }
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if fails(mid) { hi = mid } else { lo = mid + 1 }
+    }
+    let start = if lo == 1 { 0 } else { ends[lo - 2] };
+    let text = String::from_utf8_lossy(&bytes[start..ends[lo - 1]]);
+    let text: String = text.trim_end().chars().take(80).collect();
+    Some((lo, text.replace(char::is_control, "\u{fffd}")))
+}
+
 impl Builder {
     /// Loads one OBJ file (with its MTL libraries), transforms it by `transform` and appends it.
     pub(super) fn add_obj(
@@ -70,7 +114,10 @@ impl Builder {
         }
         let (models, materials) = loaded.map_err(|e| SceneError::ObjParse {
             path: path.to_path_buf(),
-            message: e.to_string(),
+            message: match first_failing_line(&bytes, &options) {
+                Some((line, text)) => format!("line {line}: {e}: `{text}`"),
+                None => e.to_string(),
+            },
         })?;
         for (mtl_path, result) in mtl_files.into_inner() {
             match result {
@@ -111,15 +158,19 @@ impl Builder {
                 });
             }
             let map_kd = m.diffuse_texture.as_ref().map(|t| obj_dir.join(t));
-            if let Some(t) = &map_kd
-                && !t.is_file()
-            {
-                self.warnings.push(format!(
-                    "{}: material `{}`: texture {} not found",
-                    path.display(),
-                    m.name,
-                    t.display()
-                ));
+            if let Some(t) = &map_kd {
+                let problem = match std::fs::metadata(t) {
+                    Ok(meta) => crate::files::kind_of(&meta).map(|kind| format!("is {kind}")),
+                    Err(_) => Some("not found".to_string()),
+                };
+                if let Some(problem) = problem {
+                    self.warnings.push(format!(
+                        "{}: material `{}`: texture {} {problem}",
+                        path.display(),
+                        m.name,
+                        t.display()
+                    ));
+                }
             }
             self.materials.push(Material {
                 name: m.name.clone(),
@@ -355,8 +406,18 @@ mod tests {
     fn parse_errors_name_the_file() {
         let e = err(&[("broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")]);
         assert!(e.contains("broken.obj"), "{e}");
+        assert!(
+            e.contains("line 4: face vertex index out of bounds: `f 1 2 9`"),
+            "{e}"
+        );
         let e = err(&[("broken.obj", "v 0 zero 0\n")]);
         assert!(e.contains("broken.obj") && e.contains("parse error"), "{e}");
+        assert!(e.contains("line 1"), "{e}");
+        let e = err(&[(
+            "broken.obj",
+            "# a quad\nv 0 0 0\nv 1 0 0\n\nvn 0 0\nv 0 1 0\nf 1 2 3",
+        )]);
+        assert!(e.contains("line 5: normal parse error: `vn 0 0`"), "{e}");
         // A malformed MTL colour that would panic tobj.
         let e = err(&[
             ("quad.obj", QUAD_OBJ),

@@ -200,6 +200,7 @@ mod tests {
             },
             lights: Vec::new(),
             content_hash: [0; 32],
+            files: Vec::new(),
             warnings: Vec::new(),
         }
     }

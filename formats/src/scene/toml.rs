@@ -71,13 +71,18 @@ pub(super) fn mesh_path(
     mesh: &str,
 ) -> Result<PathBuf, SceneError> {
     let p = dir.join(mesh);
-    if !p.is_file() {
-        return Err(SceneError::Invalid {
-            path: toml_path.to_path_buf(),
-            message: format!("{what} `{mesh}`: {} does not exist", p.display()),
-        });
-    }
-    Ok(p)
+    let problem = match std::fs::metadata(&p) {
+        Ok(m) => match crate::files::kind_of(&m) {
+            None => return Ok(p),
+            Some(kind) => format!("is {kind}, not a mesh file"),
+        },
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => "does not exist".to_string(),
+        Err(e) => format!("cannot be read: {e}"),
+    };
+    Err(SceneError::Invalid {
+        path: toml_path.to_path_buf(),
+        message: format!("{what} `{mesh}`: {} {problem}", p.display()),
+    })
 }
 
 #[cfg(test)]

@@ -34,9 +34,15 @@ fn map_and_copy(
     device
         .poll(wgpu::PollType::wait_indefinitely())
         .map_err(|e| RuntimeError::Gpu(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| RuntimeError::Gpu(e.to_string()))?
-        .map_err(|e| RuntimeError::Gpu(e.to_string()))?;
+    // A map fails when the device is lost (a driver reset, a removed GPU, `destroy`) or the
+    // buffer destroyed; the callback may not even run then.
+    let lost = |e: &dyn std::fmt::Display| {
+        RuntimeError::Gpu(format!(
+            "reading results back from the GPU failed ({e}): the device was lost (a driver \
+             reset or a removed GPU) or the buffer destroyed"
+        ))
+    };
+    rx.recv().map_err(|e| lost(&e))?.map_err(|e| lost(&e))?;
     let data = staging
         .get_mapped_range(0..size)
         .map_err(|e| RuntimeError::Gpu(e.to_string()))?

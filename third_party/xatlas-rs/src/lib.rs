@@ -280,6 +280,30 @@ impl<'a> Xatlas {
         unsafe { xatlas::ParameterizeCharts(self.handle, None, None, std::ptr::null_mut()) }
     }
 
+    /// `compute_charts` reporting xatlas' progress (0 to 100) to `progress`, which xatlas may
+    /// call from its worker threads, one call at a time (under its mutex). Added in the CSSM
+    /// project's patched copy.
+    pub fn compute_charts_with_progress(
+        &self,
+        chart_opts: ChartOptions,
+        mut progress: impl FnMut(ProgressCategory, i32) + Send,
+    ) {
+        let mut cb: &mut dyn FnMut(ProgressCategory, i32) = &mut progress;
+        let cb = &mut cb as *mut &mut dyn FnMut(ProgressCategory, i32) as *mut std::ffi::c_void;
+        unsafe { xatlas::ComputeCharts(self.handle, chart_opts.convert(), Some(progress_cb), cb) }
+    }
+
+    /// `parameterize_charts` reporting xatlas' progress (0 to 100) to `progress`, called as
+    /// by `compute_charts_with_progress`. Added in the CSSM project's patched copy.
+    pub fn parameterize_charts_with_progress(
+        &self,
+        mut progress: impl FnMut(ProgressCategory, i32) + Send,
+    ) {
+        let mut cb: &mut dyn FnMut(ProgressCategory, i32) = &mut progress;
+        let cb = &mut cb as *mut &mut dyn FnMut(ProgressCategory, i32) as *mut std::ffi::c_void;
+        unsafe { xatlas::ParameterizeCharts(self.handle, None, Some(progress_cb), cb) }
+    }
+
     /// Packs the charts into atlas pages (last step of `generate`); may be called again with
     /// other options.
     pub fn pack_charts(&self, pack_opts: PackOptions) {
