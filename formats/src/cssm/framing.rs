@@ -223,10 +223,10 @@ pub(super) fn check_header(bytes: &[u8]) -> Result<(), CssmError> {
     // A zstd bomb: a small payload that claims to inflate past any real file's ratio is
     // refused before a byte is inflated.
     if uncompressed_len > RATIO_FREE_BYTES.max(compressed_len.saturating_mul(MAX_ZSTD_RATIO)) {
-        return Err(CssmError::Malformed(format!(
-            "the payload of {compressed_len} bytes claims to inflate to {uncompressed_len}, \
-             more than {MAX_ZSTD_RATIO} times its size"
-        )));
+        return Err(CssmError::ImplausibleRatio {
+            compressed: compressed_len,
+            uncompressed: uncompressed_len,
+        });
     }
     Ok(())
 }

@@ -251,6 +251,18 @@ pub enum CssmError {
         /// Declared (or, when encoding, actual) uncompressed size.
         len: u64,
     },
+    /// The header claims a payload that inflates far beyond what zstd gives real files (a
+    /// "zstd bomb"): refused before a byte is inflated.
+    #[error(
+        "the header says {compressed} compressed bytes inflate to {uncompressed}, more than \
+         {MAX_ZSTD_RATIO} times their size: a corrupted or hostile file"
+    )]
+    ImplausibleRatio {
+        /// Compressed length from the header.
+        compressed: u64,
+        /// Uncompressed length from the header.
+        uncompressed: u64,
+    },
     /// Memory for the uncompressed payload could not be reserved.
     #[error("cannot allocate {len} bytes for the uncompressed payload")]
     OutOfMemory {
