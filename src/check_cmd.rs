@@ -35,7 +35,22 @@ pub fn run_check(config: CheckConfig) -> CliResult {
         other => other.to_string(),
     })?;
     let start = Instant::now();
-    let m = bake::check::measure(&scene, &file, config.pairs, config.seed, config.query);
+    let bar = indicatif::ProgressBar::new(config.pairs).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} checking [{bar:32}] {pos}/{len} pairs, {per_sec}, eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let m = bake::check::measure_with_progress(
+        &scene,
+        &file,
+        config.pairs,
+        config.seed,
+        config.query,
+        &mut |done, _| bar.set_position(done),
+    );
+    bar.finish_and_clear();
     let summary = CheckSummary::new(&config.file, &m, start.elapsed().as_secs_f64());
     if config.json {
         println!("{}", summary.to_json());

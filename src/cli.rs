@@ -262,7 +262,7 @@ pub struct CheckArgs {
     #[arg(long)]
     scene: Option<PathBuf>,
     /// Number of random surface point pairs.
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
     pairs: u64,
     /// Seed of the pairs.
     #[arg(long, default_value_t = 1)]

@@ -732,6 +732,7 @@ fn numeric_options_that_mean_nothing_are_refused_by_name() {
             "--bias-relative",
         ),
         (&["check", "x.cssm", "--bias-near=-1"], "--bias-near"),
+        (&["check", "x.cssm", "--pairs", "0"], "--pairs"),
         (&["bake", "--near", "NaN", "-o", "x.cssm"], "--near"),
         (
             &["render", "--exposure", "NaN", "--out", "x.png"],

@@ -148,6 +148,18 @@ pub fn measure(
     seed: u64,
     options: QueryOptions,
 ) -> Measurement {
+    measure_with_progress(scene, file, pairs, seed, options, &mut |_, _| {})
+}
+
+/// [`measure`], calling `progress(done, pairs)` after every block of 65,536 pairs.
+pub fn measure_with_progress(
+    scene: &Scene,
+    file: &CssmFile,
+    pairs: u64,
+    seed: u64,
+    options: QueryOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Measurement {
     let sampler = SurfaceSampler::new(scene);
     let mut rng = SplitMix64(seed);
     let bvh = SceneBvh::new(scene);
@@ -198,6 +210,7 @@ pub fn measure(
             })
             .reduce(Measurement::default, Measurement::add);
         total = total.add(block);
+        progress(drawn, pairs);
     }
     total
 }

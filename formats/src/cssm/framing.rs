@@ -215,6 +215,15 @@ pub(super) fn check_header(bytes: &[u8]) -> Result<(), CssmError> {
         return Err(CssmError::UnsupportedFlags { flags });
     }
     let (uncompressed_len, compressed_len) = (u64_at(bytes, 16), u64_at(bytes, 24));
+    // zstd never grows data by more than a few bytes per block: a longer compressed payload
+    // than any file's uncompressed one is a corrupted header (and would overflow the file
+    // length computed from it).
+    if compressed_len > MAX_UNCOMPRESSED_BYTES {
+        return Err(CssmError::CorruptHeader(format!(
+            "it declares {compressed_len} compressed bytes, more than the \
+             {MAX_UNCOMPRESSED_BYTES} any file's payload may hold"
+        )));
+    }
     if uncompressed_len > MAX_UNCOMPRESSED_BYTES || uncompressed_len > usize::MAX as u64 / 2 {
         return Err(CssmError::TooLarge {
             len: uncompressed_len,
@@ -269,7 +278,6 @@ pub(super) fn unframe(bytes: &[u8]) -> Result<(u32, Vec<u8>), CssmError> {
     Ok((flags, out))
 }
 
-/// bincode-decodes the whole of `raw`.
 /// bincode's decode error in words (its own `Display` prints the `Debug` form).
 fn describe_decode_error(e: &bincode::error::DecodeError) -> String {
     use bincode::error::DecodeError as E;
@@ -296,9 +304,30 @@ fn describe_decode_error(e: &bincode::error::DecodeError) -> String {
     }
 }
 
+/// bincode-decodes the whole of `raw`.
+///
+/// bincode allocates a string's or byte array's declared length before it reads the bytes,
+/// up to its configured limit: the limit is chosen from `raw`'s own length (the smallest of a
+/// few steps at least twice it), so a 17-byte payload declaring a 4 GiB name is refused
+/// instead of allocating 4 GiB (found by fuzzing: `tests/fuzzed/cssm_payload/`). Everything
+/// the body holds is read from `raw`, so no valid body claims more than `raw.len()` bytes.
 pub(super) fn decode_body<T: serde::de::DeserializeOwned>(raw: &[u8]) -> Result<T, CssmError> {
-    let (body, used): (T, usize) = bincode::serde::decode_from_slice(raw, bincode_config())
-        .map_err(|e| CssmError::Malformed(describe_decode_error(&e)))?;
+    fn with_limit<T: serde::de::DeserializeOwned, const LIMIT: usize>(
+        raw: &[u8],
+    ) -> Result<(T, usize), bincode::error::DecodeError> {
+        bincode::serde::decode_from_slice(raw, bincode::config::standard().with_limit::<LIMIT>())
+    }
+    let claim = (raw.len() as u64).saturating_mul(2);
+    let decoded = if claim <= 1 << 20 {
+        with_limit::<T, { 1 << 20 }>(raw)
+    } else if claim <= 1 << 26 {
+        with_limit::<T, { 1 << 26 }>(raw)
+    } else if claim <= 1 << 30 {
+        with_limit::<T, { 1 << 30 }>(raw)
+    } else {
+        with_limit::<T, BINCODE_LIMIT>(raw)
+    };
+    let (body, used) = decoded.map_err(|e| CssmError::Malformed(describe_decode_error(&e)))?;
     if used != raw.len() {
         return Err(CssmError::Malformed(format!(
             "{} trailing bytes after the encoded contents",

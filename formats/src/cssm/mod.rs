@@ -212,6 +212,9 @@ pub enum CssmError {
         /// Version field found in the header.
         version: u32,
     },
+    /// A header field holds a value no file can have.
+    #[error("corrupted header: {0}")]
+    CorruptHeader(String),
     /// The version is older than (or otherwise unknown to) this build.
     #[error(
         "file version {version} is not supported (this build reads version {FORMAT_VERSION}); re-bake it"
