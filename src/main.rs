@@ -27,6 +27,14 @@ use cssm::{formats, summary::InspectSummary};
 use formats::{CssmFile, Scene};
 
 fn main() -> ExitCode {
+    // A closed standard output (`cssm inspect f | head -1`) ends the process quietly, as it
+    // does `cat`, instead of making `println!` panic; every file is written atomically, so
+    // nothing is half-written by it.
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to its default, before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let result = match cli::Cli::parse().command {
         Command::Bake(args) => args.config().and_then(bake_cmd::run_bake),
         Command::Inspect(args) => run_inspect(args),

@@ -139,6 +139,14 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
             crafted(&|f| f.texels[1].x = 900),
         ),
         (
+            "cssm-semantic/hierarchy-padding.cssm",
+            crafted(&|f| f.hierarchy.nodes[0]._pad[1] = 7),
+        ),
+        (
+            "cssm-semantic/uv-off-page.cssm",
+            crafted(&|f| f.triangle_uvs[1][2] = [1.0e30, 2.0]),
+        ),
+        (
             "cssm-semantic/nan-position.cssm",
             crafted(&|f| f.texels[0].position[1] = f32::NAN),
         ),

@@ -885,3 +885,31 @@ fn obj_errors_name_the_line_and_print_no_escapes() {
     assert!(!stderr(&o).contains('\u{1b}'), "{:?}", stderr(&o));
     assert!(stderr(&o).contains("evil"), "{}", stderr(&o));
 }
+
+/// A standard output closed by its reader (`cssm inspect f | head -1`) ends `cssm` quietly (by
+/// SIGPIPE, as `cat`), not with a panic.
+#[test]
+fn a_closed_standard_output_is_no_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = run(d, &bake_args(cornell().to_str().unwrap(), "c.cssm"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    for args in [
+        &["inspect", "c.cssm"][..],
+        &["inspect", "c.cssm", "--json"],
+        &["--help"],
+    ] {
+        // A pipe whose reading end is closed before cssm writes a byte.
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = Command::new(cssm_binary())
+            .args(args)
+            .current_dir(d)
+            .stdout(writer)
+            .stderr(Stdio::piped())
+            .output()
+            .unwrap();
+        assert!(!stderr(&o).contains("panicked"), "{args:?}: {}", stderr(&o));
+        assert_ne!(o.status.code(), Some(101), "{args:?}: {}", stderr(&o));
+    }
+}

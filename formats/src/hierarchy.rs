@@ -278,6 +278,10 @@ impl Hierarchy {
             if floats.clone().any(|v| !v.is_finite()) {
                 return err("a non-finite value".into());
             }
+            // The padding is zero in every file a bake writes: anything else is corruption.
+            if node._pad != [0; 3] {
+                return err(format!("padding {:?} is not zero", node._pad));
+            }
             if node.radius < 0.0 {
                 return err(format!("negative radius {}", node.radius));
             }

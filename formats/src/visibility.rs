@@ -114,6 +114,13 @@ impl<'a> VisibilityQuery<'a> {
     /// [`Self::texel_at`] for atlas coordinates `p` (texel units): the cell under `p`, or the
     /// nearest defined cell within two texels.
     pub fn texel_at_point(&self, p: Vec2) -> Option<u32> {
+        // Nothing within two texels of a point this far off the page (a NaN fails too); the
+        // cell arithmetic below stays far from overflow.
+        let r = self.file.params.atlas_resolution as f32;
+        let near_page = -3.0..=r + 3.0;
+        if !(near_page.contains(&p.x) && near_page.contains(&p.y)) {
+            return None;
+        }
         let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
         if let Some(direct) = self.cell(cx, cy) {
             return Some(direct);

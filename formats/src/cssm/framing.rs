@@ -308,22 +308,37 @@ fn describe_decode_error(e: &bincode::error::DecodeError) -> String {
 ///
 /// bincode allocates a string's or byte array's declared length before it reads the bytes,
 /// up to its configured limit: the limit is chosen from `raw`'s own length (the smallest of a
-/// few steps at least twice it), so a 17-byte payload declaring a 4 GiB name is refused
-/// instead of allocating 4 GiB (found by fuzzing: `tests/fuzzed/cssm_payload/`). Everything
-/// the body holds is read from `raw`, so no valid body claims more than `raw.len()` bytes.
+/// few steps at least twice it: at most four times the payload, and at least 1 MiB), so a
+/// 17-byte payload declaring a 4 GiB name is refused instead of allocating 4 GiB (found by
+/// fuzzing: `tests/fuzzed/cssm_payload/`). Everything the body holds is read from `raw`, so
+/// no valid body claims more than `raw.len()` bytes.
 pub(super) fn decode_body<T: serde::de::DeserializeOwned>(raw: &[u8]) -> Result<T, CssmError> {
     fn with_limit<T: serde::de::DeserializeOwned, const LIMIT: usize>(
         raw: &[u8],
     ) -> Result<(T, usize), bincode::error::DecodeError> {
         bincode::serde::decode_from_slice(raw, bincode::config::standard().with_limit::<LIMIT>())
     }
+    // The limit on this machine's address space too (a 32-bit build caps every step).
+    const fn step(bytes: u64) -> usize {
+        if bytes > BINCODE_LIMIT as u64 {
+            BINCODE_LIMIT
+        } else {
+            bytes as usize
+        }
+    }
     let claim = (raw.len() as u64).saturating_mul(2);
     let decoded = if claim <= 1 << 20 {
-        with_limit::<T, { 1 << 20 }>(raw)
-    } else if claim <= 1 << 26 {
-        with_limit::<T, { 1 << 26 }>(raw)
+        with_limit::<T, { step(1 << 20) }>(raw)
+    } else if claim <= 1 << 24 {
+        with_limit::<T, { step(1 << 24) }>(raw)
+    } else if claim <= 1 << 28 {
+        with_limit::<T, { step(1 << 28) }>(raw)
     } else if claim <= 1 << 30 {
-        with_limit::<T, { 1 << 30 }>(raw)
+        with_limit::<T, { step(1 << 30) }>(raw)
+    } else if claim <= 1 << 31 {
+        with_limit::<T, { step(1 << 31) }>(raw)
+    } else if claim <= 1 << 32 {
+        with_limit::<T, { step(1 << 32) }>(raw)
     } else {
         with_limit::<T, BINCODE_LIMIT>(raw)
     };

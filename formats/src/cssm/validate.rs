@@ -76,6 +76,21 @@ pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
     {
         invalid!("triangle_uvs[{t}] is not finite");
     }
+    // On the page, with a texel of margin for rounding (a bake's lie well inside); far-off
+    // coordinates overflowed the query's cell arithmetic (found by fuzzing).
+    let page = -1.0..=p.atlas_resolution as f32 + 1.0;
+    if let Some(t) = file
+        .triangle_uvs
+        .iter()
+        .position(|uv| uv.iter().flatten().any(|c| !page.contains(c)))
+    {
+        invalid!(
+            "triangle_uvs[{t}] = {:?} lies off the {}x{} atlas",
+            file.triangle_uvs[t],
+            p.atlas_resolution,
+            p.atlas_resolution
+        );
+    }
     let mut seen = vec![false; maps];
     for (k, &t) in file.sequence.iter().enumerate() {
         match seen.get_mut(t as usize) {

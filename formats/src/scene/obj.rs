@@ -71,6 +71,7 @@ impl Builder {
         // MTL libraries: read them ourselves to bound their size and hash them.
         let mtl_files: RefCell<Vec<MtlRead>> = RefCell::default();
         let mtl_errors: RefCell<Vec<SceneError>> = RefCell::default();
+        let nameless_mtllib = std::cell::Cell::new(false);
         let options = tobj::LoadOptions {
             triangulate: true,
             single_index: true,
@@ -79,6 +80,12 @@ impl Builder {
         // tobj has a few panicking paths on malformed input: turn a panic into a parse error.
         let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             tobj::load_obj_buf(&mut &bytes[..], &options, |mtl: &Path| {
+                // `mtllib` with no name: like a missing library (joined to the OBJ's folder it
+                // would name the folder itself).
+                if mtl.as_os_str().is_empty() {
+                    nameless_mtllib.set(true);
+                    return Err(tobj::LoadError::OpenFileFailed);
+                }
                 let mtl_path = obj_dir.join(mtl);
                 match read_bounded(&mtl_path) {
                     Ok(mtl_bytes) => {
@@ -119,6 +126,13 @@ impl Builder {
                 None => e.to_string(),
             },
         })?;
+        if nameless_mtllib.get() {
+            self.warnings.push(format!(
+                "{}: an `mtllib` line names no file; its materials become the grey Lambertian \
+                 `default` (Kd 0.5)",
+                path.display()
+            ));
+        }
         for (mtl_path, result) in mtl_files.into_inner() {
             match result {
                 Ok(mtl_bytes) => hasher.add(&mtl_path, &mtl_bytes),
@@ -400,6 +414,18 @@ mod tests {
         assert_eq!(s.positions.len(), 3);
         let w = s.warnings.join("\n");
         assert!(w.contains("dropped 1 degenerate"), "{w}");
+    }
+
+    /// An `mtllib` line with no name is a missing library (a warning), not the OBJ's folder
+    /// read as one (found by fuzzing: "it is a directory, not a file").
+    #[test]
+    fn a_nameless_mtllib_is_a_warning() {
+        let obj = QUAD_OBJ.replace("mtllib quad.mtl", "mtllib");
+        let dir = scene(&[("quad.obj", &obj)]);
+        let s = Scene::load(dir.path()).unwrap();
+        let w = s.warnings.join("\n");
+        assert!(w.contains("an `mtllib` line names no file"), "{w}");
+        assert_eq!(s.triangles.len(), 2);
     }
 
     #[test]

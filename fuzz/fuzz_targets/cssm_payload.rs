@@ -1,0 +1,6 @@
+//! `cargo +nightly fuzz run cssm_payload`: see `fuzz/README.md` and [`cssm_fuzz::cssm_payload`].
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let _ = cssm_fuzz::cssm_payload(data);
+});
