@@ -80,7 +80,19 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             )
             .map_err(gpu_error)?;
             let frames = config.frames + u32::from(config.timings);
-            let image = readback::render_image(&mut renderer, frames).map_err(gpu_error)?;
+            // The GPU works in one go (a lightmap's radiosity takes minutes on lavapipe): a
+            // spinner with the time so far, on a terminal.
+            let spinner = indicatif::ProgressBar::new_spinner().with_style(
+                indicatif::ProgressStyle::with_template("{spinner} {msg}, {elapsed}")
+                    .expect("valid template"),
+            );
+            spinner.set_message(format!(
+                "rendering {method} at {width}x{height}, {frames} frame(s)"
+            ));
+            spinner.enable_steady_tick(std::time::Duration::from_millis(200));
+            let image = readback::render_image(&mut renderer, frames);
+            spinner.finish_and_clear();
+            let image = image.map_err(gpu_error)?;
             gpu.wait().map_err(gpu_error)?;
             if config.timings {
                 print_timings(&gpu.describe(), &image);

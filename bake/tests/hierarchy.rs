@@ -1,18 +1,14 @@
 //! The texel hierarchy (§4.2) of a real bake: the Cornell box at atlas 32, cube 8 gives a
 //! hierarchy over its final texel table that validates and survives the file.
 
-use cssm_bake::{BakeOptions, bake};
-use cssm_formats::{Hierarchy, Scene, cssm};
+mod common;
+
+use cssm_bake::bake;
+use cssm_formats::{Hierarchy, cssm};
 
 #[test]
 fn cornell_bake_has_a_valid_hierarchy_that_survives_the_file() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box");
-    let scene = Scene::load(&dir).unwrap();
-    let options = BakeOptions {
-        atlas_resolution: 32,
-        cube_resolution: 8,
-        ..Default::default()
-    };
+    let (scene, options) = common::cornell_small();
     let baked = bake(&scene, &options, &mut |_| {}).unwrap();
     let file = &baked.file;
     let n = file.texels.len();
