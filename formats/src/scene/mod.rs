@@ -7,6 +7,7 @@
 //! each rigid `[[objects]]` entry as a [`SceneObject`], a contiguous range of the merged
 //! triangles with its object-to-world transform (the bake still treats all of it as static).
 
+mod default_view;
 mod obj;
 mod objects;
 mod toml;
@@ -407,41 +408,6 @@ fn fmt3(v: Vec3) -> String {
     format!("[{}, {}, {}]", v.x, v.y, v.z)
 }
 
-/// Camera on the +z side of the box centre looking at it, y up, [`DEFAULT_FOV_Y_DEG`], distance
-/// so that the bounding sphere fits the vertical field of view.
-fn default_camera(lo: Vec3, hi: Vec3) -> Camera {
-    let centre = 0.5 * (lo + hi);
-    let radius = 0.5 * (hi - lo).length();
-    let half = (0.5 * DEFAULT_FOV_Y_DEG).to_radians();
-    let distance = radius / half.sin();
-    Camera {
-        position: centre + Vec3::Z * distance,
-        target: centre,
-        up: Vec3::Y,
-        fov_y_deg: DEFAULT_FOV_Y_DEG,
-        resolution: DEFAULT_RESOLUTION,
-    }
-}
-
-/// Spot light at the centre xz, slightly below the top of the box (or well above it when the
-/// scene is flat), pointing down.
-fn default_light(lo: Vec3, hi: Vec3) -> SpotLight {
-    let centre = 0.5 * (lo + hi);
-    let diameter = (hi - lo).length();
-    let height = hi.y - lo.y;
-    let y = if height < 0.1 * diameter {
-        hi.y + 0.5 * diameter
-    } else {
-        hi.y - 0.02 * height
-    };
-    SpotLight {
-        position: Vec3::new(centre.x, y, centre.z),
-        direction: Vec3::NEG_Y,
-        cutoff_deg: DEFAULT_CUTOFF_DEG,
-        intensity: [diameter * diameter; 3],
-    }
-}
-
 fn bounds_of(positions: &[Vec3]) -> (Vec3, Vec3) {
     positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -628,12 +594,24 @@ impl Scene {
             });
         }
         let camera = camera.unwrap_or_else(|| {
-            let c = default_camera(lo, hi);
+            let (c, placement) = default_view::default_camera(&b.positions, &b.triangles, lo, hi);
+            let place = match placement {
+                default_view::Placement::Outside(side, open) => format!(
+                    "outside the scene's open side {} ({:.0}% of the rays from the \
+                     bounding box's centre leave through it)",
+                    side.describe(),
+                    100.0 * open
+                ),
+                default_view::Placement::Inside => {
+                    "inside: the scene is closed on every side".to_string()
+                }
+            };
             b.warnings.push(format!(
-                "default camera: position {}, looking at the bounding-box centre {}, up [0, 1, 0], \
-                 fov_y_deg {}, resolution {}x{}",
+                "default camera {place}: position {}, looking at {}, up {}, fov_y_deg {}, \
+                 resolution {}x{} (set [camera] in scene.toml to choose)",
                 fmt3(c.position),
                 fmt3(c.target),
+                fmt3(c.up),
                 c.fov_y_deg,
                 c.resolution[0],
                 c.resolution[1]
@@ -641,10 +619,12 @@ impl Scene {
             c
         });
         let lights = if lights.is_empty() {
-            let l = default_light(lo, hi);
+            let (l, place) =
+                default_view::default_light(&b.positions, &b.triangles, lo, hi, &camera);
             b.warnings.push(format!(
-                "default light: spot at {}, direction [0, -1, 0], cutoff_deg {}, intensity {} W/sr",
+                "default light {place}: spot at {}, direction {}, cutoff_deg {}, intensity {} W/sr",
                 fmt3(l.position),
+                fmt3(l.direction),
                 l.cutoff_deg,
                 l.intensity[0]
             ));
@@ -809,6 +789,7 @@ intensity  = [10.0, 10.0, 10.0]
         let s = Scene::load(dir.path()).unwrap();
         let centre = Vec3::new(0.0, 1.0, 0.0);
         assert_eq!(s.camera.target, centre);
+        // Open on every side: seen from +z, the first side of the default camera's order.
         assert!(s.camera.position.z > 1.0 && s.camera.position.x == 0.0);
         assert_eq!(s.camera.fov_y_deg, DEFAULT_FOV_Y_DEG);
         assert_eq!(s.camera.resolution, DEFAULT_RESOLUTION);
