@@ -165,12 +165,12 @@ pub struct BakeArgs {
     #[arg(long, default_value_t = 32)]
     cube: u32,
     /// Order of the depth-map sequence: zigzag, spiral or greedy (§3.2.3); hilbert (chart by
-    /// chart, a Hilbert curve inside each chart; beyond the paper, and the default: in
-    /// reports/compression.md it compresses better than the paper's orders at the same
-    /// accuracy); or piloted (per chart the Hilbert or the Spiral order, whichever a pilot bake
-    /// of the chart at cube 8 compresses better; beyond the paper: a little better than hilbert
-    /// for a little more bake time, as reports/compression.md measures).
-    #[arg(long, default_value = "hilbert")]
+    /// chart, a Hilbert curve inside each chart; beyond the paper: in reports/compression.md it
+    /// compresses better than the paper's orders at the same accuracy); or piloted (per chart the
+    /// Hilbert or the Spiral order, whichever a pilot bake of the chart at cube 8 compresses
+    /// better; beyond the paper, and the default: a little better than hilbert for a little more
+    /// bake time, part of the report's best variant).
+    #[arg(long, default_value = "piloted")]
     traversal: Traversal,
     /// How the chart-by-chart traversals choose the next chart: nearest (§3.2.3: the chart whose
     /// first texel is nearest) or ends (the chart with an end, first or last texel, nearest;
@@ -190,8 +190,9 @@ pub struct BakeArgs {
     /// texel: surfaces facing away exchange no light with it, so their visibility never matters;
     /// beyond the paper); or exchange (as facing, and a first surface that faces away sets no
     /// lower bound; a pixel that meets no facing surface, nor do its neighbours, is don't care;
-    /// beyond the paper).
-    #[arg(long, default_value = "any")]
+    /// beyond the paper, and the default: exact for every pair that exchanges light, the only
+    /// visibility an image uses, in a much smaller file; reports/compression.md, best variant).
+    #[arg(long, default_value = "exchange")]
     second_layer: bake::cubemap::SecondLayer,
     /// How the file stores the runs: packed (run lengths and depth differences as varints before
     /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).

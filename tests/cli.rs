@@ -74,7 +74,7 @@ fn bake_inspect_and_determinism() {
     }
     assert_eq!(j["atlas_resolution"], 32);
     assert_eq!(j["cube_resolution"], 8);
-    assert_eq!(j["traversal"], "hilbert");
+    assert_eq!(j["traversal"], "piloted");
     assert_eq!(j["defined_texels"], summary["defined_texels"]);
     let uncompressed = j["uncompressed_bytes"].as_u64().unwrap();
     assert_eq!(
@@ -150,9 +150,17 @@ fn visibility_agrees_with_ray_casts_on_the_cornell_box() {
     let text = cssm(&["check", file.to_str().unwrap(), "--pairs", "100000"]);
     println!("{}", String::from_utf8_lossy(&text.stdout));
     assert!(j["pairs"].as_u64().unwrap() >= 99_000, "{j}");
-    assert!(j["agreement"].as_f64().unwrap() >= 0.98, "{j}");
-    assert!(j["false_visible_rate"].as_f64().unwrap() < 0.05, "{j}");
-    assert!(j["false_occluded_rate"].as_f64().unwrap() < 0.05, "{j}");
+    // The default bake (the exchange layer) is exact for the pairs that exchange light, the
+    // only visibility an image uses; pairs facing away get no promise.
+    assert!(j["exchanging_agreement"].as_f64().unwrap() >= 0.98, "{j}");
+    assert!(
+        j["exchanging_false_visible_rate"].as_f64().unwrap() < 0.05,
+        "{j}"
+    );
+    assert!(
+        j["exchanging_false_occluded_rate"].as_f64().unwrap() < 0.05,
+        "{j}"
+    );
     // The pair set is not trivially one class.
     assert!(j["occluded_occluded"].as_u64().unwrap() > 20_000, "{j}");
     assert!(j["visible_visible"].as_u64().unwrap() > 20_000, "{j}");
@@ -160,7 +168,10 @@ fn visibility_agrees_with_ray_casts_on_the_cornell_box() {
     // Without PCF (one pixel, one texel) the query is still close.
     let plain = measure(&["--no-pcf", "--no-sender-filter"]);
     println!("plain query: {plain}");
-    assert!(plain["agreement"].as_f64().unwrap() >= 0.96, "{plain}");
+    assert!(
+        plain["exchanging_agreement"].as_f64().unwrap() >= 0.96,
+        "{plain}"
+    );
 
     // --min-agreement turns the measurement into a pass/fail with exit status 1.
     let o = cssm(&[

@@ -614,8 +614,9 @@ fn runs_spread_over_several_bindings_answer_as_one() {
     assert_eq!(split.runs.len(), split.run_bindings as usize);
     assert!(split.runs.iter().all(|b| b.size() <= limit));
 
-    // As many pairs as one binding of the lowered limit holds.
-    let pairs = random_pairs(scene, 10_000, 23);
+    // As many pairs as one binding of the lowered limit holds (at most 10,000).
+    let fit = (limit / std::mem::size_of::<QueryPair>() as u64).min(10_000);
+    let pairs = random_pairs(scene, fit as usize, 23);
     let answers = |gpu: &Gpu, cssm: &CssmGpu| {
         QueryKernel::new(gpu, cssm)
             .run(gpu, cssm, &pairs, None)
