@@ -142,10 +142,7 @@ fn main() {
         return;
     }
     // One storage binding holds the pairs (the largest item per query); so many and no more.
-    let limits = gpu.device.limits();
-    let binding = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
+    let binding = cssm::runtime::load::storage_binding_bytes(&gpu.device.limits());
     let fits = |asked: usize, item: usize, what: &str| {
         let most = (binding / item as u64) as usize;
         if asked > most {

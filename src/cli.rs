@@ -1,7 +1,9 @@
 //! The command line's definitions (clap) and each command's arguments turned into a config of
 //! library types: what the flags mean and how they are spelled live here; every range is
 //! checked by the library that takes the value ([`bake::BakeOptions::check`], the runtime's
-//! method table and frame settings), and an error names the flag.
+//! method table and frame settings), and an error names the flag. The number parsers here
+//! (`finite_f32`, `bias`, `stops`, `fraction`) refuse what no library value can mean (NaN,
+//! infinities, a negative bias, a fraction beyond 1) as clap parses the flag.
 
 use std::path::PathBuf;
 
@@ -842,12 +844,14 @@ fn stops(s: &str) -> Result<f32, String> {
 
 /// A fraction from 0 to 1.
 fn fraction(s: &str) -> Result<f64, String> {
-    let v = f64::from(finite_f32(s)?);
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number"))?;
     if (0.0..=1.0).contains(&v) {
-        // The decimal the user wrote, not its f32 rounding.
-        Ok(s.trim().parse().unwrap_or(v))
+        Ok(v)
     } else {
-        Err(format!("{v} is not a fraction from 0 to 1"))
+        Err(format!("'{s}' is not a fraction from 0 to 1"))
     }
 }
 

@@ -35,7 +35,17 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let result = match cli::Cli::parse().command {
+    let command = cli::Cli::parse().command;
+    // Before any thread exists (the set_var in it needs that): every command that may open the
+    // GPU.
+    // The private directory, if one was made, is removed when `main` returns.
+    let _wsi_dir = matches!(
+        command,
+        Command::Render(_) | Command::Compare(_) | Command::Report(ReportCommand::Error(_))
+    )
+    .then(quiet_mesa_wsi)
+    .flatten();
+    let result = match command {
         Command::Bake(args) => args.config().and_then(bake_cmd::run_bake),
         Command::Inspect(args) => run_inspect(args),
         Command::Check(args) => check_cmd::run_check(args.config()),
@@ -46,21 +56,13 @@ fn main() -> ExitCode {
         Command::Report(ReportCommand::Error(args)) => args.config().and_then(error_cmd::run_error),
         Command::Compare(args) => args.config().and_then(compare_cmd::run_compare),
     };
-    let code = match result {
+    match result {
         Ok(code) => code,
         Err(message) => {
             eprintln!("error: {}", printable(&message));
             ExitCode::from(2)
         }
-    };
-    // The private XDG_RUNTIME_DIR of `quiet_mesa_wsi`, if one was made, goes with the process.
-    drop(
-        WSI_DIR
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
-            .take(),
-    );
-    code
+    }
 }
 
 type CliResult = Result<ExitCode, String>;
@@ -93,25 +95,22 @@ fn read_file(path: &Path) -> Result<CssmFile, String> {
     formats::cssm::read(path).map_err(|e| e.to_string())
 }
 
-/// The private directory [`quiet_mesa_wsi`] made, removed when `main` returns.
-static WSI_DIR: std::sync::Mutex<Option<tempfile::TempDir>> = std::sync::Mutex::new(None);
-
 /// Mesa's Vulkan drivers print "error: XDG_RUNTIME_DIR is invalid or not set" on machines
 /// without a desktop session although a headless render never needs it; point it at a private
-/// directory of ours (mode 0700, removed when the command ends) so users are not alarmed by an
-/// error that is not one.
-pub(crate) fn quiet_mesa_wsi() {
+/// directory of ours (mode 0700; the caller holds it until the command ends) so users are not
+/// alarmed by an error that is not one.
+fn quiet_mesa_wsi() -> Option<tempfile::TempDir> {
     if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
-        return;
+        return None;
     }
-    let Ok(dir) = tempfile::Builder::new().prefix("cssm-runtime-").tempdir() else {
-        return;
-    };
-    // SAFETY: called from the main thread before the GPU instance or any worker thread exists.
+    let dir = tempfile::Builder::new()
+        .prefix("cssm-runtime-")
+        .tempdir()
+        .ok()?;
+    // SAFETY: called by `main` before any other thread exists (no spinner, no rayon pool, no
+    // GPU instance yet).
     unsafe { std::env::set_var("XDG_RUNTIME_DIR", dir.path()) };
-    *WSI_DIR
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(dir);
+    Some(dir)
 }
 
 /// Fails early, before any work, when `output` cannot or must not be written: what is there is

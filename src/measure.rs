@@ -396,7 +396,6 @@ pub fn render_variant(
                 None
             };
             if gpu.is_none() {
-                crate::quiet_mesa_wsi();
                 *gpu = Some(runtime::Gpu::new_headless().map_err(|e| e.to_string())?);
             }
             let gpu = gpu.as_ref().expect("created above");

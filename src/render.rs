@@ -56,7 +56,6 @@ pub fn run_render(config: RenderConfig) -> CliResult {
     let image = match method.backend {
         Backend::Cpu(run) => render_on_cpu(&config, &scene, &settings, run)?,
         Backend::Gpu(_) => {
-            crate::quiet_mesa_wsi();
             let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
             let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
             // The device's limits before the .cssm is read or baked.

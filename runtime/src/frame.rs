@@ -287,9 +287,7 @@ impl FrameSettings {
                 "image size {w}x{h}: this GPU's textures are at most {side} pixels a side"
             )));
         }
-        let binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let binding = crate::load::storage_binding_bytes(limits);
         let bytes = u64::from(w) * u64::from(h) * FRAME_BYTES_PER_PIXEL;
         if bytes > binding {
             let pixels = binding / FRAME_BYTES_PER_PIXEL;

@@ -76,15 +76,20 @@ pub fn check_scene(path: &Path, file: &CssmFile, scene: &Scene) -> Result<(), Ru
     })
 }
 
+/// The most bytes one storage binding of a device of `limits` can hold: the binding limit,
+/// and no more than a buffer may be.
+pub fn storage_binding_bytes(limits: &wgpu::Limits) -> u64 {
+    limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size)
+}
+
 pub(crate) fn limit_check(
     device: &wgpu::Device,
     what: &'static str,
     bytes: u64,
 ) -> Result<(), RuntimeError> {
-    let limits = device.limits();
-    let limit = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
+    let limit = storage_binding_bytes(&device.limits());
     if bytes > limit {
         return Err(RuntimeError::TooLarge {
             what,
@@ -104,9 +109,7 @@ fn check_run_bindings(
     run_bindings: u32,
     run_bytes: u64,
 ) -> Result<(), RuntimeError> {
-    let binding = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
+    let binding = storage_binding_bytes(limits);
     if run_bindings > MAX_RUN_BINDINGS {
         return Err(RuntimeError::Unsupported(format!(
             "the runs need {run_bytes} bytes, more than {MAX_RUN_BINDINGS} storage bindings of \
@@ -313,9 +316,7 @@ impl CssmGpu {
             .flat_map(|c| [c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]])
             .collect();
         let limits = device.limits();
-        let binding_bytes = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let binding_bytes = storage_binding_bytes(&limits);
         let (runs_per_binding, run_bindings) =
             run_split(file.runs.runs.len() as u64, binding_bytes);
         check_run_bindings(&limits, run_bindings, 4 * file.runs.runs.len() as u64)?;
