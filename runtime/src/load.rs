@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use cssm_formats::{CssmFile, Scene, cssm, visibility::QueryOptions};
+use cssm_formats::{CssmFile, Scene, TextureSource, cssm, visibility::QueryOptions};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
@@ -444,55 +444,86 @@ impl AlbedoTexture {
     }
 }
 
-/// Reads every material's `map_Kd`, resampled to [`TEXTURE_SIZE`]; returns the textures and the
-/// texture index of each material (-1 for none).
+/// Reads every material's albedo texture (`map_Kd`, glTF `baseColorTexture`), resampled to
+/// [`TEXTURE_SIZE`]; returns the textures and the texture index of each material (-1 for none).
 pub fn load_albedo_textures(scene: &Scene) -> Result<(Vec<AlbedoTexture>, Vec<i32>), RuntimeError> {
     let mut textures = Vec::new();
-    let mut paths: Vec<&Path> = Vec::new();
+    let mut sources: Vec<&TextureSource> = Vec::new();
     let mut index = Vec::with_capacity(scene.materials.len());
     for m in &scene.materials {
-        let Some(path) = &m.map_kd else {
+        let Some(source) = &m.map_kd else {
             index.push(-1);
             continue;
         };
-        if let Some(i) = paths.iter().position(|p| *p == path.as_path()) {
+        if let Some(i) = sources.iter().position(|s| *s == source) {
             index.push(i as i32);
             continue;
         }
-        let texture_error = |reason: String| RuntimeError::Texture {
-            path: path.clone(),
-            reason,
-        };
-        // A regular file only (a FIFO would hang the decoder's open), decoded within image's
-        // default limits (512 MiB of allocation).
-        let (file, _) =
-            cssm_formats::files::open_regular(path).map_err(|e| texture_error(e.to_string()))?;
-        // The format from the extension, as `image::open` does; from the contents otherwise.
-        let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
-        match image::ImageFormat::from_path(path) {
-            Ok(format) => reader.set_format(format),
-            Err(_) => {
-                reader = reader
-                    .with_guessed_format()
-                    .map_err(|e| texture_error(e.to_string()))?;
-            }
-        }
-        let img = reader.decode().map_err(|e| texture_error(e.to_string()))?;
-        let rgb = image::imageops::resize(
-            &img.to_rgb8(),
-            TEXTURE_SIZE,
-            TEXTURE_SIZE,
-            image::imageops::FilterType::Triangle,
-        );
-        let texels = rgb
-            .pixels()
-            .map(|p| p.0.map(|c| srgb_to_linear(c as f32 / 255.0)))
-            .collect();
-        paths.push(path);
+        sources.push(source);
         index.push(textures.len() as i32);
-        textures.push(AlbedoTexture { texels });
+        textures.push(AlbedoTexture {
+            texels: decode_texture(source)?,
+        });
     }
     Ok((textures, index))
+}
+
+/// Decodes the image of `source` and resamples it to [`TEXTURE_SIZE`]² texels, linear RGB
+/// (the image is sRGB-encoded, as `map_Kd` files and glTF colour textures are).
+///
+/// # Errors
+/// [`RuntimeError::Texture`] naming the file (or the scene file that embeds the image) when it
+/// cannot be read or decoded.
+pub fn decode_texture(source: &TextureSource) -> Result<Vec<[f32; 3]>, RuntimeError> {
+    let texture_error = |reason: String| RuntimeError::Texture {
+        path: source.origin().to_path_buf(),
+        reason: match source {
+            TextureSource::File(_) => reason,
+            TextureSource::Embedded { label, .. } => format!("{label}: {reason}"),
+        },
+    };
+    // Decoded within image's default limits (512 MiB of allocation).
+    let img = match source {
+        TextureSource::File(path) => {
+            // A regular file only (a FIFO would hang the decoder's open).
+            let (file, _) = cssm_formats::files::open_regular(path)
+                .map_err(|e| texture_error(e.to_string()))?;
+            // The format from the extension, as `image::open` does; from the contents otherwise.
+            let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
+            match image::ImageFormat::from_path(path) {
+                Ok(format) => reader.set_format(format),
+                Err(_) => {
+                    reader = reader
+                        .with_guessed_format()
+                        .map_err(|e| texture_error(e.to_string()))?;
+                }
+            }
+            reader.decode()
+        }
+        TextureSource::Embedded { bytes, mime, .. } => {
+            let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]));
+            match mime.as_deref().and_then(image::ImageFormat::from_mime_type) {
+                Some(format) => reader.set_format(format),
+                None => {
+                    reader = reader
+                        .with_guessed_format()
+                        .map_err(|e| texture_error(e.to_string()))?;
+                }
+            }
+            reader.decode()
+        }
+    }
+    .map_err(|e| texture_error(e.to_string()))?;
+    let rgb = image::imageops::resize(
+        &img.to_rgb8(),
+        TEXTURE_SIZE,
+        TEXTURE_SIZE,
+        image::imageops::FilterType::Triangle,
+    );
+    Ok(rgb
+        .pixels()
+        .map(|p| p.0.map(|c| srgb_to_linear(c as f32 / 255.0)))
+        .collect())
 }
 
 /// The sRGB transfer function, inverted.

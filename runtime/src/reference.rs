@@ -574,11 +574,8 @@ mod tests {
             texcoords: Vec::new(),
             triangles,
             materials: vec![Material {
-                name: "grey".into(),
                 kd: [rho; 3],
-                ks: [0.0; 3],
-                ns: 1.0,
-                map_kd: None,
+                ..Material::grey("grey")
             }],
             camera: Camera {
                 position: Vec3::ZERO,

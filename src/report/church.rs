@@ -210,13 +210,7 @@ mod tests {
         grid(8, 5.0, &mut positions, &mut triangles);
         let mut triangle_materials = vec![0; first];
         triangle_materials.resize(triangles.len(), 1);
-        let material = |name: &str| Material {
-            name: name.into(),
-            kd: [0.5; 3],
-            ks: [0.0; 3],
-            ns: 1.0,
-            map_kd: None,
-        };
+        let material = Material::grey;
         let mut scene = Scene::from_triangles(positions, triangles);
         scene.name = "grids".into();
         scene.triangle_materials = triangle_materials;

@@ -22,7 +22,55 @@ pub use self::objects::{ObjectKind, STATIC_OBJECT_NAME, SceneObject};
 use self::toml::{SceneToml, mesh_path};
 use validate::{check_camera, check_light, object_transform};
 
-/// A material from the MTL (conventions in `docs/architecture.md`).
+/// Where a texture's image comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TextureSource {
+    /// An image file (OBJ's `map_Kd`, a glTF image with a file URI).
+    File(PathBuf),
+    /// An image held inside a scene file: a glTF image in a buffer view or a data URI.
+    Embedded {
+        /// The file that holds it (the `.glb` or `.gltf`).
+        origin: PathBuf,
+        /// Which image of that file, for messages ("image 3 `bricks`").
+        label: String,
+        /// The encoded image (PNG, JPEG, ...).
+        bytes: std::sync::Arc<[u8]>,
+        /// Its MIME type as the file declares it, if it does.
+        mime: Option<String>,
+    },
+}
+
+impl TextureSource {
+    /// The image file, for a [`TextureSource::File`].
+    pub fn file(&self) -> Option<&Path> {
+        match self {
+            TextureSource::File(p) => Some(p),
+            TextureSource::Embedded { .. } => None,
+        }
+    }
+
+    /// The file to name in a message about this texture: the image file, or the scene file
+    /// that embeds it.
+    pub fn origin(&self) -> &Path {
+        match self {
+            TextureSource::File(p) => p,
+            TextureSource::Embedded { origin, .. } => origin,
+        }
+    }
+}
+
+impl std::fmt::Display for TextureSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TextureSource::File(p) => write!(f, "{}", p.display()),
+            TextureSource::Embedded { origin, label, .. } => {
+                write!(f, "{} ({label})", origin.display())
+            }
+        }
+    }
+}
+
+/// A material from the MTL or the glTF file (conventions in `docs/architecture.md`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     /// Material name from the MTL (or "default").
@@ -33,8 +81,38 @@ pub struct Material {
     pub ks: [f32; 3],
     /// Phong exponent.
     pub ns: f32,
-    /// Albedo texture (`map_Kd`), resolved to a path, if any.
-    pub map_kd: Option<PathBuf>,
+    /// Albedo texture (`map_Kd`, glTF `baseColorTexture`), multiplying `kd`, if any.
+    pub map_kd: Option<TextureSource>,
+    /// Emitted radiance, linear RGB, the same on both sides (MTL `Ke`; glTF `emissiveFactor`
+    /// times `KHR_materials_emissive_strength`). Zero for a surface that only reflects.
+    pub emission: [f32; 3],
+    /// Emission texture (`map_Ke`, glTF `emissiveTexture`), multiplying `emission`, if any.
+    pub map_emission: Option<TextureSource>,
+}
+
+impl Material {
+    /// The grey Lambertian (Kd 0.5) that triangles without a material get, named `name`.
+    ///
+    /// ```
+    /// let m = cssm_formats::Material::grey("default");
+    /// assert_eq!((m.kd, m.ks, m.emission), ([0.5; 3], [0.0; 3], [0.0; 3]));
+    /// ```
+    pub fn grey(name: &str) -> Material {
+        Material {
+            name: name.into(),
+            kd: [0.5; 3],
+            ks: [0.0; 3],
+            ns: 1.0,
+            map_kd: None,
+            emission: [0.0; 3],
+            map_emission: None,
+        }
+    }
+
+    /// Whether the material emits light.
+    pub fn emits(&self) -> bool {
+        self.emission.iter().any(|&e| e > 0.0)
+    }
 }
 
 /// Look-at pinhole camera.
@@ -142,13 +220,7 @@ impl Scene {
             triangles,
             triangle_materials: vec![0; count],
             objects: vec![SceneObject::whole_static(count)],
-            materials: vec![Material {
-                name: "default".into(),
-                kd: [0.5; 3],
-                ks: [0.0; 3],
-                ns: 1.0,
-                map_kd: None,
-            }],
+            materials: vec![Material::grey("default")],
             camera: Camera {
                 position: Vec3::new(0.0, 0.0, 5.0),
                 target: Vec3::ZERO,
@@ -166,7 +238,8 @@ impl Scene {
     /// Every file the scene reads: [`Scene::files`] and the materials' textures. A command
     /// never writes onto one of them.
     pub fn input_files(&self) -> Vec<PathBuf> {
-        let textures = self.materials.iter().filter_map(|m| m.map_kd.clone());
+        let textures = self.materials.iter().flat_map(|m| [&m.map_kd, &m.map_emission]);
+        let textures = textures.filter_map(|t| t.as_ref()?.file().map(Path::to_path_buf));
         self.files.iter().cloned().chain(textures).collect()
     }
 
@@ -370,13 +443,7 @@ impl Builder {
 
     fn default_material(&mut self) -> u32 {
         *self.default_material.get_or_insert_with(|| {
-            self.materials.push(Material {
-                name: "default".into(),
-                kd: [0.5; 3],
-                ks: [0.0; 3],
-                ns: 1.0,
-                map_kd: None,
-            });
+            self.materials.push(Material::grey("default"));
             (self.materials.len() - 1) as u32
         })
     }
@@ -721,7 +788,7 @@ intensity  = [10.0, 10.0, 10.0]
         assert_eq!(m.kd, [0.8, 0.7, 0.6]);
         assert_eq!(m.ks, [0.1, 0.1, 0.1]);
         assert_eq!(m.ns, 20.0);
-        assert_eq!(m.map_kd.as_deref(), Some(s.dir.join("wood.png").as_path()));
+        assert_eq!(m.map_kd, Some(TextureSource::File(s.dir.join("wood.png"))));
         assert_eq!(s.camera.resolution, [320, 240]);
         assert_eq!(s.camera.fov_y_deg, 40.0);
         assert_eq!(s.lights.len(), 1);

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Vec3};
 
-use super::{Builder, Hasher, Material, SceneError, read_bounded};
+use super::{Builder, Hasher, Material, SceneError, TextureSource, read_bounded};
 
 /// An MTL library the OBJ asked for: its path and its bytes (or why they could not be read).
 type MtlRead = (PathBuf, Result<Vec<u8>, SceneError>);
@@ -57,6 +57,22 @@ fn first_failing_line(bytes: &[u8], options: &tobj::LoadOptions) -> Option<(usiz
 }
 
 impl Builder {
+    /// Warns when the texture file `texture` of material `material` (named in `path`) is
+    /// missing or not a regular file: the material then renders without it.
+    pub(super) fn warn_about_texture(&mut self, path: &Path, material: &str, texture: &Path) {
+        let problem = match std::fs::metadata(texture) {
+            Ok(meta) => crate::files::kind_of(&meta).map(|kind| format!("is {kind}")),
+            Err(_) => Some("not found".to_string()),
+        };
+        if let Some(problem) = problem {
+            self.warnings.push(format!(
+                "{}: material `{material}`: texture {} {problem}",
+                path.display(),
+                texture.display()
+            ));
+        }
+    }
+
     /// Loads one OBJ file (with its MTL libraries), transforms it by `transform` and appends it.
     pub(super) fn add_obj(
         &mut self,
@@ -157,41 +173,37 @@ impl Builder {
             let kd = m.diffuse.unwrap_or([0.5; 3]);
             let ks = m.specular.unwrap_or([0.0; 3]);
             let ns = m.shininess.unwrap_or(1.0);
+            let emission = m.emissive.unwrap_or([0.0; 3]);
             if !kd
                 .iter()
                 .chain(&ks)
                 .chain([&ns])
+                .chain(&emission)
                 .all(|v| v.is_finite() && *v >= 0.0)
             {
                 return Err(SceneError::Mtl {
                     path: path.to_path_buf(),
                     message: format!(
-                        "material `{}` has a negative or non-finite Kd, Ks or Ns",
+                        "material `{}` has a negative or non-finite Kd, Ks, Ns or Ke",
                         m.name
                     ),
                 });
             }
-            let map_kd = m.diffuse_texture.as_ref().map(|t| obj_dir.join(t));
-            if let Some(t) = &map_kd {
-                let problem = match std::fs::metadata(t) {
-                    Ok(meta) => crate::files::kind_of(&meta).map(|kind| format!("is {kind}")),
-                    Err(_) => Some("not found".to_string()),
-                };
-                if let Some(problem) = problem {
-                    self.warnings.push(format!(
-                        "{}: material `{}`: texture {} {problem}",
-                        path.display(),
-                        m.name,
-                        t.display()
-                    ));
-                }
-            }
+            let mut texture = |name: Option<&String>| {
+                let t = obj_dir.join(name?);
+                self.warn_about_texture(path, &m.name, &t);
+                Some(TextureSource::File(t))
+            };
+            let map_kd = texture(m.diffuse_texture.as_ref());
+            let map_emission = texture(m.unknown_param.get("map_Ke"));
             self.materials.push(Material {
                 name: m.name.clone(),
                 kd,
                 ks,
                 ns,
                 map_kd,
+                emission,
+                map_emission,
             });
         }
 
