@@ -59,7 +59,7 @@ pub fn run_bake(config: BakeConfig) -> CliResult {
     // size) or the atlas refuses: the error names the scene directory, and a flag where one is
     // to blame.
     let baked = bake_with_progress(&scene, &config.options)
-        .map_err(|e| format!("{}: {}", scene.dir.display(), cssm::flag_error(&e)))?;
+        .map_err(|e| format!("{}: {}", scene.path.display(), cssm::flag_error(&e)))?;
     let file_bytes = formats::cssm::write_atomic_with(&output, &baked.file, config.file_coding)
         .map_err(|e| e.to_string())?;
     let summary = BakeSummary::new(

@@ -14,9 +14,9 @@ pub fn run_check(config: CheckConfig) -> CliResult {
         .scene
         .clone()
         .unwrap_or_else(|| PathBuf::from(&file.scene.dir));
-    if !dir.is_dir() {
+    if !dir.exists() {
         return Err(format!(
-            "{}: the scene it was baked from, {}, is not there; pass --scene DIR",
+            "{}: the scene it was baked from, {}, is not there; pass --scene PATH",
             config.file.display(),
             dir.display()
         ));

@@ -39,9 +39,11 @@ pub struct Cli {
 
 #[derive(Subcommand)]
 pub enum Command {
-    /// Bake a scene directory into a .cssm file.
+    /// Bake a scene (a directory, or one .obj, .gltf or .glb file) into a .cssm file.
     #[command(after_help = "Examples:\n  cssm bake -o cornell.cssm\n  \
-        cssm bake ../shared/scenes/bunny -o bunny.cssm --atlas 128 --cube 32 --traversal zigzag")]
+        cssm bake ../shared/scenes/bunny -o bunny.cssm --atlas 128 --cube 32 --traversal zigzag\n  \
+        cssm bake ../shared/scenes/cornell-original/CornellBox-Original.obj -o mcguire.cssm\n  \
+        cssm bake sponza.glb -o sponza.cssm")]
     Bake(BakeArgs),
     /// Print the header and sizes of a .cssm file.
     #[command(
@@ -154,8 +156,8 @@ pub struct HeadsArgs {
 
 #[derive(clap::Args)]
 pub struct BakeArgs {
-    /// Scene directory (scene.toml + OBJ/MTL, or a directory of OBJ files). Default: the
-    /// built-in Cornell box.
+    /// The scene: a directory (scene.toml with OBJ/MTL or glTF meshes, or a directory of .obj,
+    /// .gltf and .glb files), or one .obj, .gltf or .glb file. Default: the built-in Cornell box.
     scene: Option<PathBuf>,
     /// Output file. Default: <scene name>.cssm in the current directory.
     #[arg(short, long)]
@@ -211,7 +213,7 @@ pub struct BakeArgs {
 
 /// `cssm bake`, checked.
 pub struct BakeConfig {
-    /// Scene directory; `None`: the built-in Cornell box.
+    /// Scene directory or mesh file; `None`: the built-in Cornell box.
     pub scene: Option<PathBuf>,
     /// Output file; `None`: `<scene name>.cssm`.
     pub output: Option<PathBuf>,
@@ -261,7 +263,7 @@ pub struct InspectArgs {
 pub struct CheckArgs {
     /// The .cssm file.
     file: PathBuf,
-    /// Scene directory to check against. Default: the directory recorded in the file.
+    /// Scene (directory or mesh file) to check against. Default: the one recorded in the file.
     #[arg(long)]
     scene: Option<PathBuf>,
     /// Number of random surface point pairs.
@@ -295,7 +297,7 @@ pub struct CheckArgs {
 pub struct CheckConfig {
     /// The .cssm file.
     pub file: PathBuf,
-    /// Scene directory; `None`: the one recorded in the file.
+    /// Scene directory or mesh file; `None`: the one recorded in the file.
     pub scene: Option<PathBuf>,
     /// Random surface point pairs.
     pub pairs: u64,
@@ -345,9 +347,10 @@ fn error_after_help() -> String {
 
 #[derive(clap::Args)]
 pub struct ErrorArgs {
-    /// Scene directory; repeatable. Default: the built-in Cornell box and the Cornell box with a
-    /// glossy floor (scenes/cornell-box, scenes/cornell-glossy).
-    #[arg(long = "scene", value_name = "DIR")]
+    /// Scene directory or mesh file (.obj, .gltf, .glb); repeatable. Default: the built-in
+    /// Cornell box and the Cornell box with a glossy floor (scenes/cornell-box,
+    /// scenes/cornell-glossy).
+    #[arg(long = "scene", value_name = "SCENE")]
     scenes: Vec<PathBuf>,
     /// A method variant to measure, NAME or NAME:OPTION=VALUE,OPTION=VALUE (for example
     /// `lightcuts:bounces=2,jitter=true`; the list below); repeatable, at least one.
@@ -407,7 +410,7 @@ pub struct Variant {
 
 /// `cssm report error`, checked.
 pub struct ErrorConfig {
-    /// Scene directories; empty: the built-in scenes.
+    /// Scene directories or mesh files; empty: the built-in scenes.
     pub scenes: Vec<PathBuf>,
     /// The variants, in the order given.
     pub variants: Vec<Variant>,
@@ -550,8 +553,8 @@ fn compare_after_help() -> String {
 
 #[derive(clap::Args)]
 pub struct CompareArgs {
-    /// Scene directories. Default: the built-in Cornell box and the Cornell box with a glossy
-    /// floor (scenes/cornell-box, scenes/cornell-glossy).
+    /// Scene directories or mesh files (.obj, .gltf, .glb). Default: the built-in Cornell box and
+    /// the Cornell box with a glossy floor (scenes/cornell-box, scenes/cornell-glossy).
     #[arg(value_name = "SCENE")]
     scenes: Vec<PathBuf>,
     /// Methods to compare, comma-separated, each NAME or NAME:OPTION=VALUE,OPTION=VALUE (a part
@@ -599,7 +602,7 @@ pub struct CompareArgs {
 
 /// `cssm compare`, checked.
 pub struct CompareConfig {
-    /// Scene directories; empty: the built-in scenes.
+    /// Scene directories or mesh files; empty: the built-in scenes.
     pub scenes: Vec<PathBuf>,
     /// The methods, in the order given.
     pub variants: Vec<Variant>,
@@ -755,7 +758,7 @@ fn render_after_help() -> String {
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// Scene directory. Default: the built-in Cornell box.
+    /// Scene directory or mesh file (.obj, .gltf, .glb). Default: the built-in Cornell box.
     scene: Option<PathBuf>,
     /// Rendering method (see the list below).
     #[arg(long, default_value = "direct", value_parser = parse_method)]
@@ -874,7 +877,7 @@ const MAX_FRAMES: u32 = 4096;
 /// shadow-map resolution are checked by the runtime's frame settings once the scene (its
 /// camera) is loaded.
 pub struct RenderConfig {
-    /// Scene directory; `None`: the built-in Cornell box.
+    /// Scene directory or mesh file; `None`: the built-in Cornell box.
     pub scene: Option<PathBuf>,
     /// The method.
     pub method: &'static MethodEntry,

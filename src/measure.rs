@@ -54,8 +54,8 @@ pub fn load_scenes(dirs: &[PathBuf]) -> Result<Vec<Scene>, String> {
         if let Some(other) = scenes[..i].iter().find(|o| o.name == s.name) {
             return Err(format!(
                 "{} and {} are both named '{}': the report's file names would clash",
-                other.dir.display(),
-                s.dir.display(),
+                other.path.display(),
+                s.path.display(),
                 s.name
             ));
         }
@@ -183,7 +183,7 @@ pub fn reference_image(
         }
     }
     let start = Instant::now();
-    let fail = |e: runtime::RuntimeError| format!("{}: {e}", scene.dir.display());
+    let fail = |e: runtime::RuntimeError| format!("{}: {e}", scene.path.display());
     runtime::frame::check_size(w, h).map_err(fail)?;
     let (materials, textures) = runtime::load::cpu_materials(scene).map_err(fail)?;
     let bvh = raycast::SceneBvh::new(scene);
@@ -353,7 +353,7 @@ pub fn render_variant(
 ) -> Result<Rendered, String> {
     let (w, h) = (spec.frame.width, spec.frame.height);
     let method = variant.method;
-    let fail = |e: runtime::RuntimeError| format!("{}: {e}", scene.dir.display());
+    let fail = |e: runtime::RuntimeError| format!("{}: {e}", scene.path.display());
     match method.backend {
         Backend::Cpu(run) => {
             let start = Instant::now();
@@ -388,7 +388,7 @@ pub fn render_variant(
                     bake_with_progress(scene, spec.bake)
                         .map(|b| b.file)
                         .map_err(|e| {
-                            format!("{}: bake: {}", scene.dir.display(), cssm::flag_error(&e))
+                            format!("{}: bake: {}", scene.path.display(), cssm::flag_error(&e))
                         })
                 });
                 Some(baked.as_ref().map_err(Clone::clone)?)

@@ -171,7 +171,7 @@ fn render_on_cpu(
         options: resolved,
         progress: &|done, _| bar.set_position(done / w.max(1) as u64),
     })
-    .map_err(|e| format!("{}: {e}", scene.dir.display()))?;
+    .map_err(|e| format!("{}: {e}", scene.path.display()))?;
     bar.finish_and_clear();
     let options: Vec<String> = resolved.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!(
@@ -204,8 +204,8 @@ fn render_cssm(config: &RenderConfig, scene: &Scene) -> Result<CssmFile, String>
         cube_resolution: 32,
         ..Default::default()
     };
-    let baked =
-        bake_with_progress(scene, &options).map_err(|e| format!("{}: {e}", scene.dir.display()))?;
+    let baked = bake_with_progress(scene, &options)
+        .map_err(|e| format!("{}: {e}", scene.path.display()))?;
     Ok(baked.file)
 }
 

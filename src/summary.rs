@@ -218,7 +218,7 @@ pub struct InspectSummary {
     pub format_version: u32,
     /// Scene name.
     pub scene: String,
-    /// Scene directory recorded in the file.
+    /// Scene path (directory or mesh file) recorded in the file.
     pub scene_dir: String,
     /// Content hash of the scene when baked, hexadecimal.
     pub scene_hash: String,

@@ -317,6 +317,112 @@ fn an_obj_without_mtl_bakes_with_a_warning() {
     assert!(out.exists());
 }
 
+/// Writes `scene`'s triangles as a glTF file `name`.gltf in `dir` with its buffer in
+/// `name`.bin: one mesh node, no material, no camera, no light.
+fn write_gltf(scene: &cssm::formats::Scene, dir: &Path, name: &str) -> PathBuf {
+    let mut bin = Vec::new();
+    for p in &scene.positions {
+        for c in p.to_array() {
+            bin.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let positions_bytes = bin.len();
+    for i in scene.triangles.iter().flatten() {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    let (lo, hi) = scene.bounds();
+    std::fs::write(dir.join(format!("{name}.bin")), &bin).unwrap();
+    let json = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
+  "buffers": [{{"uri": "{name}.bin", "byteLength": {}}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": {positions_bytes}}},
+    {{"buffer": 0, "byteOffset": {positions_bytes}, "byteLength": {}}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": {}, "type": "VEC3",
+      "min": [{}, {}, {}], "max": [{}, {}, {}]}},
+    {{"bufferView": 1, "componentType": 5125, "count": {}, "type": "SCALAR"}}]}}"#,
+        bin.len(),
+        bin.len() - positions_bytes,
+        scene.positions.len(),
+        lo.x,
+        lo.y,
+        lo.z,
+        hi.x,
+        hi.y,
+        hi.z,
+        3 * scene.triangles.len()
+    );
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+/// A glTF file is a scene wherever a directory is: the Cornell box written as glTF bakes the
+/// same visibility as its OBJ (the bake sees only the triangles, which are the same in the same
+/// order, and the materials, which only label the texels), `cssm check` finds its scene from the file, and it renders with the defaults a file
+/// without camera or light gets.
+#[test]
+fn a_gltf_file_bakes_checks_and_renders_like_its_obj() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj_scene = cssm::formats::Scene::load(&cornell()).unwrap();
+    let gltf = write_gltf(&obj_scene, dir.path(), "cornell");
+    let (from_obj, from_gltf) = (dir.path().join("obj.cssm"), dir.path().join("gltf.cssm"));
+    let o = bake_small(&cornell(), &from_obj);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = bake_small(&gltf, &from_gltf);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (
+        cssm::formats::cssm::read(&from_obj).unwrap(),
+        cssm::formats::cssm::read(&from_gltf).unwrap(),
+    );
+    assert_eq!(
+        b.scene.dir,
+        std::fs::canonicalize(&gltf).unwrap().to_str().unwrap()
+    );
+    assert_eq!(b.scene.name, "cornell");
+    assert_eq!(a.scene.triangle_count, b.scene.triangle_count);
+    // The same texels but for their material (the glTF has none: every triangle is grey).
+    let without_material = |f: &cssm::formats::CssmFile| {
+        let texels = f
+            .texels
+            .iter()
+            .map(|t| cssm::formats::Texel { material: 0, ..*t });
+        texels.collect::<Vec<_>>()
+    };
+    assert!(
+        without_material(&a) == without_material(&b),
+        "the texels differ"
+    );
+    assert!(a.triangle_uvs == b.triangle_uvs, "the atlases differ");
+    assert!(a.sequence == b.sequence, "the traversals differ");
+    assert!(a.runs == b.runs, "the visibility differs");
+
+    let o = cssm(&["check", from_gltf.to_str().unwrap(), "--pairs", "2000"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let png = dir.path().join("gltf.png");
+    let o = cssm(&[
+        "render",
+        gltf.to_str().unwrap(),
+        "--size",
+        "64x48",
+        "--shadow-resolution",
+        "256",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("default camera") && e.contains("default light"),
+        "{e}"
+    );
+    let image = image::open(&png).expect("PNG readable").to_rgba8();
+    let max = image.pixels().map(|p| p.0[0].max(p.0[1]).max(p.0[2])).max();
+    assert!(max > Some(50), "{max:?}");
+}
+
 #[test]
 fn help_explains_every_command() {
     // Every command is listed with a line that says what it does.

@@ -216,6 +216,11 @@ fn obj_mtl() {
     replay("obj_mtl");
 }
 
+#[test]
+fn gltf() {
+    replay("gltf");
+}
+
 /// Every folder of `tests/fuzzed/` is a target's (a misspelt one would never be replayed).
 #[test]
 fn fuzzed_folders_are_targets() {

@@ -410,7 +410,7 @@ pub fn bake(
             traversal: options.traversal,
         },
         scene: SceneRef {
-            dir: scene.dir.to_string_lossy().into_owned(),
+            dir: scene.path.to_string_lossy().into_owned(),
             name: scene.name.clone(),
             content_hash: scene.content_hash,
             triangle_count: scene.triangles.len() as u32,

@@ -32,12 +32,13 @@ use cssm_formats::{BakeParams, Hierarchy, RunData, Scene, SceneRef, Texel, Trave
 
 /// The targets, in the order the README lists them: the folders of `fuzz/corpus/` and
 /// `tests/fuzzed/`, the binaries of `fuzz/fuzz_targets/`.
-pub const TARGETS: [&str; 5] = [
+pub const TARGETS: [&str; 6] = [
     "cssm_header",
     "cssm_file",
     "cssm_payload",
     "scene_toml",
     "obj_mtl",
+    "gltf",
 ];
 
 /// What a body returns: `Err` holds the message of a refused input.
@@ -51,6 +52,7 @@ pub fn body(target: &str) -> Option<fn(&[u8]) -> Outcome> {
         "cssm_payload" => cssm_payload,
         "scene_toml" => scene_toml,
         "obj_mtl" => obj_mtl,
+        "gltf" => gltf,
         _ => return None,
     })
 }
@@ -144,6 +146,89 @@ pub fn obj_mtl(data: &[u8]) -> Outcome {
     let scene = Scene::load(dir.path()).map_err(|e| e.to_string())?;
     check_scene(&scene);
     Ok(())
+}
+
+/// `gltf`: the input written as `scene.glb` (the parser tells a GLB from a JSON glTF by its
+/// first bytes, so either form works under that name), then [`Scene::load`] of that file. A
+/// buffer or image URI that names a file finds the scratch directory's `scene.bin` (a copy of
+/// the seed's buffer) or nothing.
+pub fn gltf(data: &[u8]) -> Outcome {
+    static DIR: ScratchDir = ScratchDir::new("gltf", &[("scene.bin", &TRIANGLE_BIN)]);
+    let dir = DIR.lock();
+    let path = dir.path().join("scene.glb");
+    std::fs::write(&path, data).expect("write the scratch scene.glb");
+    let scene = Scene::load(&path).map_err(|e| e.to_string())?;
+    check_scene(&scene);
+    Ok(())
+}
+
+/// The buffer of the `gltf` seeds: one triangle's three positions (f32) and indices (u32),
+/// little-endian.
+const TRIANGLE_BIN: [u8; 48] = {
+    let floats: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let mut out = [0u8; 48];
+    let mut i = 0;
+    while i < 9 {
+        let b = floats[i].to_le_bytes();
+        let mut j = 0;
+        while j < 4 {
+            out[4 * i + j] = b[j];
+            j += 1;
+        }
+        i += 1;
+    }
+    let mut k = 0;
+    while k < 3 {
+        out[36 + 4 * k] = k as u8;
+        k += 1;
+    }
+    out
+};
+
+/// The glTF JSON of the `gltf` seeds over [`TRIANGLE_BIN`] as buffer `uri` (`None`: a GLB's
+/// binary chunk): the triangle in a node moved by (1, 2, 3), a material, a camera, a spot light.
+fn triangle_gltf(uri: Option<&str>) -> String {
+    let uri = uri.map_or(String::new(), |u| format!(r#""uri": "{u}", "#));
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0, 1, 2]}}],
+"extensionsUsed": ["KHR_lights_punctual"],
+"extensions": {{"KHR_lights_punctual": {{"lights": [{{"type": "spot", "intensity": 5,
+  "spot": {{"innerConeAngle": 0.2, "outerConeAngle": 0.6}}}}]}}}},
+"nodes": [{{"mesh": 0, "translation": [1, 2, 3], "children": []}},
+  {{"camera": 0, "translation": [0.3, 0.3, 5]}},
+  {{"rotation": [-0.7071068, 0, 0, 0.7071068], "translation": [0.3, 3, 0.3],
+    "extensions": {{"KHR_lights_punctual": {{"light": 0}}}}}}],
+"cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.8, "znear": 0.01}}}}],
+"meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "material": 0}}]}}],
+"materials": [{{"emissiveFactor": [0.5, 0.5, 0.5],
+  "pbrMetallicRoughness": {{"baseColorFactor": [0.7, 0.5, 0.3, 1], "roughnessFactor": 0.4}}}}],
+"buffers": [{{{uri}"byteLength": 48}}],
+"bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 12}}],
+"accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+  "min": [0, 0, 0], "max": [1, 1, 0]}},
+  {{"bufferView": 1, "componentType": 5125, "count": 3, "type": "SCALAR"}}]}}"#
+    )
+}
+
+/// A GLB container (glTF 2.0 §4.4) of `json` and the binary chunk `bin`.
+pub fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
+    let padded = |bytes: &[u8], with: u8| {
+        let mut b = bytes.to_vec();
+        b.resize(bytes.len().div_ceil(4) * 4, with);
+        b
+    };
+    let (json, bin) = (padded(json.as_bytes(), b' '), padded(bin, 0));
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    for word in [2, total as u32, json.len() as u32] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
 }
 
 /// The OBJ and (after the first `0xFF`) MTL parts of an `obj_mtl` input.
@@ -625,6 +710,35 @@ pub fn seeds(target: &str) -> Vec<(String, Vec<u8>)> {
                 join_obj_mtl(quad.as_bytes(), Some(b"newmtl wood\nKd 1 2\n")),
             );
         }
+        "gltf" => {
+            add("ok-triangle-glb", glb(&triangle_gltf(None), &TRIANGLE_BIN));
+            add(
+                "ok-triangle-file-buffer",
+                triangle_gltf(Some("scene.bin")).into_bytes(),
+            );
+            // The buffer as a data URI without base64: every byte percent-encoded.
+            let percent: String = TRIANGLE_BIN.iter().map(|b| format!("%{b:02X}")).collect();
+            let uri = format!("data:application/octet-stream,{percent}");
+            add(
+                "ok-triangle-data-uri",
+                triangle_gltf(Some(&uri)).into_bytes(),
+            );
+            add(
+                "missing-buffer",
+                triangle_gltf(Some("nope.bin")).into_bytes(),
+            );
+            add(
+                "view-past-buffer",
+                glb(
+                    &triangle_gltf(None).replace(
+                        r#""byteOffset": 36, "byteLength": 12"#,
+                        r#""byteOffset": 36, "byteLength": 4000"#,
+                    ),
+                    &TRIANGLE_BIN,
+                ),
+            );
+            add("not-gltf", b"glTF\x02\x00\x00\x00".to_vec());
+        }
         _ => {}
     }
     out
@@ -674,7 +788,7 @@ pub fn tiny_file(scene: &Scene) -> CssmFile {
             traversal: Traversal::Greedy,
         },
         scene: SceneRef {
-            dir: scene.dir.to_string_lossy().into_owned(),
+            dir: scene.path.to_string_lossy().into_owned(),
             name: scene.name.clone(),
             content_hash: scene.content_hash,
             triangle_count: scene.triangles.len() as u32,

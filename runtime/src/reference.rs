@@ -567,7 +567,7 @@ mod tests {
         };
         Scene {
             name: "lit-sphere".into(),
-            dir: std::path::PathBuf::from("/nonexistent"),
+            path: std::path::PathBuf::from("/nonexistent"),
             triangle_materials: vec![0; triangles.len()],
             objects: vec![cssm_formats::SceneObject::whole_static(triangles.len())],
             positions,

@@ -77,7 +77,8 @@ pub struct BakeParams {
 /// and refuse a scene that has changed since.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SceneRef {
-    /// Absolute path of the scene directory at bake time.
+    /// Absolute path the scene was loaded from at bake time: its directory, or its mesh file
+    /// (`Scene::path`). The field keeps its name, which the format's readers know.
     pub dir: String,
     /// Scene name (from `scene.toml`, or the directory name).
     pub name: String,

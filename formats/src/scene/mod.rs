@@ -1,13 +1,14 @@
-//! Scene description: a directory with `scene.toml` and OBJ/MTL meshes, or a plain directory of
-//! OBJ files (see `docs/scene-format.md`).
+//! Scene description: a directory with `scene.toml` and OBJ/MTL or glTF meshes, a plain
+//! directory of mesh files, or one mesh file (see `docs/scene-format.md`).
 //!
-//! [`Scene::load`] reads either form, triangulates, merges everything into one indexed
+//! [`Scene::load`] reads any of these, triangulates, merges everything into one indexed
 //! world-space mesh, validates it, and hashes every file it read ([`Scene::content_hash`]).
 //! The merged mesh remembers where it came from: [`Scene::objects`] lists the static part and
 //! each rigid `[[objects]]` entry as a [`SceneObject`], a contiguous range of the merged
 //! triangles with its object-to-world transform (the bake still treats all of it as static).
 
 mod default_view;
+mod gltf;
 mod obj;
 mod objects;
 mod toml;
@@ -16,7 +17,7 @@ mod validate;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Mat3, Vec3};
 
 pub use self::objects::{ObjectKind, STATIC_OBJECT_NAME, SceneObject};
 use self::toml::{SceneToml, mesh_path};
@@ -149,8 +150,9 @@ pub struct SpotLight {
 pub struct Scene {
     /// Scene name.
     pub name: String,
-    /// Absolute (canonical) path of the scene directory.
-    pub dir: PathBuf,
+    /// Absolute (canonical) path the scene was loaded from: its directory, or its mesh file when
+    /// the scene is one `.obj`, `.gltf` or `.glb` file.
+    pub path: PathBuf,
     /// Vertex positions, world space.
     pub positions: Vec<Vec3>,
     /// Optional per-vertex texture coordinates (same length as `positions`, or empty).
@@ -174,7 +176,8 @@ pub struct Scene {
     pub lights: Vec<SpotLight>,
     /// BLAKE3 over every file the scene was built from, in a fixed order.
     pub content_hash: [u8; 32],
-    /// Every file the scene was read from (`scene.toml`, OBJ, MTL), in read order; with the
+    /// Every file the scene was read from (`scene.toml`, OBJ, MTL, glTF and its buffers), in
+    /// read order; with the
     /// materials' textures these are [`Scene::input_files`].
     pub files: Vec<PathBuf>,
     /// Non-fatal things the user should hear about (defaults chosen, missing MTL, ...).
@@ -214,7 +217,7 @@ impl Scene {
         let count = triangles.len();
         Scene {
             name: "test".into(),
-            dir: PathBuf::from("/nonexistent"),
+            path: PathBuf::from("/nonexistent"),
             positions,
             texcoords: Vec::new(),
             triangles,
@@ -238,7 +241,10 @@ impl Scene {
     /// Every file the scene reads: [`Scene::files`] and the materials' textures. A command
     /// never writes onto one of them.
     pub fn input_files(&self) -> Vec<PathBuf> {
-        let textures = self.materials.iter().flat_map(|m| [&m.map_kd, &m.map_emission]);
+        let textures = self
+            .materials
+            .iter()
+            .flat_map(|m| [&m.map_kd, &m.map_emission]);
         let textures = textures.filter_map(|t| t.as_ref()?.file().map(Path::to_path_buf));
         self.files.iter().cloned().chain(textures).collect()
     }
@@ -270,14 +276,15 @@ pub enum SceneError {
         /// The directory as given.
         dir: PathBuf,
     },
-    /// The scene path exists but is not a directory.
-    #[error("{} is not a directory (a scene is a directory with scene.toml and/or .obj files)", .path.display())]
+    /// The scene path exists but is neither a directory nor a mesh file.
+    #[error("{} is neither a directory nor a mesh file (a scene is a directory with scene.toml \
+             and/or mesh files, or one .obj, .gltf or .glb file)", .path.display())]
     NotADirectory {
         /// The path as given.
         path: PathBuf,
     },
-    /// The directory has neither `scene.toml` nor any `.obj` file.
-    #[error("{} contains no .obj file (and no scene.toml)", .dir.display())]
+    /// The directory has neither `scene.toml` nor any mesh file.
+    #[error("{} contains no .obj, .gltf or .glb file (and no scene.toml)", .dir.display())]
     NoObj {
         /// The scene directory.
         dir: PathBuf,
@@ -328,6 +335,15 @@ pub enum SceneError {
     #[error("{}: material library error: {message}", .path.display())]
     Mtl {
         /// The MTL file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The glTF file is malformed, refers to data it does not hold, or needs an extension the
+    /// loader does not support.
+    #[error("{}: glTF: {message}", .path.display())]
+    Gltf {
+        /// The `.gltf` or `.glb` file (or the buffer file it names).
         path: PathBuf,
         /// What is wrong.
         message: String,
@@ -471,6 +487,122 @@ impl Builder {
     }
 }
 
+/// Counts over one mesh file's triangles as [`Builder::append_part`] takes them, for the file's
+/// errors and warnings ([`Builder::finish_file`]).
+#[derive(Default)]
+struct FileCounts {
+    /// Triangles seen so far, kept or not: the next triangle's number in the file's messages.
+    seen: usize,
+    /// Triangles dropped for zero area.
+    degenerate: usize,
+}
+
+impl Builder {
+    /// Appends one part of a mesh file: the triangles `triangles` over the part's own vertices
+    /// `positions` (world space; a vertex no kept triangle uses may be anything) with optional
+    /// per-vertex `texcoords`, all of material `material` ([`u32::MAX`]: the file's default,
+    /// resolved by the caller). Triangles of zero area are dropped and counted; a triangle with
+    /// an index past `positions` or a non-finite corner is an error naming its number in the
+    /// file. Only the vertices kept triangles use are appended.
+    fn append_part(
+        &mut self,
+        path: &Path,
+        positions: &[Vec3],
+        texcoords: Option<&[[f32; 2]]>,
+        triangles: impl IntoIterator<Item = [u32; 3]>,
+        material: u32,
+        counts: &mut FileCounts,
+    ) -> Result<(), SceneError> {
+        let n = positions.len();
+        let texcoords = texcoords.filter(|t| t.len() == n);
+        let mut remap = vec![u32::MAX; n];
+        let mut any = false;
+        for tri in triangles {
+            let t = counts.seen;
+            counts.seen += 1;
+            any = true;
+            let mut corners = [Vec3::ZERO; 3];
+            for (c, &i) in corners.iter_mut().zip(&tri) {
+                let Some(&p) = positions.get(i as usize) else {
+                    return Err(SceneError::IndexOutOfRange {
+                        path: path.to_path_buf(),
+                        triangle: t,
+                        index: i,
+                        vertex_count: n,
+                    });
+                };
+                if !p.is_finite() {
+                    return Err(SceneError::NonFiniteVertex {
+                        path: path.to_path_buf(),
+                        triangle: t,
+                    });
+                }
+                *c = p;
+            }
+            // Area test in f64, so that tiny but valid triangles are not lost to underflow.
+            let [a, b, c] = corners.map(|v| v.as_dvec3());
+            let cross = (b - a).cross(c - a).length_squared();
+            if cross.is_nan() || cross <= 0.0 {
+                counts.degenerate += 1;
+                continue;
+            }
+            let mut out = [0u32; 3];
+            for (o, &i) in out.iter_mut().zip(&tri) {
+                let i = i as usize;
+                if remap[i] == u32::MAX {
+                    let global = self.positions.len();
+                    if global >= u32::MAX as usize {
+                        return Err(SceneError::Invalid {
+                            path: path.to_path_buf(),
+                            message: "scene has more than 2^32 - 1 vertices".into(),
+                        });
+                    }
+                    remap[i] = global as u32;
+                    self.positions.push(positions[i]);
+                    self.texcoords.push(texcoords.map_or([0.0; 2], |uv| uv[i]));
+                }
+                *o = remap[i];
+            }
+            self.triangles.push(out);
+            self.triangle_materials.push(material);
+        }
+        if any && texcoords.is_none() {
+            self.all_have_texcoords = false;
+        }
+        Ok(())
+    }
+
+    /// Ends a mesh file whose triangles began at `first_triangle`: an error if it had none or
+    /// only degenerate ones, a warning if some were dropped.
+    fn finish_file(
+        &mut self,
+        path: &Path,
+        counts: &FileCounts,
+        first_triangle: usize,
+    ) -> Result<(), SceneError> {
+        if counts.seen == 0 {
+            return Err(SceneError::NoTriangles {
+                path: path.to_path_buf(),
+            });
+        }
+        if self.triangles.len() == first_triangle {
+            return Err(SceneError::AllDegenerate {
+                path: path.to_path_buf(),
+                count: counts.seen,
+            });
+        }
+        if counts.degenerate > 0 {
+            self.warnings.push(format!(
+                "{}: dropped {} degenerate (zero-area) triangle(s) of {}",
+                path.display(),
+                counts.degenerate,
+                counts.seen
+            ));
+        }
+        Ok(())
+    }
+}
+
 fn fmt3(v: Vec3) -> String {
     format!("[{}, {}, {}]", v.x, v.y, v.z)
 }
@@ -482,46 +614,152 @@ fn bounds_of(positions: &[Vec3]) -> (Vec3, Vec3) {
     )
 }
 
+/// The mesh formats a scene reads, by file extension.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum MeshFormat {
+    Obj,
+    Gltf,
+}
+
+impl MeshFormat {
+    /// The format of `path` by its extension (`.obj`; `.gltf` or `.glb`), any case.
+    fn of(path: &Path) -> Option<MeshFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "obj" => Some(MeshFormat::Obj),
+            "gltf" | "glb" => Some(MeshFormat::Gltf),
+            _ => None,
+        }
+    }
+}
+
+impl Builder {
+    /// Loads the static part from `files`: the OBJs first, merged into one static object, then
+    /// each glTF file with one static object per mesh node. The glTF files' first camera and
+    /// their lights go into `extras`.
+    fn add_static(
+        &mut self,
+        files: &[PathBuf],
+        hasher: &mut Hasher,
+        extras: &mut gltf::GltfExtras,
+    ) -> Result<(), SceneError> {
+        let objs: Vec<&PathBuf> = files
+            .iter()
+            .filter(|p| MeshFormat::of(p) == Some(MeshFormat::Obj))
+            .collect();
+        for p in &objs {
+            self.add_obj(p, None, hasher)?;
+        }
+        if let Some(first) = objs.first() {
+            self.push_object(
+                STATIC_OBJECT_NAME.into(),
+                ObjectKind::Static,
+                0,
+                Affine3A::IDENTITY,
+                first,
+            )?;
+        }
+        for p in files
+            .iter()
+            .filter(|p| MeshFormat::of(p) == Some(MeshFormat::Gltf))
+        {
+            let found = self.add_gltf(p, Affine3A::IDENTITY, gltf::GltfObjects::PerNode, hasher)?;
+            if extras.camera.is_none() {
+                extras.camera = found.camera;
+            }
+            extras.lights.extend(found.lights);
+        }
+        Ok(())
+    }
+
+    /// Loads the rigid object `name` from the mesh file `path`, placed by `transform`.
+    fn add_rigid(
+        &mut self,
+        name: &str,
+        path: &Path,
+        (m, t): (Mat3, Vec3),
+        hasher: &mut Hasher,
+    ) -> Result<(), SceneError> {
+        let start = self.triangles.len();
+        let transform = Affine3A::from_mat3_translation(m, t);
+        if MeshFormat::of(path) == Some(MeshFormat::Gltf) {
+            let found = self.add_gltf(path, transform, gltf::GltfObjects::Whole, hasher)?;
+            if found.camera.is_some() || !found.lights.is_empty() {
+                self.warnings.push(format!(
+                    "object `{name}`: the cameras and lights of {} are ignored (an object's \
+                     file gives only its triangles)",
+                    path.display()
+                ));
+            }
+        } else {
+            self.add_obj(path, Some((m, t)), hasher)?;
+        }
+        self.push_object(name.into(), ObjectKind::Rigid, start, transform, path)?;
+        self.warnings.push(format!(
+            "object `{name}`: rigid objects are baked as static geometry for now (no \
+             per-object CSSM/CSM yet)"
+        ));
+        Ok(())
+    }
+}
+
 impl Scene {
-    /// Loads the scene directory `dir`: `dir/scene.toml` and the meshes it names, or, without
-    /// a `scene.toml`, every `*.obj` in `dir` (sorted by file name) with a default camera and
-    /// light (see `docs/scene-format.md`). Degenerate triangles are dropped with a warning;
+    /// Loads the scene at `path`: a directory with `scene.toml` and the meshes it names; a
+    /// directory without one, every `.obj`, `.gltf` and `.glb` in it (sorted by file name; the
+    /// OBJs first); or one such mesh file. What no file gives, a camera or a light, is chosen
+    /// (see `docs/scene-format.md`). Degenerate triangles are dropped with a warning;
     /// everything else that is wrong is an error naming the file. [`Scene::objects`] gets one
-    /// static object for the `mesh` (or for all the OBJs of a directory without `scene.toml`)
-    /// and one rigid object per `[[objects]]` entry, over the triangles each kept.
-    pub fn load(dir: &Path) -> Result<Scene, SceneError> {
-        let dir = match std::fs::canonicalize(dir) {
+    /// static object for the OBJs of the static part, one static object per mesh node of each
+    /// glTF file of it, and one rigid object per `[[objects]]` entry, over the triangles each
+    /// kept.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let path = match std::fs::canonicalize(path) {
             Ok(d) => d,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 return Err(SceneError::DirNotFound {
-                    dir: dir.to_path_buf(),
+                    dir: path.to_path_buf(),
                 });
             }
             Err(error) => {
                 return Err(SceneError::Io {
-                    path: dir.to_path_buf(),
+                    path: path.to_path_buf(),
                     error,
                 });
             }
         };
-        if !dir.is_dir() {
-            return Err(SceneError::NotADirectory { path: dir });
+        let is_dir = path.is_dir();
+        let mesh_file = path.is_file() && MeshFormat::of(&path).is_some();
+        if !(is_dir || mesh_file) {
+            return Err(SceneError::NotADirectory { path });
         }
+        let dir = if is_dir {
+            path.clone()
+        } else {
+            path.parent().unwrap_or(Path::new("/")).to_path_buf()
+        };
         let mut hasher = Hasher {
             dir: dir.clone(),
             hasher: blake3::Hasher::new(),
             files: Vec::new(),
         };
         let mut b = Builder::new();
+        let mut extras = gltf::GltfExtras::default();
         let toml_path = dir.join("scene.toml");
-        // A directory's name with control characters (a terminal escape, say) is shown with
-        // them replaced; scene.toml's `name` with one is refused below.
-        let dir_name = dir
-            .file_name()
+        // A directory's (or file's) name with control characters (a terminal escape, say) is
+        // shown with them replaced; scene.toml's `name` with one is refused below.
+        let default_name = if is_dir {
+            path.file_name()
+        } else {
+            path.file_stem()
+        };
+        let default_name = default_name
             .map(|n| n.to_string_lossy().replace(char::is_control, "\u{fffd}"))
             .unwrap_or_else(|| "scene".into());
 
-        let (name, camera, lights) = if toml_path.exists() {
+        let (name, camera, lights) = if !is_dir {
+            b.add_static(std::slice::from_ref(&path), &mut hasher, &mut extras)?;
+            (default_name, None, Vec::new())
+        } else if toml_path.exists() {
             let bytes = read_bounded(&toml_path)?;
             hasher.add(&toml_path, &bytes);
             let text = String::from_utf8(bytes).map_err(|_| SceneError::Toml {
@@ -573,14 +811,7 @@ impl Scene {
                 }
             }
             let main = mesh_path(&dir, &toml_path, "mesh", &desc.mesh)?;
-            b.add_obj(&main, None, &mut hasher)?;
-            b.push_object(
-                STATIC_OBJECT_NAME.into(),
-                ObjectKind::Static,
-                0,
-                Affine3A::IDENTITY,
-                &main,
-            )?;
+            b.add_static(&[main], &mut hasher, &mut extras)?;
             for (o, t) in desc.objects.iter().zip(transforms) {
                 let p = mesh_path(
                     &dir,
@@ -588,25 +819,11 @@ impl Scene {
                     &format!("object `{}`: mesh", o.name),
                     &o.mesh,
                 )?;
-                let start = b.triangles.len();
-                b.add_obj(&p, Some(t), &mut hasher)?;
-                let (m, tr) = t;
-                b.push_object(
-                    o.name.clone(),
-                    ObjectKind::Rigid,
-                    start,
-                    Affine3A::from_mat3_translation(m, tr),
-                    &p,
-                )?;
-                b.warnings.push(format!(
-                    "object `{}`: rigid objects are baked as static geometry for now (no \
-                     per-object CSSM/CSM yet)",
-                    o.name
-                ));
+                b.add_rigid(&o.name, &p, t, &mut hasher)?;
             }
-            (desc.name.unwrap_or(dir_name), camera, lights)
+            (desc.name.unwrap_or(default_name), camera, lights)
         } else {
-            let mut objs = Vec::new();
+            let mut meshes = Vec::new();
             let entries = std::fs::read_dir(&dir).map_err(|error| SceneError::Io {
                 path: dir.clone(),
                 error,
@@ -617,16 +834,15 @@ impl Scene {
                     error,
                 })?;
                 let p = entry.path();
-                let is_obj = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-                if is_obj && p.is_file() {
-                    objs.push(p);
+                if MeshFormat::of(&p).is_some() && p.is_file() {
+                    meshes.push(p);
                 }
             }
-            objs.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
-            if objs.is_empty() {
+            meshes.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
+            if meshes.is_empty() {
                 return Err(SceneError::NoObj { dir });
             }
-            let names: Vec<String> = objs
+            let names: Vec<String> = meshes
                 .iter()
                 .map(|p| {
                     p.file_name()
@@ -636,21 +852,18 @@ impl Scene {
                 })
                 .collect();
             b.warnings.push(format!(
-                "{}: no scene.toml; loading every .obj: {}",
+                "{}: no scene.toml; loading every mesh file: {}",
                 dir.display(),
                 names.join(", ")
             ));
-            for p in &objs {
-                b.add_obj(p, None, &mut hasher)?;
-            }
-            b.push_object(
-                STATIC_OBJECT_NAME.into(),
-                ObjectKind::Static,
-                0,
-                Affine3A::IDENTITY,
-                &dir,
-            )?;
-            (dir_name, None, Vec::new())
+            b.add_static(&meshes, &mut hasher, &mut extras)?;
+            (default_name, None, Vec::new())
+        };
+        let camera = camera.or(extras.camera);
+        let lights = if lights.is_empty() {
+            extras.lights
+        } else {
+            lights
         };
 
         let (lo, hi) = bounds_of(&b.positions);
@@ -685,7 +898,24 @@ impl Scene {
             ));
             c
         });
-        let lights = if lights.is_empty() {
+        let mut used = vec![false; b.materials.len()];
+        for &m in &b.triangle_materials {
+            used[m as usize] = true;
+        }
+        let emitters: Vec<String> = b
+            .materials
+            .iter()
+            .zip(used)
+            .filter(|&(m, used)| used && m.emits())
+            .map(|(m, _)| format!("`{}`", m.name))
+            .collect();
+        let lights = if lights.is_empty() && !emitters.is_empty() {
+            b.warnings.push(format!(
+                "no light given: the scene is lit by its emissive material(s) {}",
+                emitters.join(", ")
+            ));
+            lights
+        } else if lights.is_empty() {
             let (l, place) =
                 default_view::default_light(&b.positions, &b.triangles, lo, hi, &camera);
             b.warnings.push(format!(
@@ -706,7 +936,7 @@ impl Scene {
         };
         let scene = Scene {
             name,
-            dir,
+            path,
             positions: b.positions,
             texcoords,
             triangles: b.triangles,
@@ -776,8 +1006,8 @@ intensity  = [10.0, 10.0, 10.0]
         ]);
         let s = Scene::load(dir.path()).unwrap();
         assert_eq!(s.name, "quad");
-        assert!(s.dir.is_absolute());
-        assert_eq!(s.dir, std::fs::canonicalize(dir.path()).unwrap());
+        assert!(s.path.is_absolute());
+        assert_eq!(s.path, std::fs::canonicalize(dir.path()).unwrap());
         assert_eq!(s.triangles.len(), 2);
         assert_eq!(s.positions.len(), 4);
         assert_eq!(s.texcoords.len(), 4);
@@ -788,7 +1018,7 @@ intensity  = [10.0, 10.0, 10.0]
         assert_eq!(m.kd, [0.8, 0.7, 0.6]);
         assert_eq!(m.ks, [0.1, 0.1, 0.1]);
         assert_eq!(m.ns, 20.0);
-        assert_eq!(m.map_kd, Some(TextureSource::File(s.dir.join("wood.png"))));
+        assert_eq!(m.map_kd, Some(TextureSource::File(s.path.join("wood.png"))));
         assert_eq!(s.camera.resolution, [320, 240]);
         assert_eq!(s.camera.fov_y_deg, 40.0);
         assert_eq!(s.lights.len(), 1);
@@ -816,7 +1046,11 @@ intensity  = [10.0, 10.0, 10.0]
         write(dir.path(), &[("readme.txt", "hi")]);
         let e = Scene::load(dir.path()).unwrap_err();
         assert!(matches!(e, SceneError::NoObj { .. }), "{e:?}");
-        assert!(e.to_string().contains("contains no .obj file"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("contains no .obj, .gltf or .glb file"),
+            "{e}"
+        );
 
         let e = Scene::load(&dir.path().join("readme.txt")).unwrap_err();
         assert!(matches!(e, SceneError::NotADirectory { .. }), "{e:?}");
@@ -838,7 +1072,7 @@ intensity  = [10.0, 10.0, 10.0]
         assert!(w.contains("no scene.toml"), "{w}");
         assert!(w.contains("default camera"), "{w}");
         assert!(w.contains("default light"), "{w}");
-        let dirname = s.dir.file_name().unwrap().to_string_lossy().into_owned();
+        let dirname = s.path.file_name().unwrap().to_string_lossy().into_owned();
         assert_eq!(s.name, dirname);
 
         // OBJ with no mtllib at all.

@@ -208,21 +208,20 @@ impl Builder {
         }
 
         // Geometry.
-        let vertex_base = self.positions.len();
-        let mut positions: Vec<Vec3> = Vec::new();
-        let mut texcoords: Vec<[f32; 2]> = Vec::new();
-        let mut triangles: Vec<[u32; 3]> = Vec::new();
-        let mut tri_materials: Vec<u32> = Vec::new();
+        let first_triangle = self.triangles.len();
+        let mut counts = super::FileCounts::default();
         let mut without_material: Vec<String> = Vec::new();
-        let mut file_triangle = 0usize;
-        let mut degenerate = 0usize;
-        let mut total = 0usize;
         for model in &models {
             let mesh = &model.mesh;
-            let n = mesh.positions.len() / 3;
-            let has_uv = mesh.texcoords.len() == 2 * n && n > 0;
-            if !has_uv && !mesh.indices.is_empty() {
-                self.all_have_texcoords = false;
+            if mesh.indices.len() % 3 != 0 {
+                // tobj triangulates, so this cannot happen; refuse rather than guess.
+                return Err(SceneError::ObjParse {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "object `{}` has a face of fewer than 3 vertices",
+                        model.name
+                    ),
+                });
             }
             let material = match mesh.material_id {
                 Some(id) if id < materials.len() => material_base + id as u32,
@@ -233,99 +232,37 @@ impl Builder {
                     u32::MAX // resolved below
                 }
             };
-            // Vertices of this model are compacted: only those used by kept triangles survive.
-            let mut remap = vec![u32::MAX; n];
-            for tri in mesh.indices.chunks(3) {
-                let t = file_triangle;
-                file_triangle += 1;
-                if tri.len() < 3 {
-                    // tobj triangulates, so this cannot happen; refuse rather than guess.
-                    return Err(SceneError::ObjParse {
-                        path: path.to_path_buf(),
-                        message: format!("face {t} has fewer than 3 vertices"),
-                    });
-                }
-                total += 1;
-                let mut corners = [Vec3::ZERO; 3];
-                for (c, &i) in corners.iter_mut().zip(tri) {
-                    if i as usize >= n {
-                        return Err(SceneError::IndexOutOfRange {
-                            path: path.to_path_buf(),
-                            triangle: t,
-                            index: i,
-                            vertex_count: n,
-                        });
-                    }
-                    let i = i as usize;
-                    let p = Vec3::new(
-                        mesh.positions[3 * i],
-                        mesh.positions[3 * i + 1],
-                        mesh.positions[3 * i + 2],
-                    );
-                    let p = match transform {
+            let positions: Vec<Vec3> = mesh
+                .positions
+                .chunks_exact(3)
+                .map(|p| {
+                    let p = Vec3::new(p[0], p[1], p[2]);
+                    match transform {
                         Some((m, t)) => m * p + t,
                         None => p,
-                    };
-                    if !p.is_finite() {
-                        return Err(SceneError::NonFiniteVertex {
-                            path: path.to_path_buf(),
-                            triangle: t,
-                        });
                     }
-                    *c = p;
-                }
-                // Area test in f64, so that tiny but valid triangles are not lost to underflow.
-                let [a, b, c] = corners.map(|v| v.as_dvec3());
-                let cross = (b - a).cross(c - a).length_squared();
-                if cross.is_nan() || cross <= 0.0 {
-                    degenerate += 1;
-                    continue;
-                }
-                let mut out = [0u32; 3];
-                for ((o, &i), p) in out.iter_mut().zip(tri).zip(corners) {
-                    let i = i as usize;
-                    if remap[i] == u32::MAX {
-                        let global = vertex_base + positions.len();
-                        if global >= u32::MAX as usize {
-                            return Err(SceneError::Invalid {
-                                path: path.to_path_buf(),
-                                message: "scene has more than 2^32 - 1 vertices".into(),
-                            });
-                        }
-                        remap[i] = global as u32;
-                        positions.push(p);
-                        texcoords.push(if has_uv {
-                            [mesh.texcoords[2 * i], mesh.texcoords[2 * i + 1]]
-                        } else {
-                            [0.0; 2]
-                        });
-                    }
-                    *o = remap[i];
-                }
-                triangles.push(out);
-                tri_materials.push(material);
-            }
+                })
+                .collect();
+            let texcoords: Vec<[f32; 2]> = mesh
+                .texcoords
+                .chunks_exact(2)
+                .map(|t| [t[0], t[1]])
+                .collect();
+            let has_uv = texcoords.len() == positions.len() && !positions.is_empty();
+            let triangles = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]);
+            self.append_part(
+                path,
+                &positions,
+                has_uv.then_some(&texcoords[..]),
+                triangles,
+                material,
+                &mut counts,
+            )?;
         }
-        if total == 0 {
-            return Err(SceneError::NoTriangles {
-                path: path.to_path_buf(),
-            });
-        }
-        if triangles.is_empty() {
-            return Err(SceneError::AllDegenerate {
-                path: path.to_path_buf(),
-                count: total,
-            });
-        }
-        if degenerate > 0 {
-            self.warnings.push(format!(
-                "{}: dropped {degenerate} degenerate (zero-area) triangle(s) of {total}",
-                path.display()
-            ));
-        }
-        if tri_materials.contains(&u32::MAX) {
+        self.finish_file(path, &counts, first_triangle)?;
+        if self.triangle_materials[first_triangle..].contains(&u32::MAX) {
             let default = self.default_material();
-            for m in &mut tri_materials {
+            for m in &mut self.triangle_materials[first_triangle..] {
                 if *m == u32::MAX {
                     *m = default;
                 }
@@ -346,10 +283,6 @@ impl Builder {
                 names.join(", ")
             ));
         }
-        self.positions.extend(positions);
-        self.texcoords.extend(texcoords);
-        self.triangles.extend(triangles);
-        self.triangle_materials.extend(tri_materials);
         Ok(())
     }
 }

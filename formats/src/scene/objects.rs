@@ -184,7 +184,7 @@ mod tests {
     fn bare(triangle_count: usize, objects: Vec<SceneObject>) -> Scene {
         Scene {
             name: "bare".into(),
-            dir: "/nonexistent".into(),
+            path: "/nonexistent".into(),
             positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
             texcoords: Vec::new(),
             triangles: vec![[0, 1, 2]; triangle_count],
