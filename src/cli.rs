@@ -202,7 +202,7 @@ pub struct BakeArgs {
     /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).
     #[arg(long, default_value = "packed")]
     file_coding: FileCoding,
-    /// Distance the cube maps sit off the surface, in scene units. Default: 0.2% of the scene
+    /// Distance the cube maps sit off the surface, in scene units. Default: 0.05% of the scene
     /// diameter.
     #[arg(long, value_parser = finite_f32)]
     near: Option<f32>,
@@ -278,6 +278,10 @@ pub struct CheckArgs {
     /// Use only the texel under each sender point (no filtering across neighbouring cube maps).
     #[arg(long)]
     no_sender_filter: bool,
+    /// Ask only the sender's cube maps, as the paper does, instead of the mean of both points'
+    /// (each pair's points both have texels, as in the runtime's radiosity and final gather).
+    #[arg(long)]
+    one_end: bool,
     /// Constant depth bias, in multiples of the bake's near distance.
     #[arg(long, default_value_t = QueryOptions::default().bias_near, value_parser = bias)]
     bias_near: f32,
@@ -324,6 +328,7 @@ impl CheckArgs {
                 bias_relative: self.bias_relative,
                 pcf: !self.no_pcf,
                 sender_filter: !self.no_sender_filter,
+                both_ends: !self.one_end,
             },
             min_agreement: self.min_agreement,
             json: self.json,
@@ -377,6 +382,10 @@ pub struct ErrorArgs {
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
+    /// CSSM methods: ask only the receiver's cube maps for each sender, as the paper does,
+    /// instead of the mean of both ends' answers (the default; see `cssm check --one-end`).
+    #[arg(long)]
+    one_end: bool,
     /// Atlas resolution of the .cssm baked in memory for the methods that need one (32 to 1024).
     #[arg(long, default_value_t = 64)]
     atlas: u32,
@@ -440,6 +449,7 @@ impl ErrorArgs {
             size: self.size,
             exposure: self.exposure,
             shadow_resolution: self.shadow_resolution,
+            one_end: self.one_end,
             atlas: self.atlas,
             cube: self.cube,
             frames: self.frames,
@@ -466,6 +476,7 @@ struct MeasureFlags {
     size: (u32, u32),
     exposure: f32,
     shadow_resolution: u32,
+    one_end: bool,
     atlas: u32,
     cube: u32,
     frames: u32,
@@ -501,6 +512,10 @@ impl MeasureFlags {
             height: self.size.1,
             exposure: self.exposure.exp2(),
             shadow_resolution: self.shadow_resolution,
+            visibility: QueryOptions {
+                both_ends: !self.one_end,
+                ..QueryOptions::default()
+            },
         };
         frame.check().map_err(|e| e.to_string())?;
         let bake = bake::BakeOptions {
@@ -583,6 +598,10 @@ pub struct CompareArgs {
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
+    /// CSSM methods: ask only the receiver's cube maps for each sender, as the paper does,
+    /// instead of the mean of both ends' answers (the default; see `cssm check --one-end`).
+    #[arg(long)]
+    one_end: bool,
     /// Atlas resolution of the .cssm baked in memory for the methods that need one (32 to 1024).
     #[arg(long, default_value_t = 64)]
     atlas: u32,
@@ -632,6 +651,7 @@ impl CompareArgs {
             size: self.size,
             exposure: self.exposure,
             shadow_resolution: self.shadow_resolution,
+            one_end: self.one_end,
             atlas: self.atlas,
             cube: self.cube,
             frames: self.frames,
@@ -778,6 +798,10 @@ pub struct RenderArgs {
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
+    /// CSSM methods: ask only the receiver's cube maps for each sender, as the paper does,
+    /// instead of the mean of both ends' answers (the default; see `cssm check --one-end`).
+    #[arg(long)]
+    one_end: bool,
     /// Print GPU milliseconds per pass (timestamp queries): the first frame, which also runs
     /// the view-independent passes, and the last (one more frame is rendered to time it warm).
     #[arg(long)]
@@ -895,6 +919,8 @@ pub struct RenderConfig {
     pub exposure: f32,
     /// Shadow-map resolution.
     pub shadow_resolution: u32,
+    /// How the CSSM methods query visibility (`--one-end`).
+    pub visibility: QueryOptions,
     /// `--timings`.
     pub timings: bool,
     /// The scene's `.cssm`; `None`: baked in memory where the method needs one.
@@ -927,6 +953,10 @@ impl RenderArgs {
             size: self.size,
             exposure: self.exposure,
             shadow_resolution: self.shadow_resolution,
+            visibility: QueryOptions {
+                both_ends: !self.one_end,
+                ..QueryOptions::default()
+            },
             timings: self.timings,
             cssm: self.cssm,
             frames: self.frames,

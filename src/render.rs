@@ -45,6 +45,7 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             height,
             exposure: config.exposure.exp2(),
             shadow_resolution: config.shadow_resolution,
+            visibility: config.visibility,
         },
         component: config.component,
         ..Default::default()

@@ -7,7 +7,7 @@
 //! commands have always printed, which scripts parse.
 //!
 //! ```
-//! let json = r#"{"agreement":0.98,"exchanging_agreement":0.99,"exchanging_false_occluded_rate":0.01,"exchanging_false_visible_rate":0.02,"exchanging_pairs":7,"false_occluded_rate":0.01,"false_visible_rate":0.03,"occluded_occluded":4,"occluded_visible":0,"pairs":10,"seconds":0.5,"unmapped":0,"visible_occluded":1,"visible_visible":5}"#;
+//! let json = r#"{"agreement":0.98,"causes_atlas":0,"causes_cube":0,"causes_filter":1,"causes_near":0,"exchanging_agreement":0.99,"exchanging_false_occluded_rate":0.01,"exchanging_false_visible_rate":0.02,"exchanging_pairs":7,"false_occluded_rate":0.01,"false_visible_rate":0.03,"occluded_occluded":4,"occluded_visible":0,"pairs":10,"seconds":0.5,"unmapped":0,"visible_occluded":1,"visible_visible":5}"#;
 //! let check: cssm::summary::CheckSummary = serde_json::from_str(json)?;
 //! assert_eq!(check.exchanging_pairs, 7);
 //! assert_eq!(check.to_json(), json);
@@ -342,7 +342,7 @@ pub struct CheckSummary {
     pub file: PathBuf,
     /// Pairs tested (the sender point had a texel).
     pub pairs: u64,
-    /// Pairs skipped: the sender point had no texel.
+    /// Pairs skipped: no texel stood for either point.
     pub unmapped: u64,
     /// Truly visible, reported visible.
     pub visible_visible: u64,
@@ -366,6 +366,19 @@ pub struct CheckSummary {
     pub exchanging_false_visible_rate: f64,
     /// [`Self::false_occluded_rate`] over the pairs that exchange light.
     pub exchanging_false_occluded_rate: f64,
+    /// Disagreements over the pairs that exchange light that the atlas explains
+    /// ([`bake::check::Causes`]).
+    #[serde(default)]
+    pub causes_atlas: u64,
+    /// ... that the near distance explains.
+    #[serde(default)]
+    pub causes_near: u64,
+    /// ... that the sender texel's own cube map explains.
+    #[serde(default)]
+    pub causes_cube: u64,
+    /// ... that the filters (sender filter, both ends) explain.
+    #[serde(default)]
+    pub causes_filter: u64,
     /// Time of the measurement.
     pub seconds: f64,
     /// The confusion matrix of the pairs that exchange light, for the text (not in the JSON:
@@ -393,6 +406,10 @@ impl CheckSummary {
             exchanging_agreement: x.agreement(),
             exchanging_false_visible_rate: x.false_visible_rate(),
             exchanging_false_occluded_rate: x.false_occluded_rate(),
+            causes_atlas: m.causes.atlas,
+            causes_near: m.causes.near,
+            causes_cube: m.causes.cube,
+            causes_filter: m.causes.filter,
             seconds,
             exchanging: Some(*x),
         }
@@ -440,10 +457,24 @@ impl fmt::Display for CheckSummary {
                 100.0 * self.exchanging_false_occluded_rate
             )?,
         }
+        let wrong = self.causes_atlas + self.causes_near + self.causes_cube + self.causes_filter;
+        if wrong > 0 {
+            let share = |n: u64| 100.0 * n as f64 / self.exchanging_pairs.max(1) as f64;
+            write!(
+                f,
+                "\ndisagreements by cause, seen from the sender (% of these pairs): atlas {:.3}% \
+                 (--atlas), near distance {:.3}% (--near), cube map {:.3}% (--cube), filters \
+                 {:.3}%",
+                share(self.causes_atlas),
+                share(self.causes_near),
+                share(self.causes_cube),
+                share(self.causes_filter)
+            )?;
+        }
         if self.unmapped > 0 {
             write!(
                 f,
-                "\n({} sender points had no texel and were skipped)",
+                "\n({} pairs had no texel for either point and were skipped)",
                 self.unmapped
             )?;
         }
@@ -595,6 +626,12 @@ mod tests {
                 occluded_occluded: 20,
                 unmapped: 2,
             },
+            causes: bake::check::Causes {
+                atlas: 1,
+                near: 0,
+                cube: 1,
+                filter: 0,
+            },
         };
         let check = CheckSummary::new(Path::new("x.cssm"), &m, 0.25);
         let json = check.to_json();
@@ -602,6 +639,10 @@ mod tests {
             keys(&json),
             [
                 "agreement",
+                "causes_atlas",
+                "causes_cube",
+                "causes_filter",
+                "causes_near",
                 "exchanging_agreement",
                 "exchanging_false_occluded_rate",
                 "exchanging_false_visible_rate",
@@ -629,7 +670,11 @@ mod tests {
         let full = check.to_string();
         assert!(full.contains(&m.all.to_string()), "{full}");
         assert!(full.contains(&m.exchanging.to_string()), "{full}");
-        assert!(full.ends_with("(5 sender points had no texel and were skipped)"));
+        assert!(full.ends_with("(5 pairs had no texel for either point and were skipped)"));
+        assert!(
+            full.contains("atlas 1.923% (--atlas), near distance 0.000% (--near), cube map 1.923%"),
+            "{full}"
+        );
         let text = back.to_string();
         let last = m.exchanging.to_string().lines().last().unwrap().to_string();
         assert!(

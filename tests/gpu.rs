@@ -129,6 +129,7 @@ impl RenderOptions {
                 height: self.height,
                 exposure: self.exposure,
                 shadow_resolution: self.shadow_resolution,
+                ..Default::default()
             },
             component: self.component,
             ..Default::default()
@@ -248,6 +249,7 @@ fn gpu_matches_cpu_without_filtering() {
     let options = QueryOptions {
         pcf: false,
         sender_filter: false,
+        both_ends: false,
         bias_near: 1.0,
         bias_relative: 0.001,
     };

@@ -1,6 +1,8 @@
 //! Measures a baked CSSM against exact ray casts (§3.2.2): random pairs of surface points, drawn
 //! uniformly by area, are tested with the CSSM query and with an obvhs ray cast, and the
-//! agreement is reported as a confusion matrix.
+//! agreement is reported as a confusion matrix. Both points have texels, so the query asks both
+//! ends when [`QueryOptions::both_ends`] is set (the default), as the runtime's radiosity and
+//! final gather do.
 //!
 //! Ground truth is *front-side* visibility, the visibility light transport needs: the segment
 //! from `p_j` lifted off its surface along its normal to `p_i` lifted towards `p_j`'s side of
@@ -34,7 +36,7 @@ pub struct Agreement {
     pub occluded_visible: u64,
     /// Truly occluded, reported occluded.
     pub occluded_occluded: u64,
-    /// Pairs whose sender point had no texel (skipped).
+    /// Pairs where no texel stood for either point (skipped).
     pub unmapped: u64,
 }
 
@@ -102,6 +104,36 @@ impl std::fmt::Display for Agreement {
     }
 }
 
+/// Where the disagreements over the pairs that exchange light come from, seen from the sender
+/// end: each wrong answer is put in the first class that explains it, so the classes say which
+/// setting to raise. The sender's texel is the one under its point.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Causes {
+    /// The texel's centre sees the receiver otherwise than the sender point does (exact ray
+    /// casts from both): the atlas is too coarse here (`--atlas`).
+    pub atlas: u64,
+    /// The cube map's centre, lifted by the near distance, sees otherwise than the texel's
+    /// centre: the near distance (`--near`).
+    pub near: u64,
+    /// The texel's own cube map (its 2x2 PCF, no other texel) answers otherwise than an exact
+    /// ray from its centre: the cube map's resolution or its depth intervals (`--cube`).
+    pub cube: u64,
+    /// The texel's own cube map answers right and the filters (sender filter, both ends) turn
+    /// the answer wrong.
+    pub filter: u64,
+}
+
+impl Causes {
+    fn add(self, o: Self) -> Self {
+        Self {
+            atlas: self.atlas + o.atlas,
+            near: self.near + o.near,
+            cube: self.cube + o.cube,
+            filter: self.filter + o.filter,
+        }
+    }
+}
+
 /// Agreement over all pairs and over the pairs that exchange light (see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Measurement {
@@ -109,6 +141,8 @@ pub struct Measurement {
     pub all: Agreement,
     /// The pairs where each point lies in front of the other's surface.
     pub exchanging: Agreement,
+    /// The causes of the disagreements counted in `exchanging`.
+    pub causes: Causes,
 }
 
 impl Measurement {
@@ -116,7 +150,39 @@ impl Measurement {
         Self {
             all: self.all.add(o.all),
             exchanging: self.exchanging.add(o.exchanging),
+            causes: self.causes.add(o.causes),
         }
+    }
+}
+
+/// Puts the disagreement on the pair (`p_j`, `p_i`), whose true visibility is `truth`, into
+/// its class of [`Causes`].
+fn classify(
+    bvh: &SceneBvh,
+    query: &VisibilityQuery,
+    p_j: &SurfacePoint,
+    p_i: &SurfacePoint,
+    truth: bool,
+    eps: f32,
+    causes: &mut Causes,
+) {
+    let Some(texel) = query.texel_at(p_j.triangle, p_j.bary) else {
+        causes.filter += 1;
+        return;
+    };
+    let t = &query.file().texels[texel as usize];
+    let to = p_i.position + p_i.normal * eps;
+    let from_texel = bvh.segment_clear(t.pos() + t.nrm() * eps, to);
+    let from_cube = bvh.segment_clear(query.cube_centre(texel), to);
+    let cube = query.visibility_oriented(texel, p_i.position, Some(p_i.normal)) >= 0.5;
+    if from_texel != truth {
+        causes.atlas += 1;
+    } else if from_cube != from_texel {
+        causes.near += 1;
+    } else if cube != from_cube {
+        causes.cube += 1;
+    } else {
+        causes.filter += 1;
     }
 }
 
@@ -187,11 +253,13 @@ pub fn measure_with_progress(
                 let mut m = Measurement::default();
                 for (p_j, p_i) in chunk {
                     let exchanging = exchanges_light(p_j, p_i, eps);
-                    let Some(fraction) = query.visibility_from_surface(
-                        p_j.triangle,
-                        p_j.bary,
+                    let Some(fraction) = query.visibility_between_surfaces(
+                        (p_j.triangle, p_j.bary),
+                        p_j.position,
+                        p_j.normal,
+                        (p_i.triangle, p_i.bary),
                         p_i.position,
-                        Some(p_i.normal),
+                        p_i.normal,
                     ) else {
                         m.all.unmapped += 1;
                         if exchanging {
@@ -204,6 +272,9 @@ pub fn measure_with_progress(
                     m.all.count(truth, cssm);
                     if exchanging {
                         m.exchanging.count(truth, cssm);
+                        if truth != cssm {
+                            classify(&bvh, &query, p_j, p_i, truth, eps, &mut m.causes);
+                        }
                     }
                 }
                 m

@@ -36,8 +36,11 @@ use rayon::prelude::*;
 pub use cssm_formats::cssm::{ATLAS_RESOLUTION_RANGE, CUBE_RESOLUTION_RANGE};
 
 /// Near distance as a fraction of the scene diameter when none is given (§3.2.1: "a small value
-/// for the near plane").
-pub const DEFAULT_NEAR_FRACTION: f32 = 0.002;
+/// for the near plane"). Measured with `cssm check` (reports/visibility.md): on the 3,700-face
+/// church at atlas 256, cube 32, 0.002 lifts the cube maps over thin geometry and agrees on
+/// 95.34% of the pairs that exchange light, 0.0005 on 95.94% for 3.0% more runs (0.00025:
+/// 96.02%, 4.3% more); the Cornell box does not move (99.10% and 99.07%).
+pub const DEFAULT_NEAR_FRACTION: f32 = 0.0005;
 
 /// Cube resolution of the pilot bakes of [`Traversal::Piloted`] (at most the bake's own): a
 /// sixteenth of the rays of a cube-32 bake, and still fine enough to tell which of two orders of a

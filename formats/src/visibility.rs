@@ -7,6 +7,13 @@
 //! light leaves a surface only on its front side. Percentage-closer filtering (§3.2.2, "the same
 //! generalized PCF used with CSMs") blends the tests of the 2x2 pixels around the projection.
 //!
+//! Beyond the paper, a query between two surface points that both have texels asks both ends
+//! ([`QueryOptions::both_ends`], [`VisibilityQuery::visibility_between`]): the mean of what
+//! `p_j`'s cube maps say of `p_i` and what `p_i`'s say of `p_j`. Visibility is symmetric, but
+//! the two answers' errors are not: an occluder near one end covers many pixels of that end's
+//! cube map and few of the other's, so the end near it resolves its edge, and where one end's
+//! pixels straddle an edge the other's often do not.
+//!
 //! The GPU query of the runtime computes exactly this; this module is its reference.
 
 use glam::{Vec2, Vec3};
@@ -29,6 +36,9 @@ pub struct QueryOptions {
     /// same chart), instead of taking the one texel under it: the generalised PCF of CSMs,
     /// filtering across neighbouring depth maps as well as pixels.
     pub sender_filter: bool,
+    /// Queries between two surface points that both have texels ([`VisibilityQuery::
+    /// visibility_between`]) take the mean of both ends' answers instead of the sender's alone.
+    pub both_ends: bool,
 }
 
 impl Default for QueryOptions {
@@ -41,6 +51,10 @@ impl Default for QueryOptions {
             bias_relative: 0.0,
             pcf: true,
             sender_filter: true,
+            // Measured with `cssm check` (100,000 pairs, seed 1; reports/visibility.md): over
+            // the pairs that exchange light, 98.47% -> 99.10% on the Cornell box (atlas 64,
+            // cube 32) and 93.93% -> 95.97% on the 3,700-face church (atlas 256, cube 32).
+            both_ends: true,
         }
     }
 }
@@ -303,6 +317,51 @@ impl<'a> VisibilityQuery<'a> {
     /// (texel units), as a G-buffer stores it.
     pub fn visibility_from_atlas(&self, p: Vec2, p_i: Vec3, n_i: Option<Vec3>) -> Option<f32> {
         self.visibility_from_senders(&self.sender_texels_at(p), p_i, n_i)
+    }
+
+    /// Fraction of the way between two surface points that is clear: `a` (its
+    /// [`Self::sender_texels_at`], position, normal) and `b` likewise. With
+    /// [`QueryOptions::both_ends`], the mean of `a`'s cube maps' answer for `b` and `b`'s for
+    /// `a` (see the module docs); else, or when `b` has no texels, `a`'s alone; `b`'s alone when
+    /// `a` has none; `None` when neither has.
+    pub fn visibility_between(
+        &self,
+        a: &[(u32, f32)],
+        p_a: Vec3,
+        n_a: Vec3,
+        b: &[(u32, f32)],
+        p_b: Vec3,
+        n_b: Vec3,
+    ) -> Option<f32> {
+        let forward = self.visibility_from_senders(a, p_b, Some(n_b));
+        if !self.options.both_ends && forward.is_some() {
+            return forward;
+        }
+        let backward = self.visibility_from_senders(b, p_a, Some(n_a));
+        match (forward, backward) {
+            (Some(f), Some(r)) => Some(0.5 * (f + r)),
+            (f, r) => f.or(r),
+        }
+    }
+
+    /// [`Self::visibility_between`] for two points given as (`triangle`, `bary`) with their
+    /// positions and normals, as `cssm check` draws them.
+    pub fn visibility_between_surfaces(
+        &self,
+        (triangle_a, bary_a): (usize, [f32; 3]),
+        p_a: Vec3,
+        n_a: Vec3,
+        (triangle_b, bary_b): (usize, [f32; 3]),
+        p_b: Vec3,
+        n_b: Vec3,
+    ) -> Option<f32> {
+        let a = self.sender_texels(triangle_a, bary_a);
+        let b = if self.options.both_ends {
+            self.sender_texels(triangle_b, bary_b)
+        } else {
+            Vec::new()
+        };
+        self.visibility_between(&a, p_a, n_a, &b, p_b, n_b)
     }
 
     /// Fraction of `p_i` visible from a surface point whose [`Self::sender_texels_at`] are

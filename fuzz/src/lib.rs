@@ -301,6 +301,7 @@ pub fn check_file(file: &CssmFile, scene: Option<&Scene>) {
             bias_relative: 0.01,
             pcf: false,
             sender_filter: false,
+            both_ends: false,
         },
     ] {
         let q = VisibilityQuery::new(file, options);

@@ -213,6 +213,8 @@ pub struct FrameSettings {
     pub exposure: f32,
     /// Shadow-map resolution in texels per side.
     pub shadow_resolution: u32,
+    /// How the CSSM methods query visibility (filters, bias, both ends).
+    pub visibility: QueryOptions,
 }
 
 impl Default for FrameSettings {
@@ -222,6 +224,7 @@ impl Default for FrameSettings {
             height: 480,
             exposure: 1.0,
             shadow_resolution: shadow_map::DEFAULT_RESOLUTION,
+            visibility: QueryOptions::default(),
         }
     }
 }
@@ -382,7 +385,7 @@ impl FrameContext {
         let gbuffer = GBuffer::new(device, &scene_gpu, &view, settings.width, settings.height);
         let cssm = match cssm {
             Some(file) => Some(CssmResources {
-                query: CssmGpu::new(device, queue, file, QueryOptions::default())?,
+                query: CssmGpu::new(device, queue, file, settings.visibility)?,
                 hierarchy: HierarchyGpu::new(device, &file.hierarchy)?,
             }),
             None => None,

@@ -332,7 +332,9 @@ impl CssmGpu {
             depth_scale: cssm_formats::cube::DEPTH_MAX as f32 / (p.far - p.near),
             bias_near: options.bias_near,
             bias_relative: options.bias_relative,
-            flags: u32::from(options.pcf) | (u32::from(options.sender_filter) << 1),
+            flags: u32::from(options.pcf)
+                | (u32::from(options.sender_filter) << 1)
+                | (u32::from(options.both_ends) << 2),
             triangle_count: file.triangle_uvs.len() as u32,
             runs_per_binding,
         };

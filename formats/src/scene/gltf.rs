@@ -54,6 +54,30 @@ pub(super) enum GltfObjects {
     Whole,
 }
 
+/// A binary glTF's 12-byte header (magic, version, total length) checked before the crate
+/// parses it: the crate subtracts the header's size from the declared length unchecked (an
+/// overflow on a declared length below 12, found by fuzzing).
+fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let Some(length) = bytes.get(8..12) else {
+        return Err(format!(
+            "the binary glTF (GLB) header is cut short: {} bytes, a header needs 12",
+            bytes.len()
+        ));
+    };
+    let length = u32::from_le_bytes(length.try_into().expect("four bytes")) as usize;
+    if length < 12 || length > bytes.len() {
+        return Err(format!(
+            "the binary glTF (GLB) header declares {length} bytes, but the file holds {} \
+             (at least the 12 of the header)",
+            bytes.len()
+        ));
+    }
+    Ok(())
+}
+
 fn gltf_error(path: &Path, message: impl Into<String>) -> SceneError {
     SceneError::Gltf {
         path: path.to_path_buf(),
@@ -265,6 +289,7 @@ impl Builder {
         let bytes = read_bounded(path)?;
         hasher.add(path, &bytes);
         let dir = path.parent().unwrap_or(Path::new("."));
+        check_glb_header(&bytes).map_err(|e| gltf_error(path, e))?;
         // The crate's parser validates every index the JSON holds; a panic on malformed input
         // becomes an error like any other.
         let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(&bytes))
@@ -867,6 +892,26 @@ pub(crate) mod tests {
         std::fs::write(&path, glb(&quad_json(None), &quad_buffer())).unwrap();
         let s = Scene::load(&path).unwrap();
         check_quads(&s);
+    }
+
+    #[test]
+    fn a_glb_header_declaring_too_few_or_too_many_bytes_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("quads.glb");
+        let good = glb(&quad_json(None), &quad_buffer());
+        for declared in [0u32, 4, 11, good.len() as u32 + 1, u32::MAX] {
+            let mut bytes = good.clone();
+            bytes[8..12].copy_from_slice(&declared.to_le_bytes());
+            std::fs::write(&path, &bytes).unwrap();
+            let e = Scene::load(&path).unwrap_err().to_string();
+            assert!(
+                e.contains("quads.glb") && e.contains(&format!("declares {declared} bytes")),
+                "{e}"
+            );
+        }
+        std::fs::write(&path, b"glTF\x02\0\0\0").unwrap();
+        let e = Scene::load(&path).unwrap_err().to_string();
+        assert!(e.contains("cut short: 8 bytes"), "{e}");
     }
 
     #[test]

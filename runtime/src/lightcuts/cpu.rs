@@ -79,8 +79,9 @@ pub fn gather_pixel(
             };
             let (e, w) = irradiance_from(p, n, position, Vec3::from(node.normal), node.area, l);
             if e.cmpgt(Vec3::ZERO).any() {
+                // The pixel's texels and the sender's (both ends, when the options ask).
                 let visibility = query
-                    .visibility_from_senders(&senders, position, Some(y.nrm()))
+                    .visibility_between(&senders, p, n, &[(sender, 1.0)], position, y.nrm())
                     .unwrap_or(1.0);
                 out += brdf(n, v, w, r.albedo, ks, ns) * e * visibility;
             }

@@ -1,5 +1,5 @@
 #import cssm::types::{Material, Node, TraversalParams, View}
-#import cssm::visibility::{cssm_senders_at, cssm_texels, cssm_visibility_senders}
+#import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels, cssm_visibility_between}
 #import cssm::transfer::{brdf, brdf_bound, irradiance_bound, irradiance_from, jitter_in_disk, jitter_leaf, tone_mapped}
 
 // Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
@@ -57,7 +57,8 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                 }
                 let e = irradiance_from(p, n, y_position, node.normal, node.area, l);
                 if any(e > vec3f(0.0)) {
-                    var visibility = cssm_visibility_senders(senders, y_position, y.normal);
+                    // The pixel's texels and the sender's (both ends, CSSM_FLAG_BOTH_ENDS).
+                    var visibility = cssm_visibility_between(senders, p, n, cssm_senders_texel(sender), y_position, y.normal);
                     // No texel stands for the point (far outside its chart): unshadowed.
                     if visibility < 0.0 {
                         visibility = 1.0;

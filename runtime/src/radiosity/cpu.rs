@@ -73,7 +73,18 @@ pub fn gather_texel(
             let (unoccluded, _) =
                 irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l);
             if unoccluded.cmpgt(Vec3::ZERO).any() {
-                e += unoccluded * query.visibility_oriented(receiver, y.pos(), Some(y.nrm()));
+                // Both ends' cube maps when the options ask (QueryOptions::both_ends).
+                let visibility = query
+                    .visibility_between(
+                        &[(receiver, 1.0)],
+                        p,
+                        n,
+                        &[(sender, 1.0)],
+                        y.pos(),
+                        y.nrm(),
+                    )
+                    .unwrap_or(1.0);
+                e += unoccluded * visibility;
             }
         }
         s = node.skip as usize;

@@ -1,5 +1,5 @@
 #import cssm::types::{Node, TraversalParams}
-#import cssm::visibility::{cssm_texels, cssm_visibility_texel}
+#import cssm::visibility::{cssm_senders_texel, cssm_texels, cssm_visibility_between}
 #import cssm::transfer::{TRANSFER_PI, irradiance_bound, irradiance_from, tone_mapped}
 
 // GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
@@ -46,7 +46,9 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
             let y = cssm_texels[sender];
             let unoccluded = irradiance_from(p, n, y.position, node.normal, node.area, radiance);
             if any(unoccluded > vec3f(0.0)) {
-                e += unoccluded * cssm_visibility_texel(receiver, y.position, y.normal);
+                // Both ends' cube maps when the flags ask (CSSM_FLAG_BOTH_ENDS).
+                let visibility = cssm_visibility_between(cssm_senders_texel(receiver), p, n, cssm_senders_texel(sender), y.position, y.normal);
+                e += unoccluded * visibility;
             }
         }
         s = node.skip;

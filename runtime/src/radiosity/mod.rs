@@ -458,6 +458,7 @@ pub fn atlas_radiosity(
         height: 1,
         exposure: 1.0,
         shadow_resolution,
+        ..FrameSettings::default()
     };
     let ctx = FrameContext::new(device, queue, scene, Some(file), settings, false)?;
     let gi = AtlasGi::new(&ctx, scene, file, options)?;

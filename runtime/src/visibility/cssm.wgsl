@@ -47,6 +47,7 @@ const CSSM_NONE: u32 = 0xffffffffu;
 const CSSM_DEPTH_MAX: u32 = 65535u;
 const CSSM_FLAG_PCF: u32 = 1u;
 const CSSM_FLAG_SENDER_FILTER: u32 = 2u;
+const CSSM_FLAG_BOTH_ENDS: u32 = 4u;
 // Stands for "nothing within the far plane": larger than any receiver depth.
 const CSSM_FAR_AWAY: f32 = 3.0e38;
 
@@ -421,6 +422,29 @@ fn cssm_visibility_senders(s: CssmSenders, p_i: vec3f, n_i: vec3f) -> f32 {
         sum += s.weights.w * cssm_visibility_texel(s.texels.w, p_i, n_i);
     }
     return sum;
+}
+
+// The one texel `t` as a point's senders (a texel's centre has no neighbours to filter with).
+fn cssm_senders_texel(t: u32) -> CssmSenders {
+    return CssmSenders(vec4u(t, CSSM_NONE, CSSM_NONE, CSSM_NONE), vec4f(1.0, 0.0, 0.0, 0.0));
+}
+
+// VisibilityQuery::visibility_between: the mean of `a`'s answer for `p_b` and `b`'s for `p_a`
+// (CSSM_FLAG_BOTH_ENDS), else `a`'s alone; one end's alone when the other has no texels, -1
+// when neither has.
+fn cssm_visibility_between(a: CssmSenders, p_a: vec3f, n_a: vec3f, b: CssmSenders, p_b: vec3f, n_b: vec3f) -> f32 {
+    let forward = cssm_visibility_senders(a, p_b, n_b);
+    if (cssm.flags & CSSM_FLAG_BOTH_ENDS) == 0u && forward >= 0.0 {
+        return forward;
+    }
+    let backward = cssm_visibility_senders(b, p_a, n_a);
+    if forward < 0.0 {
+        return backward;
+    }
+    if backward < 0.0 {
+        return forward;
+    }
+    return 0.5 * (forward + backward);
 }
 
 // VisibilityQuery::visibility_from_atlas: cssm_visibility for the surface point at atlas
