@@ -23,7 +23,7 @@ use runtime::{
     common::{camera::View, compose::Component, readback::Image},
     frame::{FrameSettings, Stage},
     method::{Backend, CpuSetup},
-    reference::{ReferenceOptions, render_reference},
+    reference::{EmitterSampling, ReferenceOptions, render_reference},
 };
 
 use crate::{
@@ -145,6 +145,7 @@ pub fn reference_image(
     let halves = [samples.div_ceil(2), samples / 2];
     let settings = ReferenceSettings {
         cssm_version: env!("CARGO_PKG_VERSION").into(),
+        light_model: cssm_runtime::reference::LIGHT_MODEL,
         scene: scene.name.clone(),
         content_hash: formats::hash_hex(&scene.content_hash),
         width: w,
@@ -207,6 +208,7 @@ pub fn reference_image(
             component: spec.component,
             seed,
             clamp: None,
+            emitters: EmitterSampling::Mis,
         };
         let before = i as u64 * h as u64;
         let image = render_reference(

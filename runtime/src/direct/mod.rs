@@ -34,6 +34,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::NoIndirect,
         golden_flip: 0.005,
+        emissive: Energy::NoIndirect,
     },
 };
 

@@ -328,6 +328,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::Within(0.04),
         golden_flip: 0.005,
+        emissive: Energy::NoIndirect,
     },
 };
 

@@ -1181,6 +1181,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::OnScreenOnly,
         golden_flip: 0.01,
+        emissive: Energy::OnScreenOnly,
     },
 };
 

@@ -254,6 +254,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::Within(0.3),
         golden_flip: 0.005,
+        emissive: Energy::NoIndirect,
     },
 };
 

@@ -313,10 +313,12 @@ pub const METHOD: MethodEntry = MethodEntry {
     // The sphere's check renders 32x24: 4x3 marching pixels, whose rays under the normal test
     // see about a third of the sphere's voxels (70% of the light is missing there). With every
     // voxel listed the gathering meets the closed form (tests/gpu/vf.rs); the images of
-    // reports/runtime.md measure what the sparse rays miss at real sizes.
+    // reports/runtime.md measure what the sparse rays miss at real sizes. Lit by its own
+    // emission the sphere misses 65.6% of the light for the same reason (lavapipe).
     checks: Checks {
         energy: Energy::Within(0.75),
         golden_flip: 0.01,
+        emissive: Energy::Within(0.72),
     },
 };
 
