@@ -452,7 +452,8 @@ pub fn render_variant(
 
 /// GPU times of every pass in a frame after the image's (their pipelines warm: a first frame
 /// also pays for drivers that compile on first use, lavapipe's among them): the first light set
-/// again as it is, so the view-independent passes run too, then one frame. `None` without
+/// again as it is (in a scene without lights, the first object), so the view-independent passes
+/// run too, then one frame. `None` without
 /// timestamp queries.
 fn warm_times(
     renderer: &mut Renderer,
@@ -464,6 +465,10 @@ fn warm_times(
     }
     if let Some(light) = scene.lights.first() {
         renderer.set_light(0, light)?;
+    } else if let Some(object) = scene.objects.first() {
+        // No light (a scene lit by its emitters alone): the first object placed where it is,
+        // which runs the view-independent passes again as well.
+        renderer.set_object_transform(0, object.transform)?;
     }
     let (width, height) = renderer.context().size();
     let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);

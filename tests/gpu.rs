@@ -4,6 +4,8 @@
 
 use std::sync::OnceLock;
 
+#[path = "gpu/emissive.rs"]
+mod emissive;
 #[path = "gpu/filters.rs"]
 mod filters;
 #[path = "gpu/methods.rs"]
