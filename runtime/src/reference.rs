@@ -286,7 +286,7 @@ fn power_heuristic(pdf: f32, other: f32) -> f32 {
 /// conventions of [`crate::direct::cpu::render_screen`]; background black), by path tracing
 /// (see the module docs). `materials` and `textures` are the scene's as the GPU sees them
 /// ([`crate::load::SceneGpu::cpu_materials`] and `cpu_textures`, or built from
-/// [`crate::load::load_albedo_textures`]); `bvh` is `SceneBvh::new(scene)`.
+/// [`crate::load::cpu_materials`]); `bvh` is `SceneBvh::new(scene)`.
 ///
 /// `progress(done, total)` is called from the worker threads after each row with the number of
 /// pixels finished so far and the number in all.
