@@ -23,7 +23,7 @@ use runtime::{
     common::{camera::View, compose::Component, readback::Image},
     frame::{FrameSettings, Stage},
     method::{Backend, CpuSetup},
-    reference::{ReferenceOptions, render_reference},
+    reference::{EmitterSampling, ReferenceOptions, render_reference},
 };
 
 use crate::{
@@ -145,6 +145,7 @@ pub fn reference_image(
     let halves = [samples.div_ceil(2), samples / 2];
     let settings = ReferenceSettings {
         cssm_version: env!("CARGO_PKG_VERSION").into(),
+        light_model: cssm_runtime::reference::LIGHT_MODEL,
         scene: scene.name.clone(),
         content_hash: formats::hash_hex(&scene.content_hash),
         width: w,
@@ -207,6 +208,7 @@ pub fn reference_image(
             component: spec.component,
             seed,
             clamp: None,
+            emitters: EmitterSampling::Mis,
         };
         let before = i as u64 * h as u64;
         let image = render_reference(
@@ -450,7 +452,8 @@ pub fn render_variant(
 
 /// GPU times of every pass in a frame after the image's (their pipelines warm: a first frame
 /// also pays for drivers that compile on first use, lavapipe's among them): the first light set
-/// again as it is, so the view-independent passes run too, then one frame. `None` without
+/// again as it is (in a scene without lights, the first object), so the view-independent passes
+/// run too, then one frame. `None` without
 /// timestamp queries.
 fn warm_times(
     renderer: &mut Renderer,
@@ -462,6 +465,10 @@ fn warm_times(
     }
     if let Some(light) = scene.lights.first() {
         renderer.set_light(0, light)?;
+    } else if let Some(object) = scene.objects.first() {
+        // No light (a scene lit by its emitters alone): the first object placed where it is,
+        // which runs the view-independent passes again as well.
+        renderer.set_object_transform(0, object.transform)?;
     }
     let (width, height) = renderer.context().size();
     let target = runtime::common::readback::offscreen_target(&gpu.device, width, height);

@@ -4,6 +4,8 @@
 
 use std::sync::OnceLock;
 
+#[path = "gpu/emissive.rs"]
+mod emissive;
 #[path = "gpu/filters.rs"]
 mod filters;
 #[path = "gpu/methods.rs"]
@@ -196,6 +198,13 @@ fn save_png(image: &Image, path: &std::path::Path) {
     }
 }
 
+/// The scene's materials as the GPU and the CPU references see them.
+fn materials(scene: &Scene) -> Vec<cssm_runtime::gpu_types::GpuMaterial> {
+    cssm_runtime::load::cpu_materials(scene)
+        .expect("textures load")
+        .0
+}
+
 fn random_pairs(scene: &Scene, count: usize, seed: u64) -> Vec<QueryPair> {
     cssm_runtime::visibility::random_pairs(scene, count, seed).0
 }
@@ -272,7 +281,7 @@ fn relative_rmse(gpu: &[glam::Vec3], cpu: &[glam::Vec3], keep: &[bool]) -> f64 {
 
 #[test]
 fn direct_light_matches_cpu_reference() {
-    use cssm_runtime::{common::camera::View, direct::cpu, load::load_albedo_textures};
+    use cssm_runtime::{common::camera::View, direct::cpu, load::cpu_materials};
     let gpu = gpu();
     let (scene, _) = cornell();
     let (w, h) = (160u32, 120u32);
@@ -282,18 +291,7 @@ fn direct_light_matches_cpu_reference() {
         ..Default::default()
     };
     let frame = render(gpu, scene, None, "direct", &options).expect("render");
-    let (textures, index) = load_albedo_textures(scene).expect("textures");
-    let materials: Vec<_> = scene
-        .materials
-        .iter()
-        .zip(index)
-        .map(|(m, texture)| cssm_runtime::gpu_types::GpuMaterial {
-            kd: m.kd,
-            ns: m.ns,
-            ks: m.ks,
-            texture,
-        })
-        .collect();
+    let (materials, textures) = cpu_materials(scene).expect("textures");
     let bvh = cssm_raycast::SceneBvh::new(scene);
     let view = View::of_scene(scene, w, h);
     let reference = cpu::render_screen(scene, &view, &materials, &textures, &bvh);
@@ -386,7 +384,7 @@ fn atlas_direct_light_matches_cpu_reference() {
         cssm_runtime::radiosity::render_atlas_direct(&gpu.device, &gpu.queue, scene, file, 2048)
             .expect("atlas pass");
     let bvh = cssm_raycast::SceneBvh::new(scene);
-    let cpu_texels = cssm_runtime::direct::cpu::render_atlas(scene, file, &bvh);
+    let cpu_texels = cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh);
     assert_eq!(gpu_texels.len(), cpu_texels.len());
     // Away from shadow and cone edges: texels whose atlas neighbours in the same chart agree
     // with them on lit or not.
@@ -761,7 +759,8 @@ fn radiosity_error(threshold: f32) -> (f64, u64) {
     use cssm_runtime::radiosity::{RadiosityOptions, cpu};
     let (scene, file) = cornell32();
     let bvh = cssm_raycast::SceneBvh::new(scene);
-    let exact_direct = cssm_runtime::direct::cpu::render_atlas(scene, file, &bvh);
+    let exact_direct =
+        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh);
     let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     static BRUTE: OnceLock<Vec<glam::Vec3>> = OnceLock::new();
     let brute = BRUTE
@@ -801,7 +800,8 @@ fn radiosity_matches_brute_force() {
     // once from the exact direct light and once from the GPU's shadow-mapped one.
     let (scene, file) = cornell32();
     let bvh = cssm_raycast::SceneBvh::new(scene);
-    let exact_direct = cssm_runtime::direct::cpu::render_atlas(scene, file, &bvh);
+    let exact_direct =
+        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh);
     let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     let brute = cpu::brute_force(file, &bvh, scene.diameter(), &exact_direct, &albedo, 2);
     let query = VisibilityQuery::new(file, QueryOptions::default());
@@ -970,6 +970,8 @@ fn final_gather_vs_twin(
                     ns: m.ns,
                     ks: m.ks,
                     texture: -1,
+                    emission_texture: -1,
+                    ..Default::default()
                 };
                 cssm_runtime::lightcuts::cpu::gather_pixel(
                     &query,

@@ -39,6 +39,17 @@ pub struct GpuMaterial {
     pub ks: [f32; 3],
     /// Layer of the albedo texture array, or -1 for none.
     pub texture: i32,
+    /// Emitted radiance, linear RGB, from the front side only (the side the triangle's winding
+    /// normal faces; `docs/scene-format.md`); zero for a surface that only reflects.
+    pub emission: [f32; 3],
+    /// Layer of the emission texture in the same texture array as the albedo textures (it
+    /// multiplies `emission`), or -1 for none.
+    pub emission_texture: i32,
+    /// `emission` times the mean of its texture (`emission` without one): what an atlas texel
+    /// of the material emits, the atlas sampling no textures (§4.7: the radiosity's source).
+    pub emission_mean: [f32; 3],
+    /// Unused.
+    pub _pad: f32,
 }
 
 /// A spot light with its shadow-map transform.
@@ -193,6 +204,12 @@ mod tests {
                 ("ns", offset_of!(GpuMaterial, ns)),
                 ("ks", offset_of!(GpuMaterial, ks)),
                 ("texture", offset_of!(GpuMaterial, texture)),
+                ("emission", offset_of!(GpuMaterial, emission)),
+                (
+                    "emission_texture",
+                    offset_of!(GpuMaterial, emission_texture),
+                ),
+                ("emission_mean", offset_of!(GpuMaterial, emission_mean)),
             ],
         );
         check(

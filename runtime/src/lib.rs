@@ -1,8 +1,8 @@
 //! The GPU runtime of the CSSM toolchain, on wgpu: loads `.cssm` files and scenes into GPU
 //! memory, answers visibility queries between surface points in WGSL (Ritschel et al. 2008,
-//! §3.2.2), renders direct light from spot lights with shadow maps (§4.7) and global
-//! illumination from it (§4: hierarchical radiosity over the atlas, final gathering, lightmap),
-//! with a CPU path tracer as ground truth.
+//! §3.2.2), renders direct light from spot lights with shadow maps and from emissive surfaces
+//! (one-sided, §4.7) and global illumination from it (§4: hierarchical radiosity over the atlas,
+//! final gathering, lightmap), with a CPU path tracer as ground truth.
 //!
 //! - [`Gpu`]: a headless device (a real GPU, or Mesa's lavapipe on a machine without one).
 //! - [`load`]: [`load::CssmGpu`] and [`load::SceneGpu`], usable with your own device and queue.

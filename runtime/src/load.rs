@@ -1,7 +1,7 @@
 //! Loaders: a `.cssm` file into GPU storage buffers ([`CssmGpu`], the run data kept in its
 //! random-access layout, never decompressed), and a scene into vertex buffers, materials and
-//! albedo textures ([`SceneGpu`]). Both take a plain `&wgpu::Device` and `&wgpu::Queue`, so they
-//! work inside a user's own renderer.
+//! textures, albedo and emission ([`SceneGpu`]). Both take a plain `&wgpu::Device` and
+//! `&wgpu::Queue`, so they work inside a user's own renderer.
 
 use std::path::Path;
 
@@ -145,24 +145,38 @@ pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) ->
     })
 }
 
-/// The scene's materials as the GPU and the CPU references see them, with their albedo
-/// textures (what [`SceneGpu`] uploads).
+/// The scene's materials as the GPU and the CPU references see them, with their textures
+/// (albedo and emission, one array; what [`SceneGpu`] uploads).
 ///
 /// # Errors
 /// A texture that cannot be read.
 pub fn cpu_materials(
     scene: &Scene,
 ) -> Result<(Vec<GpuMaterial>, Vec<AlbedoTexture>), RuntimeError> {
-    let (textures, texture_index) = load_albedo_textures(scene)?;
+    let (textures, layers) = load_textures(scene)?;
     let materials = scene
         .materials
         .iter()
-        .zip(&texture_index)
-        .map(|(m, &texture)| GpuMaterial {
-            kd: m.kd,
-            ns: m.ns,
-            ks: m.ks,
-            texture,
+        .zip(&layers)
+        .map(|(m, layers)| {
+            // The atlas samples no texture: an emission texture enters it by its mean.
+            let emission_mean = match layers.emission {
+                -1 => m.emission,
+                layer => {
+                    let mean = textures[layer as usize].mean();
+                    std::array::from_fn(|c| m.emission[c] * mean[c])
+                }
+            };
+            GpuMaterial {
+                kd: m.kd,
+                ns: m.ns,
+                ks: m.ks,
+                texture: layers.albedo,
+                emission: m.emission,
+                emission_texture: layers.emission,
+                emission_mean,
+                _pad: 0.0,
+            }
         })
         .collect();
     Ok((materials, textures))
@@ -414,11 +428,12 @@ impl CssmGpu {
     }
 }
 
-/// Side of the square albedo textures on the GPU: every `map_Kd` is resampled to it so that
-/// all fit one texture array.
+/// Side of the square textures on the GPU: every `map_Kd` and `map_Ke` is resampled to it so
+/// that all fit one texture array.
 pub const TEXTURE_SIZE: u32 = 512;
 
-/// An albedo texture resampled to [`TEXTURE_SIZE`], linear RGB (the CPU reference samples it).
+/// A texture (albedo or emission) resampled to [`TEXTURE_SIZE`], linear RGB (the CPU
+/// references sample it).
 #[derive(Clone, Debug)]
 pub struct AlbedoTexture {
     /// Row-major texels, linear RGB.
@@ -427,7 +442,7 @@ pub struct AlbedoTexture {
 
 impl AlbedoTexture {
     /// Bilinear sample with repeat wrapping at texture coordinates `uv` (v up, as in OBJ), the
-    /// same filter `albedo_sample` in `common/gbuffer.wgsl` applies.
+    /// same filter `albedo_sample` in `common/albedo.wgsl` applies.
     pub fn sample(&self, uv: [f32; 2]) -> Vec3 {
         let s = TEXTURE_SIZE as f32;
         let x = uv[0] * s - 0.5;
@@ -444,34 +459,65 @@ impl AlbedoTexture {
             + at(x0, y0 + 1.0) * (1.0 - fx) * fy
             + at(x0 + 1.0, y0 + 1.0) * fx * fy
     }
+
+    /// Mean of the texels, linear RGB (the texture's mean over its area, which bilinear
+    /// filtering with repeat wrapping keeps).
+    pub fn mean(&self) -> [f32; 3] {
+        let sum = self
+            .texels
+            .iter()
+            .fold(glam::DVec3::ZERO, |acc, t| acc + Vec3::from(*t).as_dvec3());
+        (sum / self.texels.len().max(1) as f64).as_vec3().to_array()
+    }
 }
 
-/// Reads every material's albedo texture (`map_Kd`, glTF `baseColorTexture`), resampled to
-/// [`TEXTURE_SIZE`]; returns the textures and the texture index of each material (-1 for none).
-pub fn load_albedo_textures(scene: &Scene) -> Result<(Vec<AlbedoTexture>, Vec<i32>), RuntimeError> {
+/// A material's layers in the texture array, -1 for none.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TextureLayers {
+    /// Albedo texture (`map_Kd`, glTF `baseColorTexture`).
+    pub albedo: i32,
+    /// Emission texture (`map_Ke`, glTF `emissiveTexture`).
+    pub emission: i32,
+}
+
+/// Reads every material's textures (albedo: `map_Kd`, glTF `baseColorTexture`; emission:
+/// `map_Ke`, glTF `emissiveTexture`), each image once, resampled to [`TEXTURE_SIZE`]; returns
+/// the textures (one array for both kinds) and each material's layers.
+///
+/// # Errors
+/// [`RuntimeError::Texture`] for an image that cannot be read.
+pub fn load_textures(
+    scene: &Scene,
+) -> Result<(Vec<AlbedoTexture>, Vec<TextureLayers>), RuntimeError> {
     let mut textures = Vec::new();
     let mut sources: Vec<&TextureSource> = Vec::new();
-    let mut index = Vec::with_capacity(scene.materials.len());
+    let mut layers = Vec::with_capacity(scene.materials.len());
     for m in &scene.materials {
-        let Some(source) = &m.map_kd else {
-            index.push(-1);
-            continue;
-        };
-        if let Some(i) = sources.iter().position(|s| *s == source) {
-            index.push(i as i32);
-            continue;
+        let mut layer = [-1i32; 2];
+        for (slot, source) in layer.iter_mut().zip([&m.map_kd, &m.map_emission]) {
+            let Some(source) = source else { continue };
+            *slot = match sources.iter().position(|s| *s == source) {
+                Some(i) => i as i32,
+                None => {
+                    sources.push(source);
+                    textures.push(AlbedoTexture {
+                        texels: decode_texture(source)?,
+                    });
+                    textures.len() as i32 - 1
+                }
+            };
         }
-        sources.push(source);
-        index.push(textures.len() as i32);
-        textures.push(AlbedoTexture {
-            texels: decode_texture(source)?,
+        layers.push(TextureLayers {
+            albedo: layer[0],
+            emission: layer[1],
         });
     }
-    Ok((textures, index))
+    Ok((textures, layers))
 }
 
 /// Decodes the image of `source` and resamples it to [`TEXTURE_SIZE`]² texels, linear RGB
-/// (the image is sRGB-encoded, as `map_Kd` files and glTF colour textures are).
+/// (the image is sRGB-encoded, as `map_Kd` and `map_Ke` files and glTF colour and emissive
+/// textures are).
 ///
 /// # Errors
 /// [`RuntimeError::Texture`] naming the file (or the scene file that embeds the image) when it
@@ -537,7 +583,8 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
-/// A scene in GPU memory: one vertex per triangle corner, materials, albedo textures.
+/// A scene in GPU memory: one vertex per triangle corner, materials, textures (albedo and
+/// emission).
 pub struct SceneGpu {
     /// [`GpuVertex`] buffer, three per triangle.
     pub vertices: wgpu::Buffer,
@@ -545,7 +592,8 @@ pub struct SceneGpu {
     pub vertex_count: u32,
     /// [`GpuMaterial`] storage buffer.
     pub materials: wgpu::Buffer,
-    /// Albedo textures, one layer each (a white 1-layer array when the scene has none).
+    /// Albedo and emission textures, one layer each (a white 1-layer array when the scene has
+    /// none); a material names its layers.
     pub albedo: wgpu::Texture,
     /// View of [`Self::albedo`] as a 2D array.
     pub albedo_view: wgpu::TextureView,
@@ -574,7 +622,7 @@ impl SceneGpu {
     /// Uploads `scene`; `atlas` (a `.cssm` of the same scene) supplies atlas coordinates.
     ///
     /// # Errors
-    /// [`RuntimeError::Texture`] when a `map_Kd` cannot be read; [`RuntimeError::Unsupported`]
+    /// [`RuntimeError::Texture`] when a `map_Kd` or `map_Ke` cannot be read; [`RuntimeError::Unsupported`]
     /// when `Scene::objects` do not cover the triangles once each.
     pub fn new(
         device: &wgpu::Device,

@@ -143,6 +143,12 @@ pub struct Checks {
     /// Largest mean FLIP error (0 to 1) of its image of the Cornell box against its golden
     /// image (`tests/golden/`).
     pub golden_flip: f32,
+    /// The energy check in the same sphere lit by its own emission instead (no light; every
+    /// triangle emits `Le` inwards, its front; `tests/gpu/emissive.rs`): the `k`-th bounce's
+    /// irradiance is `pi Le rho^(k-1)` everywhere, so every pixel's indirect radiance is
+    /// `Le (rho + ... + rho^B)`. [`Energy::NoIndirect`] for a method whose indirect light does
+    /// not carry the light of emitters (`vct` and `rsm` take theirs from the lights' RSM).
+    pub emissive: Energy,
 }
 
 /// What the energy check in the closed sphere holds a method to ([`Checks::energy`]).

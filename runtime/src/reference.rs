@@ -11,10 +11,21 @@
 //! to interreflections:
 //!
 //! - **Lights**: the scene's spot lights, points of constant radiant intensity inside their cone
-//!   and none outside, falling off with `1 / d^2`. Nothing else emits, and no path can hit a
-//!   point light, so all light reaches a path by next-event estimation (NEE): at every vertex,
-//!   one exact shadow ray per light, from the point lifted by `1e-4` of the scene diameter along
-//!   its normal, as in `direct::cpu`.
+//!   and none outside, falling off with `1 / d^2`. No path can hit a point light, so their
+//!   light reaches a path by next-event estimation (NEE) alone: at every vertex, one exact
+//!   shadow ray per light, from the point lifted by `1e-4` of the scene diameter along its
+//!   normal, as in `direct::cpu`.
+//! - **Emitters** (area lights): every triangle whose material emits (MTL `Ke`, glTF emissive)
+//!   sends its emitted radiance (times its emission texture) from its *front* side only, the
+//!   side its winding normal faces, as pbrt's and Mitsuba's area lights do by default. A camera
+//!   ray that meets an emitter's front sees its radiance; at every vertex a path samples one
+//!   point on the emitters (a triangle chosen in proportion to its power, area times the
+//!   luminance of its mean emission, then a uniform point on it) with an exact shadow ray, and
+//!   a continuation that meets an emitter's front collects its radiance too; the two
+//!   strategies are combined by multiple importance sampling with the power heuristic (Veach
+//!   and Guibas 1995), so neither the small bright panel (light sampling wins) nor a large dim
+//!   emitter seen up close (BSDF sampling wins) is noisy. [`EmitterSampling`] can keep one
+//!   strategy alone, for tests.
 //! - **Surfaces**: two-sided, with the geometric (flat) normal flipped towards the incoming ray;
 //!   BRDF `albedo / pi + Ks (Ns + 2) / (2 pi) max(0, reflect(-l, n) . v)^Ns` (Lambert plus
 //!   normalised Phong) at *every* vertex, `albedo` being Kd times the material's albedo texture
@@ -33,16 +44,28 @@
 //!   `bounces` bounces (the Neumann series up to that term) is unbiased, unless
 //!   [`ReferenceOptions::clamp`] is set.
 //!
-//! Not simulated: area lights, emissive materials, transmission, participating media, normal
-//! maps, depth of field and motion.
+//! # Direct and indirect ([`Component`])
+//!
+//! The split follows the GPU's: *direct* is what the direct-light pass computes, the spot
+//! lights' light reflected once at the first vertex plus the radiance the first vertex emits
+//! towards the eye. An emitter's light reflected by another surface is *indirect*, as on the
+//! GPU, where the emitters are the radiosity's source (§4.7: any direct light may be) and
+//! reach other surfaces through the methods' first bounce. So `bounces` counts bounces after
+//! the direct light of each source: with `B` bounces the image holds a spot light's light
+//! reflected 1 to `B + 1` times and an emitter's light reflected 0 to `B` times (an emitter's
+//! light is sampled at the path's vertices 0 to `B - 1`, the light of the spot lights at
+//! vertices 0 to `B`), which is what the GPU methods compute with `B` bounces.
+//!
+//! Not simulated: transmission, participating media, normal maps, depth of field and motion.
 //!
 //! # Determinism and cost
 //!
 //! Pixel `i` draws its random numbers from its own SplitMix64 stream, started from `seed` and
 //! `i`, so an image depends on the options only, never on the number of rayon threads. Rows are
 //! rendered in parallel into one preallocated image; a path allocates nothing. A pixel costs one
-//! primary ray and one shadow ray per light, plus, per path and bounce, one continuation ray and
-//! one shadow ray per light.
+//! primary ray and one shadow ray per light, plus, per path and bounce, one continuation ray,
+//! one shadow ray per light and, when the scene has emitters, one shadow ray to a point on
+//! them. A scene without emitters draws the same random numbers as before emitters existed.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -54,7 +77,10 @@ use rayon::prelude::*;
 use crate::{
     RuntimeError,
     common::camera::View,
-    direct::cpu::{albedo_at, brdf, direct_radiance, facing_normal, ray_epsilon},
+    direct::cpu::{
+        albedo_at, brdf, direct_radiance, emission_at, emitted_radiance, facing_normal,
+        front_normal, ray_epsilon,
+    },
     gpu_types::GpuMaterial,
     load::AlbedoTexture,
     method::{self, Backend, Checks, Energy, CpuSetup, MethodEntry, OptionKind, OptionSpec},
@@ -82,6 +108,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::Within(0.02),
         golden_flip: 0.005,
+        emissive: Energy::Within(0.02),
     },
 };
 
@@ -111,6 +138,10 @@ fn render_method(setup: &CpuSetup) -> Result<Vec<[f32; 4]>, RuntimeError> {
 
 pub use crate::common::compose::Component;
 
+/// The version of the light model the path tracer simulates, for caches of its images: 2 since
+/// emissive surfaces are one-sided area lights (1: spot lights only).
+pub const LIGHT_MODEL: u32 = 2;
+
 /// Options of [`render_reference`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ReferenceOptions {
@@ -128,10 +159,12 @@ pub struct ReferenceOptions {
     /// largest channel is at most `c`, which removes fireflies at the price of a bias (darker).
     /// `None` (the default): unbiased.
     pub clamp: Option<f32>,
+    /// How paths find the emitters' light (the default: both strategies, weighted by MIS).
+    pub emitters: EmitterSampling,
 }
 
 impl Default for ReferenceOptions {
-    /// 256 paths per pixel, 3 bounces, the full light, seed 0, no clamping.
+    /// 256 paths per pixel, 3 bounces, the full light, seed 0, no clamping, MIS.
     fn default() -> Self {
         Self {
             samples_per_pixel: 256,
@@ -139,7 +172,113 @@ impl Default for ReferenceOptions {
             component: Component::Full,
             seed: 0,
             clamp: None,
+            emitters: EmitterSampling::Mis,
         }
+    }
+}
+
+/// How a path gathers the light of emissive surfaces (area lights). Each strategy alone is
+/// unbiased too; they differ in noise. The spot lights are always sampled (NEE).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EmitterSampling {
+    /// Light sampling and BSDF sampling, combined by multiple importance sampling with the
+    /// power heuristic (Veach and Guibas 1995): the default.
+    #[default]
+    Mis,
+    /// Light sampling only: a point on the emitters per vertex; a continuation that meets an
+    /// emitter collects nothing from it.
+    Light,
+    /// BSDF sampling only: the light of an emitter the continuation meets.
+    Bsdf,
+}
+
+/// The emitting triangles of a scene, for sampling points on them in proportion to their
+/// power (area times the luminance of their mean emission).
+struct Emitters {
+    /// Emitting triangles.
+    triangles: Vec<u32>,
+    /// Cumulative probability of choosing `triangles[..=i]`; the last is 1.
+    cdf: Vec<f64>,
+    /// Per scene triangle, the density of the sampled point per unit area (its choice
+    /// probability over its area), zero for triangles that do not emit.
+    area_pdf: Vec<f32>,
+}
+
+impl Emitters {
+    fn new(scene: &Scene, materials: &[GpuMaterial]) -> Self {
+        let mut triangles = Vec::new();
+        let mut power = Vec::new();
+        for t in 0..scene.triangles.len() {
+            let m = &materials[scene.triangle_materials[t] as usize];
+            let [a, b, c] = scene.triangle(t);
+            let area = 0.5 * (b - a).cross(c - a).length();
+            let weight = area * luminance(Vec3::from(m.emission_mean));
+            if weight > 0.0 && weight.is_finite() {
+                triangles.push(t as u32);
+                power.push(weight as f64);
+            }
+        }
+        let total: f64 = power.iter().sum();
+        let mut cdf = Vec::with_capacity(power.len());
+        let mut area_pdf = vec![0.0f32; scene.triangles.len()];
+        let mut sum = 0.0;
+        for (&t, &w) in triangles.iter().zip(&power) {
+            sum += w;
+            cdf.push(sum / total);
+            let [a, b, c] = scene.triangle(t as usize);
+            let area = 0.5 * (b - a).cross(c - a).length() as f64;
+            area_pdf[t as usize] = (w / total / area) as f32;
+        }
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        Self {
+            triangles,
+            cdf,
+            area_pdf,
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// A triangle in proportion to its power and a uniform point on it.
+    fn sample(&self, scene: &Scene, rng: &mut SplitMix64) -> (u32, Vec3) {
+        let u = uniform(rng) as f64;
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.cdf.len() - 1);
+        let t = self.triangles[i];
+        let [a, b, c] = scene.triangle(t as usize);
+        let su = uniform(rng).sqrt();
+        let (b0, b1) = (1.0 - su, uniform(rng) * su);
+        (t, a * b0 + b * b1 + c * (1.0 - b0 - b1))
+    }
+
+    /// The solid-angle density with which [`Self::sample`] picks the point `y` of triangle `t`
+    /// seen from `p`, `None` when `p` is not in front of the triangle (it sends nothing there).
+    fn solid_angle_pdf(&self, scene: &Scene, t: u32, p: Vec3, y: Vec3) -> Option<f32> {
+        let d = y - p;
+        let dist2 = d.length_squared();
+        let cos_l = front_normal(scene, t).dot(-d) / dist2.sqrt();
+        (cos_l > 0.0 && dist2 > 0.0).then(|| self.area_pdf[t as usize] * dist2 / cos_l)
+    }
+}
+
+/// Rec. 709 luminance of a linear RGB colour.
+fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// The power heuristic (exponent 2) weight of a strategy of density `pdf` against another of
+/// density `other`.
+fn power_heuristic(pdf: f32, other: f32) -> f32 {
+    let (a, b) = (pdf * pdf, other * other);
+    if a + b > 0.0 && (a + b).is_finite() {
+        a / (a + b)
+    } else if pdf.is_infinite() {
+        1.0
+    } else {
+        0.0
     }
 }
 
@@ -147,7 +286,7 @@ impl Default for ReferenceOptions {
 /// conventions of [`crate::direct::cpu::render_screen`]; background black), by path tracing
 /// (see the module docs). `materials` and `textures` are the scene's as the GPU sees them
 /// ([`crate::load::SceneGpu::cpu_materials`] and `cpu_textures`, or built from
-/// [`crate::load::load_albedo_textures`]); `bvh` is `SceneBvh::new(scene)`.
+/// [`crate::load::cpu_materials`]); `bvh` is `SceneBvh::new(scene)`.
 ///
 /// `progress(done, total)` is called from the worker threads after each row with the number of
 /// pixels finished so far and the number in all.
@@ -172,6 +311,8 @@ pub fn render_reference(
         textures,
         bvh,
         eps: ray_epsilon(scene),
+        emitters: Emitters::new(scene, materials),
+        sampling: options.emitters,
     };
     let done = AtomicU64::new(0);
     image.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
@@ -206,6 +347,10 @@ struct Tracer<'a> {
     bvh: &'a SceneBvh,
     /// Offset of ray origins off the surface.
     eps: f32,
+    /// The emitting triangles.
+    emitters: Emitters,
+    /// How paths gather the emitters' light.
+    sampling: EmitterSampling,
 }
 
 impl<'a> Tracer<'a> {
@@ -230,6 +375,54 @@ impl<'a> Tracer<'a> {
         .0
     }
 
+    /// The emitters' light reflected at `x` towards `x.v`, estimated from one point sampled on
+    /// them (light sampling) with an exact shadow ray, weighted against BSDF sampling by the
+    /// power heuristic under [`EmitterSampling::Mis`].
+    fn emitter_light(&self, x: &Vertex, rng: &mut SplitMix64) -> Vec3 {
+        let (t, y) = self.emitters.sample(self.scene, rng);
+        let Some(pdf) = self.emitters.solid_angle_pdf(self.scene, t, x.p, y) else {
+            return Vec3::ZERO;
+        };
+        let wi = (y - x.p).normalize();
+        let cos_i = x.n.dot(wi);
+        if cos_i <= 0.0 || !pdf.is_finite() {
+            return Vec3::ZERO;
+        }
+        let m = &self.materials[self.scene.triangle_materials[t as usize] as usize];
+        let le = emission_at(self.scene, m, self.textures, t, y);
+        if le == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        let lifted = y + front_normal(self.scene, t) * self.eps;
+        if !self.bvh.segment_clear(x.p + x.n * self.eps, lifted) {
+            return Vec3::ZERO;
+        }
+        let weight = match self.sampling {
+            EmitterSampling::Mis => power_heuristic(pdf, bounce_pdf(x, wi)),
+            _ => 1.0,
+        };
+        brdf(x.albedo, x.material, wi, x.n, x.v) * le * (cos_i * weight / pdf)
+    }
+
+    /// The radiance the emitter `t` sends back along a continuation from `x` in the direction
+    /// `wi` (drawn with the density `pdf`) that met it at `y`: its emission when `x` lies in
+    /// front of it, weighted against light sampling under [`EmitterSampling::Mis`].
+    fn emitter_hit(&self, x: &Vertex, wi: Vec3, pdf: f32, t: u32, y: Vec3) -> Vec3 {
+        let m = &self.materials[self.scene.triangle_materials[t as usize] as usize];
+        let le = emitted_radiance(self.scene, m, self.textures, t, y, -wi);
+        if le == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        let weight = match self.sampling {
+            EmitterSampling::Mis => {
+                let light = self.emitters.solid_angle_pdf(self.scene, t, x.p, y);
+                power_heuristic(pdf, light.unwrap_or(0.0))
+            }
+            _ => 1.0,
+        };
+        le * weight
+    }
+
     /// Radiance of pixel (`x`, `y`).
     fn pixel(&self, view: &View, x: u32, y: u32, options: &ReferenceOptions) -> Vec3 {
         let dir = view.primary_ray(x, y);
@@ -242,6 +435,14 @@ impl<'a> Tracer<'a> {
         let mut radiance = Vec3::ZERO;
         if options.component.has_direct() {
             radiance += self.direct(&first);
+            radiance += emitted_radiance(
+                self.scene,
+                first.material,
+                self.textures,
+                triangle,
+                p,
+                view.eye - p,
+            );
         }
         if options.component.has_indirect() && options.bounces > 0 {
             let pixel = y as u64 * view.width as u64 + x as u64;
@@ -264,13 +465,23 @@ impl<'a> Tracer<'a> {
     }
 
     /// One path from `first` of at most `bounces` bounces: the radiance it brings back to
-    /// `first` along `first.v` from the lights, not counting their direct light at `first`.
+    /// `first` along `first.v`, not counting the direct light at `first` (the spot lights'
+    /// reflected once, and its own emission): the emitters' light reflected at vertices 0 to
+    /// `bounces - 1` and the spot lights' at vertices 1 to `bounces`.
     fn indirect(&self, first: &Vertex<'a>, bounces: u32, rng: &mut SplitMix64) -> Vec3 {
+        let emitters = !self.emitters.is_empty();
+        let light_sampling = emitters && self.sampling != EmitterSampling::Bsdf;
+        let bsdf_sampling = emitters && self.sampling != EmitterSampling::Light;
         let mut x = *first;
         let mut throughput = Vec3::ONE;
         let mut radiance = Vec3::ZERO;
         for _ in 0..bounces {
-            let Some((wi, weight)) = sample_bounce(&x, rng) else {
+            // 1. The emitters' light reflected at x, by light sampling.
+            if light_sampling {
+                radiance += throughput * self.emitter_light(&x, rng);
+            }
+            // 2. The continuation.
+            let Some((wi, weight, pdf)) = sample_bounce(&x, rng) else {
                 break;
             };
             throughput *= weight;
@@ -281,7 +492,13 @@ impl<'a> Tracer<'a> {
             let Some((t, triangle)) = self.bvh.closest_hit(origin, wi, 0.0, f32::INFINITY) else {
                 break;
             };
-            x = self.vertex(triangle, origin + wi * t, -wi, -wi);
+            let y = origin + wi * t;
+            // 3. The emitters' light reflected at x, by BSDF sampling: the emitter met.
+            if bsdf_sampling {
+                radiance += throughput * self.emitter_hit(&x, wi, pdf, triangle, y);
+            }
+            // 4. The spot lights' light reflected at the new vertex.
+            x = self.vertex(triangle, y, -wi, -wi);
             radiance += throughput * self.direct(&x);
         }
         radiance
@@ -314,21 +531,43 @@ fn around(axis: Vec3, cos_theta: f32, u: f32) -> Vec3 {
     (t * (c * sin_theta) + b * (s * sin_theta) + axis * cos_theta).normalize()
 }
 
+/// The probabilities of the diffuse and the glossy lobe of [`sample_bounce`] at `x`, `None`
+/// for a black material.
+fn lobe_choice(x: &Vertex) -> Option<f32> {
+    let diffuse_weight = mean(x.albedo).max(0.0);
+    let glossy_weight = mean(Vec3::from(x.material.ks)).max(0.0);
+    (diffuse_weight + glossy_weight > 0.0).then(|| diffuse_weight / (diffuse_weight + glossy_weight))
+}
+
+/// The density (per solid angle) with which [`sample_bounce`] draws the direction `wi` above
+/// the surface at `x`: the mixture of the cosine lobe and the Phong lobe; zero below it.
+fn bounce_pdf(x: &Vertex, wi: Vec3) -> f32 {
+    use std::f32::consts::PI;
+    let Some(p_diffuse) = lobe_choice(x) else {
+        return 0.0;
+    };
+    let cos_i = x.n.dot(wi);
+    if cos_i <= 0.0 {
+        return 0.0;
+    }
+    let ns = x.material.ns;
+    let mirror = (-x.v).reflect(x.n);
+    let mut pdf = p_diffuse * cos_i / PI;
+    if p_diffuse < 1.0 {
+        pdf += (1.0 - p_diffuse) * ((ns + 1.0) / (2.0 * PI) * wi.dot(mirror).max(0.0).powf(ns));
+    }
+    pdf
+}
+
 /// Draws the direction `wi` a path continues in from `x` (towards the next vertex) from the
 /// mixture of a cosine-weighted hemisphere (diffuse lobe) and the normalised Phong lobe around
 /// the mirror direction of `x.v` (glossy lobe), chosen in proportion to the mean albedo and the
-/// mean Ks; returns `wi` and `BRDF(wi, x.v) cos / pdf(wi)`, pdf being the mixture's. `None`
-/// ends the path: a black material, or a direction below the surface (the glossy lobe reaches
-/// below the horizon at grazing angles; those samples carry no light).
-fn sample_bounce(x: &Vertex, rng: &mut SplitMix64) -> Option<(Vec3, Vec3)> {
-    use std::f32::consts::PI;
+/// mean Ks; returns `wi`, `BRDF(wi, x.v) cos / pdf(wi)` and `pdf(wi)`, pdf being the mixture's
+/// ([`bounce_pdf`]). `None` ends the path: a black material, or a direction below the surface
+/// (the glossy lobe reaches below the horizon at grazing angles; those samples carry no light).
+fn sample_bounce(x: &Vertex, rng: &mut SplitMix64) -> Option<(Vec3, Vec3, f32)> {
+    let p_diffuse = lobe_choice(x)?;
     let ns = x.material.ns;
-    let diffuse_weight = mean(x.albedo).max(0.0);
-    let glossy_weight = mean(Vec3::from(x.material.ks)).max(0.0);
-    if diffuse_weight + glossy_weight <= 0.0 {
-        return None;
-    }
-    let p_diffuse = diffuse_weight / (diffuse_weight + glossy_weight);
     let mirror = (-x.v).reflect(x.n);
     let (u0, u1, u2) = (uniform(rng), uniform(rng), uniform(rng));
     let wi = if u0 < p_diffuse {
@@ -340,15 +579,12 @@ fn sample_bounce(x: &Vertex, rng: &mut SplitMix64) -> Option<(Vec3, Vec3)> {
     if cos_i <= 0.0 {
         return None;
     }
-    let mut pdf = p_diffuse * cos_i / PI;
-    if p_diffuse < 1.0 {
-        pdf += (1.0 - p_diffuse) * ((ns + 1.0) / (2.0 * PI) * wi.dot(mirror).max(0.0).powf(ns));
-    }
+    let pdf = bounce_pdf(x, wi);
     if pdf.is_nan() || pdf <= 0.0 {
         return None;
     }
     let f = brdf(x.albedo, x.material, wi, x.n, x.v);
-    Some((wi, f * (cos_i / pdf)))
+    Some((wi, f * (cos_i / pdf), pdf))
 }
 
 #[cfg(test)]
@@ -358,7 +594,7 @@ mod tests {
     use cssm_formats::scene::{Camera, Material, SpotLight};
 
     use super::*;
-    use crate::{direct::cpu::render_screen, load::load_albedo_textures};
+    use crate::{direct::cpu::render_screen, load::cpu_materials};
 
     /// A scene with what `render_reference` needs beside it.
     struct Setup {
@@ -370,18 +606,7 @@ mod tests {
 
     impl Setup {
         fn new(scene: Scene) -> Self {
-            let (textures, index) = load_albedo_textures(&scene).expect("textures");
-            let materials = scene
-                .materials
-                .iter()
-                .zip(index)
-                .map(|(m, texture)| GpuMaterial {
-                    kd: m.kd,
-                    ns: m.ns,
-                    ks: m.ks,
-                    texture,
-                })
-                .collect();
+            let (materials, textures) = cpu_materials(&scene).expect("textures");
             let bvh = SceneBvh::new(&scene);
             Self {
                 scene,
@@ -429,6 +654,7 @@ mod tests {
             component,
             seed,
             clamp: None,
+            emitters: EmitterSampling::Mis,
         }
     }
 
@@ -733,6 +959,8 @@ mod tests {
                 ns,
                 ks: [ks; 3],
                 texture: -1,
+                emission_texture: -1,
+                ..Default::default()
             };
             let v = Vec3::new(view_angle.sin(), 0.0, view_angle.cos());
             let x = Vertex {
@@ -765,7 +993,7 @@ mod tests {
             let count = 400_000;
             let mut sum = 0.0f64;
             for _ in 0..count {
-                if let Some((wi, weight)) = sample_bounce(&x, &mut rng) {
+                if let Some((wi, weight, _)) = sample_bounce(&x, &mut rng) {
                     assert!((wi.length() - 1.0).abs() < 1e-5 && wi.dot(n) > 0.0);
                     sum += weight.x as f64;
                 }
@@ -776,6 +1004,250 @@ mod tests {
                 (estimate - exact).abs() < 0.005 * exact,
                 "kd {kd} ks {ks} ns {ns}: {estimate} sampled, {exact} integrated"
             );
+        }
+    }
+
+    /// [`lit_sphere`]'s polyhedron lit by its own emission instead: no lights, every triangle
+    /// of albedo `rho` emitting `le` from the side its winding faces, inwards when `inwards`.
+    fn emissive_sphere(levels: u32, rho: f32, le: f32, inwards: bool) -> Scene {
+        let mut scene = lit_sphere(levels, rho, 0.0);
+        scene.lights.clear();
+        scene.materials[0].emission = [le; 3];
+        for tri in &mut scene.triangles {
+            let [a, b, c] = tri.map(|v| scene.positions[v as usize]);
+            let faces_in = (b - a).cross(c - a).dot(a) < 0.0;
+            if faces_in != inwards {
+                tri.swap(1, 2);
+            }
+        }
+        scene
+    }
+
+    /// Inside a closed enclosure every point of which emits `Le` inwards, the irradiance is
+    /// `pi Le` everywhere (the uniform-radiance argument of
+    /// [`sphere_with_a_central_point_light_matches_the_closed_form`] holds for any closed
+    /// enclosure), so with albedo `rho` the radiance is `Le` seen directly and
+    /// `Le (rho + ... + rho^B)` after `B` bounces as indirect light. BSDF sampling alone gets it
+    /// path by path (every continuation meets an emitter, every bounce weighs `rho`); light
+    /// sampling and MIS get it on average. Wound outwards, nothing emits into the sphere and the
+    /// image is black.
+    #[test]
+    fn emissive_sphere_matches_the_closed_form() {
+        let (rho, le) = (0.6f32, 1.5f32);
+        let s = Setup::new(emissive_sphere(3, rho, le, true));
+        for bounces in [0u32, 1, 3] {
+            let expected: f32 = (1..=bounces).map(|k| le * rho.powi(k as i32)).sum();
+            for sampling in [
+                EmitterSampling::Mis,
+                EmitterSampling::Light,
+                EmitterSampling::Bsdf,
+            ] {
+                let with = |component, spp| ReferenceOptions {
+                    emitters: sampling,
+                    ..options(spp, bounces, component, 11)
+                };
+                let direct = s.render(16, 12, &with(Component::Direct, 1));
+                for p in &direct {
+                    assert!((*p - Vec3::splat(le)).abs().max_element() < 1e-6, "{p}");
+                }
+                let image = s.render(16, 12, &with(Component::Indirect, 64));
+                let mean = image.iter().map(|p| mean(*p) as f64).sum::<f64>() / image.len() as f64;
+                eprintln!("{sampling:?}, {bounces} bounces: mean {mean:.5}, closed form {expected:.5}");
+                if bounces == 0 {
+                    assert!(image.iter().all(|&p| p == Vec3::ZERO));
+                    continue;
+                }
+                assert!(
+                    (mean / expected as f64 - 1.0).abs() < 0.01,
+                    "{sampling:?}, {bounces} bounces: mean {mean}, closed form {expected}"
+                );
+                if sampling == EmitterSampling::Bsdf {
+                    for (i, p) in image.iter().enumerate() {
+                        assert!(
+                            (*p - Vec3::splat(expected)).abs().max_element() < 1e-3 * expected,
+                            "pixel {i}: {p} against {expected}"
+                        );
+                    }
+                }
+            }
+        }
+        let outwards = Setup::new(emissive_sphere(3, rho, le, false));
+        for sampling in [EmitterSampling::Mis, EmitterSampling::Bsdf] {
+            let o = ReferenceOptions {
+                emitters: sampling,
+                ..options(16, 3, Component::Full, 4)
+            };
+            let image = outwards.render(16, 12, &o);
+            assert!(image.iter().all(|&p| p == Vec3::ZERO), "{sampling:?}");
+        }
+    }
+
+    /// A floor of albedo `rho` (`y = 0`, facing up, 4 x 4) under a black square emitter of side
+    /// 0.5 at height 0.5 emitting `le` (downwards, or upwards when `facing_up`), no lights, the
+    /// camera above and to the side.
+    fn lamp_over_floor(rho: f32, le: [f32; 3], facing_up: bool) -> Scene {
+        let (f, r, h) = (2.0f32, 0.25f32, 0.5f32);
+        let positions = vec![
+            Vec3::new(-f, 0.0, f),
+            Vec3::new(f, 0.0, f),
+            Vec3::new(f, 0.0, -f),
+            Vec3::new(-f, 0.0, -f),
+            Vec3::new(-r, h, r),
+            Vec3::new(r, h, r),
+            Vec3::new(r, h, -r),
+            Vec3::new(-r, h, -r),
+        ];
+        // The floor's winding faces +y; the lamp's faces -y unless `facing_up`.
+        let lamp = if facing_up {
+            [[4, 5, 6], [4, 6, 7]]
+        } else {
+            [[4, 6, 5], [4, 7, 6]]
+        };
+        let triangles = vec![[0, 1, 2], [0, 2, 3], lamp[0], lamp[1]];
+        Scene {
+            name: "lamp-over-floor".into(),
+            path: std::path::PathBuf::from("/nonexistent"),
+            triangle_materials: vec![0, 0, 1, 1],
+            objects: vec![cssm_formats::SceneObject::whole_static(triangles.len())],
+            positions,
+            texcoords: Vec::new(),
+            triangles,
+            materials: vec![
+                Material {
+                    kd: [rho; 3],
+                    ..Material::grey("floor")
+                },
+                Material {
+                    kd: [0.0; 3],
+                    emission: le,
+                    ..Material::grey("lamp")
+                },
+            ],
+            camera: Camera {
+                position: Vec3::new(0.0, 2.5, 2.5),
+                target: Vec3::new(0.0, 0.0, 0.0),
+                up: Vec3::Y,
+                fov_y_deg: 60.0,
+                resolution: [32, 24],
+            },
+            lights: Vec::new(),
+            content_hash: [0; 32],
+            files: Vec::new(),
+            warnings: Vec::new(),
+        }
+    }
+
+    /// Irradiance at `p` (unit normal `n`) from a polygon of uniform radiance `le` wholly
+    /// above `p`'s horizon and unoccluded: Lambert's formula, `E = le / 2 |sum_i theta_i
+    /// n . (u_i x u_(i+1)) / |u_i x u_(i+1)||` over the edges, `u_i` the unit directions to the
+    /// corners and `theta_i` the angle between consecutive ones.
+    fn polygon_irradiance(p: Vec3, n: Vec3, corners: &[Vec3], le: f32) -> f32 {
+        let u: Vec<glam::DVec3> = corners.iter().map(|c| (*c - p).as_dvec3().normalize()).collect();
+        let mut sum = 0.0f64;
+        for i in 0..u.len() {
+            let (a, b) = (u[i], u[(i + 1) % u.len()]);
+            let theta = a.dot(b).clamp(-1.0, 1.0).acos();
+            sum += theta * n.as_dvec3().dot(a.cross(b).normalize());
+        }
+        (le as f64 / 2.0 * sum.abs()) as f32
+    }
+
+    /// One bounce of a square emitter's light on a floor is `rho / pi E` with `E` by Lambert's
+    /// formula, pixel by pixel: the path tracer gets it with light sampling, BSDF sampling and
+    /// MIS alike (each unbiased: their means agree within the noise), MIS with less noise than
+    /// BSDF sampling alone. The lamp's back, which the camera sees, is dark; wound the other
+    /// way the lamp lights nothing below it.
+    #[test]
+    fn square_lamp_over_a_floor_matches_lamberts_formula() {
+        let (rho, le) = (0.6f32, 3.0f32);
+        let s = Setup::new(lamp_over_floor(rho, [le; 3], false));
+        let (w, h) = (32, 24);
+        let view = View::of_scene(&s.scene, w, h);
+        let corners = [0.25f32, -0.25].map(|x| [0.25f32, -0.25].map(|z| Vec3::new(x, 0.5, z)));
+        let corners = [corners[0][0], corners[0][1], corners[1][1], corners[1][0]];
+        // The exact value at every pixel that sees the floor.
+        let exact: Vec<Option<f32>> = (0..w * h)
+            .map(|i| {
+                let dir = view.primary_ray(i % w, i / w);
+                let (t, triangle) = s.bvh.closest_hit(view.eye, dir, 0.0, f32::INFINITY)?;
+                (triangle < 2).then(|| {
+                    let p = view.eye + dir * t;
+                    rho / std::f32::consts::PI * polygon_irradiance(p, Vec3::Y, &corners, le)
+                })
+            })
+            .collect();
+        let floor = exact.iter().filter(|e| e.is_some()).count();
+        assert!(floor > (w * h / 2) as usize, "{floor} floor pixels");
+        let mut errors = Vec::new();
+        for sampling in [
+            EmitterSampling::Mis,
+            EmitterSampling::Light,
+            EmitterSampling::Bsdf,
+        ] {
+            let o = ReferenceOptions {
+                emitters: sampling,
+                ..options(128, 1, Component::Indirect, 21)
+            };
+            let image = s.render(w, h, &o);
+            let (mut err, mut norm, mut sum, mut sum_exact) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            for (p, e) in image.iter().zip(&exact) {
+                match e {
+                    Some(e) => {
+                        let e = *e as f64;
+                        err += (mean(*p) as f64 - e).powi(2);
+                        norm += e * e;
+                        sum += mean(*p) as f64;
+                        sum_exact += e;
+                    }
+                    None => assert_eq!(*p, Vec3::ZERO, "the lamp reflects nothing"),
+                }
+            }
+            let rmse = (err / norm).sqrt();
+            // The pixels' errors are noise, independent from pixel to pixel: the standard
+            // error of the sum is the root of their summed squares.
+            let (bias, standard_error) = (sum / sum_exact - 1.0, err.sqrt() / sum_exact);
+            eprintln!(
+                "{sampling:?}: relative RMSE {rmse:.4}, mean off by {bias:+.4} (standard error \
+                 {standard_error:.4})"
+            );
+            assert!(
+                bias.abs() < 4.0 * standard_error + 1e-3,
+                "{sampling:?}: mean off by {bias}, standard error {standard_error}"
+            );
+            errors.push(rmse);
+        }
+        assert!(errors[0] < 0.05, "MIS: relative RMSE {}", errors[0]);
+        assert!(errors[0] < errors[2], "MIS {} no better than BSDF sampling {}", errors[0], errors[2]);
+        // The camera sees the lamp's back: its direct light is nothing.
+        let direct = s.render(w, h, &options(1, 1, Component::Direct, 1));
+        assert!(direct.iter().all(|&p| p == Vec3::ZERO));
+        // Wound upwards, the lamp lights the floor not at all, and the camera sees its front.
+        let up = Setup::new(lamp_over_floor(rho, [le; 3], true));
+        let indirect = up.render(w, h, &options(16, 2, Component::Indirect, 3));
+        assert!(indirect.iter().all(|&p| p == Vec3::ZERO));
+        let direct = up.render(w, h, &options(1, 1, Component::Direct, 1));
+        assert!(direct.iter().filter(|&&p| p == Vec3::splat(le)).count() > 4);
+    }
+
+    /// With emitters too, an image depends on the options only (not the thread count) and the
+    /// full light is the direct plus the indirect.
+    #[test]
+    fn emitters_keep_images_deterministic_and_components_additive() {
+        let s = Setup::new(lamp_over_floor(0.5, [4.0, 2.0, 1.0], false));
+        let o = options(8, 2, Component::Full, 5);
+        let a = s.render(24, 18, &o);
+        let b = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("thread pool")
+            .install(|| s.render(24, 18, &o));
+        assert!(a == b, "one thread and many differ");
+        assert!(a.iter().any(|p| p.max_element() > 0.0));
+        assert!(a.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+        let direct = s.render(24, 18, &options(8, 2, Component::Direct, 5));
+        let indirect = s.render(24, 18, &options(8, 2, Component::Indirect, 5));
+        for ((f, d), i) in a.iter().zip(&direct).zip(&indirect) {
+            assert!((*f - (*d + *i)).abs().max_element() <= 1e-6 * f.max_element().max(1e-6));
         }
     }
 }

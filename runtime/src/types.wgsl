@@ -7,6 +7,12 @@ struct Material {
     ns: f32,
     ks: vec3f,
     texture: i32,
+    // Emitted radiance, front side only; emission_texture: its layer in the albedo array, or -1.
+    emission: vec3f,
+    emission_texture: i32,
+    // Emission times its texture's mean: what an atlas texel emits.
+    emission_mean: vec3f,
+    padding: f32,
 }
 
 struct SpotLight {

@@ -140,6 +140,9 @@ pub fn strip(width: u32, height: u32, images: &[&[u8]]) -> (u32, Vec<u8>) {
 pub struct ReferenceSettings {
     /// Version of cssm that path traced it.
     pub cssm_version: String,
+    /// The path tracer's light model ([`cssm_runtime::reference::LIGHT_MODEL`]): a sidecar
+    /// from before emitters were area lights has none, and its reference is rendered anew.
+    pub light_model: u32,
     /// `Scene::name`.
     pub scene: String,
     /// `Scene::content_hash` in hex: every file of the scene.

@@ -21,11 +21,12 @@ pub(super) const RHO: f32 = 0.5;
 pub(super) const INTENSITY: f32 = 10.0;
 pub(super) const CUTOFF_DEG: f32 = 50.0;
 /// Indirect bounces of the energy check.
-const BOUNCES: u32 = 2;
+pub(super) const BOUNCES: u32 = 2;
 
 /// A closed UV sphere of radius 1 around the origin with its triangles facing inwards, the
 /// camera at the centre and one spot light beside it (written to `dir`), and its wall area.
-fn write_sphere(dir: &Path) -> f32 {
+/// With `emission` `Some(le)`, no light: the wall emits `le` from its front, inwards.
+pub(super) fn write_sphere(dir: &Path, emission: Option<f32>) -> f32 {
     let (rings, segments) = (12usize, 24usize);
     let mut v = vec![[0.0f32, 1.0, 0.0]];
     for i in 1..rings {
@@ -73,19 +74,27 @@ fn write_sphere(dir: &Path) -> f32 {
         obj += &format!("f {} {} {}\n", f[0], f[1], f[2]);
     }
     std::fs::write(dir.join("sphere.obj"), obj).unwrap();
+    let ke = emission.map_or(String::new(), |le| format!("Ke {le} {le} {le}\n"));
     std::fs::write(
         dir.join("sphere.mtl"),
-        format!("newmtl wall\nKd {RHO} {RHO} {RHO}\nKs 0 0 0\nNs 1\n"),
+        format!("newmtl wall\nKd {RHO} {RHO} {RHO}\nKs 0 0 0\nNs 1\n{ke}"),
     )
     .unwrap();
+    let light = if emission.is_some() {
+        String::new()
+    } else {
+        format!(
+            "\n[[lights]]\ntype = \"spot\"\nposition = [0.0, 0.3, 0.0]\n\
+             direction = [0.0, -0.3, -1.0]\ncutoff_deg = {CUTOFF_DEG}\n\
+             intensity = [{INTENSITY}, {INTENSITY}, {INTENSITY}]\n"
+        )
+    };
     std::fs::write(
         dir.join("scene.toml"),
         format!(
             "name = \"sphere\"\nmesh = \"sphere.obj\"\n\n[camera]\nposition = [0.0, 0.0, 0.0]\n\
              target = [0.0, 0.0, 1.0]\nup = [0.0, 1.0, 0.0]\nfov_y_deg = 60.0\n\
-             resolution = [32, 24]\n\n[[lights]]\ntype = \"spot\"\nposition = [0.0, 0.3, 0.0]\n\
-             direction = [0.0, -0.3, -1.0]\ncutoff_deg = {CUTOFF_DEG}\n\
-             intensity = [{INTENSITY}, {INTENSITY}, {INTENSITY}]\n"
+             resolution = [32, 24]\n{light}"
         ),
     )
     .unwrap();
@@ -97,7 +106,7 @@ pub(super) fn sphere() -> &'static (Scene, f32, CssmFile) {
     static SPHERE: std::sync::OnceLock<(Scene, f32, CssmFile)> = std::sync::OnceLock::new();
     SPHERE.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let area = write_sphere(dir.path());
+        let area = write_sphere(dir.path(), None);
         let scene = Scene::load(dir.path()).expect("sphere loads");
         let options = BakeOptions {
             atlas_resolution: 32,
@@ -112,7 +121,7 @@ pub(super) fn sphere() -> &'static (Scene, f32, CssmFile) {
 }
 
 /// `method` on `scene` with `options`: the renderer for a GPU method, the CPU run otherwise.
-fn image_of(
+pub(super) fn image_of(
     method: &MethodEntry,
     scene: &Scene,
     file: &CssmFile,

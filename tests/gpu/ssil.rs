@@ -34,7 +34,12 @@ pub(super) fn context_renderer(scene: &Scene, size: (u32, u32)) -> Renderer {
 }
 
 /// A renderer of method `name` on `scene` at `size` drawing `component`.
-fn renderer_of(name: &str, scene: &Scene, size: (u32, u32), component: Component) -> Renderer {
+pub(super) fn renderer_of(
+    name: &str,
+    scene: &Scene,
+    size: (u32, u32),
+    component: Component,
+) -> Renderer {
     let gpu = gpu();
     let settings = RendererSettings {
         frame: FrameSettings {
@@ -59,7 +64,12 @@ fn renderer_of(name: &str, scene: &Scene, size: (u32, u32), component: Component
 }
 
 /// `frames` frames of an SSIL pipeline of `options` over the renderer's context.
-fn run(ctx: &FrameContext, scene: &Scene, options: &SsilOptions, frames: u32) -> ScreenSpaceGi {
+pub(super) fn run(
+    ctx: &FrameContext,
+    scene: &Scene,
+    options: &SsilOptions,
+    frames: u32,
+) -> ScreenSpaceGi {
     let mut gi = ScreenSpaceGi::new(ctx, scene.bounds(), options).expect("ssil");
     for _ in 0..frames {
         encode(&mut gi, ctx);
@@ -67,7 +77,7 @@ fn run(ctx: &FrameContext, scene: &Scene, options: &SsilOptions, frames: u32) ->
     gi
 }
 
-fn read4(ctx: &FrameContext, buffer: &wgpu::Buffer) -> Vec<Vec4> {
+pub(super) fn read4(ctx: &FrameContext, buffer: &wgpu::Buffer) -> Vec<Vec4> {
     vec4s(&read_buffer(&ctx.device, &ctx.queue, buffer, 0, buffer.size()).expect("read"))
 }
 
@@ -76,7 +86,7 @@ fn read_words(ctx: &FrameContext, buffer: &wgpu::Buffer) -> Vec<u32> {
     bytemuck::cast_slice(&bytes).to_vec()
 }
 
-fn texture4(ctx: &FrameContext, texture: &wgpu::Texture) -> Vec<Vec4> {
+pub(super) fn texture4(ctx: &FrameContext, texture: &wgpu::Texture) -> Vec<Vec4> {
     vec4s(&read_texture(&ctx.device, &ctx.queue, texture, 16).expect("read texture"))
 }
 
@@ -86,7 +96,7 @@ fn materials(ctx: &FrameContext) -> Vec<GpuMaterial> {
     bytemuck::cast_slice(&bytes).to_vec()
 }
 
-fn test_options() -> SsilOptions {
+pub(super) fn test_options() -> SsilOptions {
     SsilOptions {
         samples: 12,
         levels: 3,

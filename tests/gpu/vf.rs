@@ -22,7 +22,7 @@ use wgpu::util::DeviceExt;
 
 use super::{cornell, gpu};
 
-fn read<T: bytemuck::Pod>(buffer: &wgpu::Buffer) -> Vec<T> {
+pub(super) fn read<T: bytemuck::Pod>(buffer: &wgpu::Buffer) -> Vec<T> {
     let gpu = gpu();
     let bytes = read_buffer(&gpu.device, &gpu.queue, buffer, 0, buffer.size()).expect("read");
     bytemuck::cast_slice(&bytes).to_vec()
@@ -43,11 +43,11 @@ fn submit(record: impl FnOnce(&mut FrameEncoder)) {
 
 /// The Cornell box's 4,096 proxies in a 6³ grid, hashed, sorted and lit over a context of
 /// `size` (its shadow maps light them).
-struct LitProxies {
-    renderer: cssm_runtime::Renderer,
-    proxies: Vec<cssm_runtime::vf::proxies::Proxy>,
-    grid: ProxyGrid,
-    light: ProxyLight,
+pub(super) struct LitProxies {
+    pub(super) renderer: cssm_runtime::Renderer,
+    pub(super) proxies: Vec<cssm_runtime::vf::proxies::Proxy>,
+    pub(super) grid: ProxyGrid,
+    pub(super) light: ProxyLight,
 }
 
 /// 8 rays per pixel of the G-buffer reduced `factor` times, discs `disc_scale` times their
@@ -78,7 +78,7 @@ fn lit_proxies(size: (u32, u32)) -> LitProxies {
 
 /// `count` proxies of `scene` in a grid of `resolution`, hashed, sorted and lit over a context
 /// of `size`.
-fn lit_proxies_in(
+pub(super) fn lit_proxies_in(
     scene: &cssm_formats::Scene,
     count: u32,
     resolution: u32,

@@ -84,8 +84,9 @@ pub struct Material {
     pub ns: f32,
     /// Albedo texture (`map_Kd`, glTF `baseColorTexture`), multiplying `kd`, if any.
     pub map_kd: Option<TextureSource>,
-    /// Emitted radiance, linear RGB, the same on both sides (MTL `Ke`; glTF `emissiveFactor`
-    /// times `KHR_materials_emissive_strength`). Zero for a surface that only reflects.
+    /// Emitted radiance, linear RGB, from the front side only: the side the triangle's winding
+    /// normal faces (MTL `Ke`; glTF `emissiveFactor` times `KHR_materials_emissive_strength`).
+    /// Zero for a surface that only reflects.
     pub emission: [f32; 3],
     /// Emission texture (`map_Ke`, glTF `emissiveTexture`), multiplying `emission`, if any.
     pub map_emission: Option<TextureSource>,

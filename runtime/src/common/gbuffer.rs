@@ -1,11 +1,21 @@
 //! The G-buffer raster pass (`gbuffer.wgsl`): per pixel the world position, the normal turned
-//! towards the eye, the material, the albedo, the triangle and the atlas coordinates. Every
+//! towards the eye, the material, the albedo, the triangle, the atlas coordinates, and the
+//! radiance the surface emits towards the eye with the side it is seen from (emission is
+//! one-sided: only the front, which the triangle's winding normal faces, emits). Every
 //! screen-space pass of every technique reads these.
 
 use crate::{common::layout, frame::FrameEncoder, load::SceneGpu, shaders::Shader};
 
-/// Format of the colour targets (exact positions and normals for the queries that follow).
+/// Format of the position, normal and albedo targets (exact positions and normals for the
+/// queries that follow).
 pub const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+/// Format of the atlas-coordinate target: two exact floats.
+pub const ATLAS_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
+
+/// Format of the emission target: half floats (to 65,504, a relative step of 1/1024) keep the
+/// five targets within the 64 bytes per sample of [`crate::required_limits`].
+pub const EMISSION_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
 /// The G-buffer targets and the pass that fills them.
 pub struct GBuffer {
@@ -17,6 +27,9 @@ pub struct GBuffer {
     pub albedo: wgpu::Texture,
     /// xy atlas coordinates (texels).
     pub atlas: wgpu::Texture,
+    /// rgb radiance emitted towards the eye (zero where the eye sees a back side), a 1 where the
+    /// eye sees the front side (the side the winding normal faces), 0 the back.
+    pub emission: wgpu::Texture,
     depth: wgpu::Texture,
     pipeline: wgpu::RenderPipeline,
     bind_group: wgpu::BindGroup,
@@ -35,13 +48,14 @@ fn target(
     layout::texture_2d(device, label, (w, h), format, usage)
 }
 
-/// The four colour targets and the depth buffer of `width` x `height`.
-fn targets(device: &wgpu::Device, width: u32, height: u32) -> [wgpu::Texture; 5] {
+/// The five colour targets and the depth buffer of `width` x `height`.
+fn targets(device: &wgpu::Device, width: u32, height: u32) -> [wgpu::Texture; 6] {
     [
         target(device, "gbuffer position", width, height, TARGET_FORMAT),
         target(device, "gbuffer normal", width, height, TARGET_FORMAT),
         target(device, "gbuffer albedo", width, height, TARGET_FORMAT),
-        target(device, "gbuffer atlas", width, height, TARGET_FORMAT),
+        target(device, "gbuffer atlas", width, height, ATLAS_FORMAT),
+        target(device, "gbuffer emission", width, height, EMISSION_FORMAT),
         target(
             device,
             "gbuffer depth",
@@ -89,11 +103,13 @@ impl GBuffer {
             bind_group_layouts: &[Some(&bind_layout)],
             immediate_size: 0,
         });
-        let color = Some(wgpu::ColorTargetState {
-            format: TARGET_FORMAT,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        });
+        let color = |format| {
+            Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })
+        };
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("gbuffer"),
             layout: Some(&pipeline_layout),
@@ -119,17 +135,24 @@ impl GBuffer {
                 module: &module,
                 entry_point: Some("fs_main"),
                 compilation_options: Default::default(),
-                targets: &[color.clone(), color.clone(), color.clone(), color],
+                targets: &[
+                    color(TARGET_FORMAT),
+                    color(TARGET_FORMAT),
+                    color(TARGET_FORMAT),
+                    color(ATLAS_FORMAT),
+                    color(EMISSION_FORMAT),
+                ],
             }),
             multiview_mask: None,
             cache: None,
         });
-        let [position, normal, albedo, atlas, depth] = targets(device, width, height);
+        let [position, normal, albedo, atlas, emission, depth] = targets(device, width, height);
         Self {
             position,
             normal,
             albedo,
             atlas,
+            emission,
             depth,
             pipeline,
             bind_group,
@@ -143,6 +166,7 @@ impl GBuffer {
             self.normal,
             self.albedo,
             self.atlas,
+            self.emission,
             self.depth,
         ] = targets(device, width, height);
     }
@@ -154,11 +178,16 @@ impl GBuffer {
 
     /// Records the raster pass.
     pub fn render(&self, frame: &mut FrameEncoder, scene: &SceneGpu) {
-        let views: Vec<wgpu::TextureView> =
-            [&self.position, &self.normal, &self.albedo, &self.atlas]
-                .iter()
-                .map(|t| t.create_view(&Default::default()))
-                .collect();
+        let views: Vec<wgpu::TextureView> = [
+            &self.position,
+            &self.normal,
+            &self.albedo,
+            &self.atlas,
+            &self.emission,
+        ]
+        .iter()
+        .map(|t| t.create_view(&Default::default()))
+        .collect();
         let depth = self.depth.create_view(&Default::default());
         let attachments: Vec<_> = views.iter().map(layout::cleared_colour).collect();
         let mut pass = frame

@@ -1,8 +1,10 @@
 #import cssm::types::{Material, View}
 #import cssm::albedo::albedo_sample
 
-// G-buffer raster pass: world position, camera-facing normal, material, albedo and atlas
-// coordinates per pixel, sampled at pixel centres (the rays of the CPU references).
+// G-buffer raster pass: world position, camera-facing normal, material, albedo, atlas
+// coordinates and the emitted radiance towards the eye per pixel, sampled at pixel centres (the
+// rays of the CPU references). Emission is one-sided: a surface emits from its front, the side
+// its winding normal faces (direct/cpu.rs::emitted_radiance is the twin).
 // Needs types.wgsl (View, Material) and albedo.wgsl.
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -53,14 +55,18 @@ struct GBufferOut {
     @location(1) normal: vec4f,
     // rgb: Lambertian albedo (Kd times the texture); w: triangle index.
     @location(2) albedo: vec4f,
-    // xy: atlas coordinates in texels.
+    // xy: atlas coordinates in texels (an Rg32Float target).
     @location(3) atlas: vec4f,
+    // rgb: radiance emitted towards the eye (zero on a back side); a: 1 where the eye sees the
+    // front side, 0 the back (an Rgba16Float target).
+    @location(4) emission: vec4f,
 }
 
 @fragment
 fn fs_main(f: VertexOut) -> GBufferOut {
     var n = f.normal;
-    if dot(n, view.eye - f.position) < 0.0 {
+    let front = dot(n, view.eye - f.position) >= 0.0;
+    if !front {
         n = -n;
     }
     let m = materials[f.material];
@@ -68,10 +74,18 @@ fn fs_main(f: VertexOut) -> GBufferOut {
     if m.texture >= 0 {
         albedo *= albedo_sample(albedo_textures, u32(m.texture), f.uv);
     }
+    var emission = vec3f(0.0);
+    if front {
+        emission = m.emission;
+        if m.emission_texture >= 0 && any(emission > vec3f(0.0)) {
+            emission *= albedo_sample(albedo_textures, u32(m.emission_texture), f.uv);
+        }
+    }
     var out: GBufferOut;
     out.position = vec4f(f.position, 1.0);
     out.normal = vec4f(n, f32(f.material));
     out.albedo = vec4f(albedo, f32(f.triangle));
     out.atlas = vec4f(f.atlas_uv, 0.0, 0.0);
+    out.emission = vec4f(emission, select(0.0, 1.0, front));
     return out;
 }

@@ -1,9 +1,10 @@
 #import cssm::types::Texel
 #import cssm::light::{view, materials, spot_irradiance, PI}
 
-// Direct light into the atlas texels: the diffuse radiance each texel sends out (Kd/pi times
-// its irradiance), the source of the indirect bounces. Front side only: the texel's normal is
-// the side its cube map looks into.
+// Direct light into the atlas texels: the radiance each texel sends out (Kd/pi times its
+// irradiance, plus what its material emits: §4.7, any direct light may be the radiosity's
+// source), the source of the indirect bounces. Front side only: the texel's normal is the side
+// its cube map looks into, the winding's, the side that emits. Twin: direct/cpu.rs::render_atlas.
 @group(0) @binding(5) var<storage, read> texels: array<Texel>;
 @group(0) @binding(6) var<storage, read_write> texel_radiance: array<vec4f>;
 
@@ -18,5 +19,6 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     for (var k = 0u; k < view.light_count; k++) {
         e += spot_irradiance(k, t.position, t.normal).rgb;
     }
-    texel_radiance[i] = vec4f(materials[t.material].kd / PI * e, 1.0);
+    let m = materials[t.material];
+    texel_radiance[i] = vec4f(m.kd / PI * e + m.emission_mean, 1.0);
 }

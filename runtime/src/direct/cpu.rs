@@ -1,6 +1,7 @@
 //! CPU reference of the direct light: the shading of `light.wgsl` with exact shadows, ray cast
 //! with obvhs (`cssm_raycast::SceneBvh`) through the same pixel centres the rasteriser
-//! samples.
+//! samples, plus the radiance a surface seen from its front emits (the G-buffer's emission,
+//! [`emitted_radiance`]).
 //!
 //! Its shading pieces (light, BRDF, albedo, facing normal) are shared with the path tracer,
 //! [`crate::reference`], so the two see the same scene.
@@ -61,6 +62,21 @@ pub(crate) fn facing_normal(scene: &Scene, triangle: u32, towards: Vec3) -> Vec3
     if n.dot(towards) < 0.0 { -n } else { n }
 }
 
+/// Texture coordinates at `p` on `triangle` (zero when the mesh has none), interpolated as the
+/// rasteriser does.
+fn texcoords_at(scene: &Scene, triangle: u32, p: Vec3) -> [f32; 2] {
+    if scene.texcoords.is_empty() {
+        return [0.0; 2];
+    }
+    let [a, b, c] = scene.triangle(triangle as usize);
+    let bary = barycentric(p, a, b, c);
+    let idx = scene.triangles[triangle as usize];
+    idx.iter().zip(bary).fold([0.0f32; 2], |acc, (&v, w)| {
+        let t = scene.texcoords[v as usize];
+        [acc[0] + t[0] * w, acc[1] + t[1] * w]
+    })
+}
+
 /// Albedo at `p` on `triangle`: the material's Kd times its albedo texture, sampled as the
 /// G-buffer pass does.
 pub(crate) fn albedo_at(
@@ -72,16 +88,50 @@ pub(crate) fn albedo_at(
 ) -> Vec3 {
     let mut albedo = Vec3::from(m.kd);
     if m.texture >= 0 && !scene.texcoords.is_empty() {
-        let [a, b, c] = scene.triangle(triangle as usize);
-        let bary = barycentric(p, a, b, c);
-        let idx = scene.triangles[triangle as usize];
-        let uv = idx.iter().zip(bary).fold([0.0f32; 2], |acc, (&v, w)| {
-            let t = scene.texcoords[v as usize];
-            [acc[0] + t[0] * w, acc[1] + t[1] * w]
-        });
-        albedo *= textures[m.texture as usize].sample(uv);
+        albedo *= textures[m.texture as usize].sample(texcoords_at(scene, triangle, p));
     }
     albedo
+}
+
+/// The radiance `triangle` emits at `p` from its front side (the material's emission times its
+/// emission texture, sampled as the G-buffer pass does), whichever side it is seen from.
+pub(crate) fn emission_at(
+    scene: &Scene,
+    m: &GpuMaterial,
+    textures: &[AlbedoTexture],
+    triangle: u32,
+    p: Vec3,
+) -> Vec3 {
+    let mut emission = Vec3::from(m.emission);
+    if m.emission_texture >= 0 && emission.cmpgt(Vec3::ZERO).any() {
+        let uv = texcoords_at(scene, triangle, p);
+        emission *= textures[m.emission_texture as usize].sample(uv);
+    }
+    emission
+}
+
+/// Unit geometric normal of `triangle` from its winding: the front side, the one that emits.
+pub(crate) fn front_normal(scene: &Scene, triangle: u32) -> Vec3 {
+    let [a, b, c] = scene.triangle(triangle as usize);
+    (b - a).cross(c - a).normalize_or_zero()
+}
+
+/// The radiance `triangle` emits at `p` towards `towards` (the direction to the viewer, any
+/// length): its emission where `towards` is on its front side (as `gbuffer.wgsl` decides the
+/// side, `n . towards >= 0`), zero on its back. Emission is one-sided, as pbrt's and Mitsuba's
+/// area lights are by default.
+pub fn emitted_radiance(
+    scene: &Scene,
+    m: &GpuMaterial,
+    textures: &[AlbedoTexture],
+    triangle: u32,
+    p: Vec3,
+    towards: Vec3,
+) -> Vec3 {
+    if front_normal(scene, triangle).dot(towards) < 0.0 {
+        return Vec3::ZERO;
+    }
+    emission_at(scene, m, textures, triangle, p)
 }
 
 /// The BRDF of `light.wgsl` for the unit light direction `l` and view direction `v` at normal
@@ -119,7 +169,8 @@ pub(crate) fn direct_radiance(
     (radiance, lit)
 }
 
-/// Direct radiance per pixel of `view`, row-major, row 0 at the top.
+/// Direct radiance per pixel of `view`, row-major, row 0 at the top: the spot lights' light
+/// reflected once, plus what the surface emits towards the eye ([`emitted_radiance`]).
 pub fn render_screen(
     scene: &Scene,
     view: &View,
@@ -144,9 +195,10 @@ pub fn render_screen(
             let n = facing_normal(scene, triangle, view.eye - p);
             let m = &materials[scene.triangle_materials[triangle as usize] as usize];
             let albedo = albedo_at(scene, m, textures, triangle, p);
-            let (radiance, lit) = direct_radiance(scene, bvh, eps, p, n, -dir, albedo, m);
+            let (reflected, lit) = direct_radiance(scene, bvh, eps, p, n, -dir, albedo, m);
+            let emitted = emitted_radiance(scene, m, textures, triangle, p, view.eye - p);
             CpuPixel {
-                radiance,
+                radiance: reflected + emitted,
                 triangle,
                 lit,
             }
@@ -169,8 +221,14 @@ pub fn barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3] {
 }
 
 /// Diffuse radiance leaving every texel of `file` (front side), in texel order: Kd/pi times the
-/// exact irradiance.
-pub fn render_atlas(scene: &Scene, file: &CssmFile, bvh: &SceneBvh) -> Vec<Vec3> {
+/// exact irradiance, plus the radiance its material emits (`emission_mean` of `materials`, the
+/// scene's as [`crate::load::cpu_materials`] makes them): the source of the radiosity (§4.7).
+pub fn render_atlas(
+    scene: &Scene,
+    materials: &[GpuMaterial],
+    file: &CssmFile,
+    bvh: &SceneBvh,
+) -> Vec<Vec3> {
     let eps = ray_epsilon(scene);
     file.texels
         .par_iter()
@@ -181,7 +239,8 @@ pub fn render_atlas(scene: &Scene, file: &CssmFile, bvh: &SceneBvh) -> Vec<Vec3>
                 .iter()
                 .filter_map(|l| spot_irradiance(l, bvh, eps, p, n).map(|(e, _)| e))
                 .sum();
-            Vec3::from(scene.materials[t.material as usize].kd) / std::f32::consts::PI * e
+            let m = &materials[t.material as usize];
+            Vec3::from(m.kd) / std::f32::consts::PI * e + Vec3::from(m.emission_mean)
         })
         .collect()
 }

@@ -1,6 +1,13 @@
-//! Direct light from spot lights with shadow maps (§4.7): per pixel from the G-buffer
-//! ([`ScreenDirect`], `shade.wgsl`) and per atlas texel ([`AtlasDirect`], `atlas.wgsl`), the
-//! radiance the indirect bounces start from. Both call `light.wgsl`.
+//! Direct light from spot lights with shadow maps (§4.7), and emitted light: per pixel from the
+//! G-buffer ([`ScreenDirect`], `shade.wgsl`: the lights' light reflected once plus the radiance
+//! the surface emits towards the eye) and per atlas texel ([`AtlasDirect`], `atlas.wgsl`: the
+//! lights' light reflected once plus the texel's emission), the radiance the indirect bounces
+//! start from (§4.7: any direct light may be the radiosity's source). Both call `light.wgsl`.
+//!
+//! Emission is one-sided: a surface emits from its front only, the side its winding normal
+//! faces (the G-buffer tells which side a pixel sees; an atlas texel is its front). The light
+//! an emitter sends onto other surfaces is not direct light here: it reaches them through the
+//! methods' first bounce, as a spot light's reflected light reaches the second surface.
 //!
 //! CPU reference: [`cpu`], the same shading with exact ray-cast shadows. The two differ only
 //! at shadow edges, where the shadow map's PCF blurs what the ray cast decides sharply, and
@@ -26,7 +33,7 @@ use crate::{
 /// indirect light.
 pub const METHOD: MethodEntry = MethodEntry {
     name: "direct",
-    summary: "direct light from spot lights, PCF shadow maps (§4.7; no indirect light)",
+    summary: "direct light from spot lights (PCF shadow maps) and emitters seen (§4.7; no indirect light)",
     needs_cssm: false,
     options: &[],
     passes: &[],
@@ -34,6 +41,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::NoIndirect,
         golden_flip: 0.005,
+        emissive: Energy::NoIndirect,
     },
 };
 
@@ -101,6 +109,7 @@ impl ScreenDirect {
             layout::texture(6, d2, c),
             layout::texture(7, d2, c),
             layout::storage_texture(8, wgpu::TextureFormat::Rgba32Float, c),
+            layout::texture(9, d2, c),
         ]);
         let bind_layout = layout::bind_group_layout(device, "direct screen", &entries);
         let pipeline = layout::compute_pipeline(device, "direct screen", &module, &[&bind_layout]);
@@ -127,6 +136,7 @@ impl ScreenDirect {
             &gbuffer.normal,
             &gbuffer.albedo,
             &radiance,
+            &gbuffer.emission,
         ]
         .map(|t| t.create_view(&Default::default()));
         let mut resources = light_resources(&ctx.view, &ctx.scene, &ctx.shadows).to_vec();
@@ -152,7 +162,7 @@ impl ScreenDirect {
 }
 
 /// Direct light into the atlas texels of a loaded CSSM: one `vec4f` per texel (rgb: diffuse
-/// radiance leaving the texel's front side), in texel order.
+/// radiance leaving the texel's front side, its emission included), in texel order.
 pub struct AtlasDirect {
     /// The radiance per texel (`STORAGE | COPY_SRC`).
     pub texel_radiance: wgpu::Buffer,

@@ -197,6 +197,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::Within(0.04),
         golden_flip: 0.005,
+        emissive: Energy::Within(0.04),
     },
 };
 

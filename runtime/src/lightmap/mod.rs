@@ -205,6 +205,7 @@ pub const HRC: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::Within(0.04),
         golden_flip: 0.005,
+        emissive: Energy::Within(0.04),
     },
 };
 
@@ -219,6 +220,7 @@ pub const LIGHTMAP: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::Within(0.04),
         golden_flip: 0.005,
+        emissive: Energy::Within(0.04),
     },
 };
 

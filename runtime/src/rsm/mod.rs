@@ -25,7 +25,10 @@
 //!
 //! What it leaves out, by design of the method: light from outside the disc of `radius` around
 //! the receiver's projection, light reflected by surfaces the light does not see, a sender's
-//! glossy reflection (pixel lights are diffuse), a second bounce. Pixel lights are points
+//! glossy reflection (pixel lights are diffuse), a second bounce, and emissive surfaces: the
+//! pixel lights are the spot lights' RSM texels, so the light of an emitter (MTL `Ke`, glTF
+//! emissive) reaches the image as direct light only, and a scene lit by emitters alone has no
+//! indirect light here. Pixel lights are points
 //! (Eq. 3.2) whose squared distance is lengthened by their texel's area over pi (the form
 //! factor of a disc of that area), so that a sender next to its receiver stays bounded.
 //! `reports/runtime.md` measures it against the path tracer, with and without the buffer.
@@ -241,8 +244,8 @@ impl Sampling {
 /// `--method rsm`.
 pub const METHOD: MethodEntry = MethodEntry {
     name: "rsm",
-    summary: "reflective shadow maps with micro-linear-buffer visibility, one bounce \
-              (Bang 2011)",
+    summary: "reflective shadow maps with micro-linear-buffer visibility, one bounce of the \
+              spot lights (Bang 2011)",
     needs_cssm: false,
     options: &[
         OptionSpec {
@@ -328,6 +331,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::Within(0.04),
         golden_flip: 0.005,
+        emissive: Energy::NoIndirect,
     },
 };
 

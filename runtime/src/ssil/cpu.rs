@@ -1,4 +1,5 @@
-//! CPU twins of the SSIL kernels, the same arithmetic in `f32`: one level's gather for given
+//! CPU twins of the SSIL kernels, the same arithmetic in `f32`: the light a pixel sends
+//! ([`sender_radiance`], `sender.wgsl`, with exact shadows), one level's gather for given
 //! pixels ([`gather_pixel`], `gather.wgsl`), the frustum's solid voxels by ray casts through
 //! the columns ([`voxelize`], `voxels.wgsl`'s XOR raster), their AND down the levels
 //! ([`and_down`]) and the temporal filter of a pixel ([`temporal_pixel`], `temporal.wgsl`).
@@ -24,6 +25,30 @@ pub fn hash(v: u32) -> u32 {
 /// A hash as a number in [0, 1).
 fn unit(v: u32) -> f32 {
     (v >> 8) as f32 / 16_777_216.0
+}
+
+/// `sender.wgsl`: the light the G-buffer pixel (`position`, `normal` turned towards the eye,
+/// `albedo`, `emission` as the G-buffer holds them) sends to the others, its diffuse direct
+/// light `albedo / pi E` under every spot light of `scene` (exact shadow rays through `bvh`
+/// where the GPU looks its shadow maps up) plus the radiance it emits towards the eye (zero on
+/// an emitter's back). Zero where no surface covers the pixel.
+pub fn sender_radiance(
+    scene: &cssm_formats::Scene,
+    bvh: &cssm_raycast::SceneBvh,
+    [position, normal, albedo, emission]: [Vec4; 4],
+) -> Vec3 {
+    use crate::direct::cpu::{ray_epsilon, spot_irradiance};
+    if position.w <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let eps = ray_epsilon(scene);
+    let (p, n) = (position.xyz(), normal.xyz());
+    let e: Vec3 = scene
+        .lights
+        .iter()
+        .filter_map(|l| spot_irradiance(l, bvh, eps, p, n).map(|(e, _)| e))
+        .sum();
+    albedo.xyz() / PI * e + emission.xyz()
 }
 
 /// What the gather of one level reads, as read back from the GPU.

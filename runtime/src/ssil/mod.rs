@@ -3,8 +3,10 @@
 //! `--method ssil`.
 //!
 //! Every frame ([`ScreenSpaceGi`]):
-//! 1. `ssil sender` (`sender.wgsl`): the diffuse direct light leaving every pixel, the light
-//!    the first bounce gathers (§3: the "direct illumination" G-buffer, diffuse, §5.3);
+//! 1. `ssil sender` (`sender.wgsl`): the diffuse direct light leaving every pixel plus the
+//!    radiance it emits (the G-buffer's emission, zero where the eye sees an emitter's back:
+//!    emission is one-sided), the light the first bounce gathers (§3: the "direct
+//!    illumination" G-buffer, diffuse, §5.3);
 //! 2. `gbuffer pyramid` (`common::pyramid`, §4, Eq. 5): position, normal and albedo of levels
 //!    1 and up, each coarse pixel the child its neighbours agree with most, not an average;
 //!    `ssil light pyramid`: the sent light's mean per level;
@@ -433,6 +435,7 @@ impl Pipelines {
             layout::texture(6, d2, c),
             layout::texture(7, d2, c),
             layout::storage(8, false, c),
+            layout::texture(9, d2, c),
         ]);
         let sender_layout = layout::bind_group_layout(device, "ssil sender", &entries);
         let module = Shader::SsilSender.create(device);
@@ -715,6 +718,8 @@ impl ScreenSpaceGi {
         let mut resources = light_resources(&ctx.view, &ctx.scene, &ctx.shadows).to_vec();
         resources.extend(gbuffer.iter().map(wgpu::BindingResource::TextureView));
         resources.push(sender.as_entire_binding());
+        let emission = ctx.gbuffer.emission.create_view(&Default::default());
+        resources.push(wgpu::BindingResource::TextureView(&emission));
         let sender_group =
             layout::bind_group(device, "ssil sender", &pipelines.sender_layout, &resources);
 
@@ -1181,6 +1186,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         energy: Energy::OnScreenOnly,
         golden_flip: 0.01,
+        emissive: Energy::OnScreenOnly,
     },
 };
 

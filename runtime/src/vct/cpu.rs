@@ -38,7 +38,8 @@ pub fn flux_bound(lights: &[GpuSpotLight]) -> f32 {
             peak * (2.0 * std::f32::consts::PI * (1.0 - l.cos_cutoff))
         })
         .sum();
-    total.max(1e-30)
+    // No light sends any flux: nothing is injected; a finite scale (see `radiance.wgsl`).
+    if total > 0.0 { total } else { 1.0 }
 }
 
 /// `[flux units per W, radiance per flux unit]` (`plan`; the GPU's division may differ in the

@@ -85,7 +85,9 @@ fn linear_group(group: vec3u, count: vec3u) -> u32 {
 }
 
 // The flux the lights' cones can send at most: the intensity's largest component times the
-// cone's solid angle (`cpu::flux_bound`).
+// cone's solid angle (`cpu::flux_bound`); 1 when they send none (no lights, or black ones:
+// nothing is injected, and the fixed point's scale stays finite, where 2^30 over a tiny bound
+// would overflow to infinity, one step from a NaN).
 fn flux_bound() -> f32 {
     var total = 0.0;
     for (var i = 0u; i < params.light_count; i++) {
@@ -93,7 +95,7 @@ fn flux_bound() -> f32 {
         let peak = max(l.intensity.x, max(l.intensity.y, l.intensity.z));
         total += peak * (2.0 * PI * (1.0 - l.cos_cutoff));
     }
-    return max(total, 1e-30);
+    return select(1.0, total, total > 0.0);
 }
 
 @compute @workgroup_size(#{WORKGROUP_1D})

@@ -2,8 +2,12 @@
 //! (Chen et al. 2014 §3.1, Eq. 2, 3; `light.wgsl`).
 //!
 //! "vpl light": each proxy, moved with its object, is lit by every spot light through its
-//! shadow map, on the side of its disc the light reaches more (surfaces are two-sided, a VPL
-//! sends from one side): its flux is `albedo * E * disc area`. "voxel sh": per voxel, over its
+//! shadow map; it sends from the side of its disc that sends more (surfaces are two-sided, a
+//! VPL sends from one side): its flux is that side's exitance times the disc's area, the
+//! exitance `albedo * E` plus, on the front side (the winding's; emission is one-sided),
+//! `pi * Le` for an emitter of radiance `Le`. Emitters thus light the scene through the VPLs
+//! like the lights' reflected light (§4.7 of the CSSM paper: any direct light may be the source
+//! of the indirect light). "voxel sh": per voxel, over its
 //! range of the sorted proxies ([`super::proxies::ProxyGrid`]), the sum of its VPLs' radiant
 //! intensity `flux / pi * max(0, n.w)` projected on the real spherical harmonics of order 0
 //! and 1 (the paper keeps l = 0 and 1 for distant light), and their centroid, which stands for
@@ -136,7 +140,7 @@ pub struct Vpl {
     pub flux: Vec4,
 }
 
-/// CPU twin of "vpl light" with exact shadow rays.
+/// CPU twin of "vpl light" with exact shadow rays (emission sampled as the GPU does).
 pub fn vpl_cpu(
     scene: &Scene,
     bvh: &SceneBvh,
@@ -160,19 +164,22 @@ pub fn vpl_cpu(
                     .map(|(e, _)| e)
                     .sum::<Vec3>()
             };
-            let (front, back) = (irradiance(n), irradiance(-n));
-            let (side, e) = if back.element_sum() > front.element_sum() {
+            let material = &materials[p.material as usize];
+            let albedo = direct_cpu::albedo_at(scene, material, textures, p.triangle, world);
+            let emission = direct_cpu::emission_at(scene, material, textures, p.triangle, world);
+            let pi = std::f32::consts::PI;
+            let front = albedo * irradiance(n) + pi * emission;
+            let back = albedo * irradiance(-n);
+            let (side, exitance) = if back.element_sum() > front.element_sum() {
                 (-n, back)
             } else {
                 (n, front)
             };
-            let material = &materials[p.material as usize];
-            let albedo = direct_cpu::albedo_at(scene, material, textures, p.triangle, world);
-            let area = std::f32::consts::PI * p.radius * p.radius;
+            let area = pi * p.radius * p.radius;
             Vpl {
                 position: world.extend(p.radius),
                 normal: side.extend(area),
-                flux: (albedo * e * area).extend(0.0),
+                flux: (exitance * area).extend(0.0),
             }
         })
         .collect()

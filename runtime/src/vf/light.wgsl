@@ -5,9 +5,11 @@
 // The proxies as virtual point lights and each voxel's light in spherical harmonics (Chen et
 // al. 2014 §3.1, Eq. 2, 3).
 // `vpl`: each proxy moved with its object, lit by every spot light through its shadow map
-// (cssm::light), on the side of its disc the light reaches more (surfaces are two-sided; a VPL
-// sends from one side): its flux albedo * E * disc area, its world position and that side's
-// normal.
+// (cssm::light), on the side of its disc that sends more light (surfaces are two-sided; a VPL
+// sends from one side): its flux is that side's exitance times the disc's area, the exitance
+// albedo * E, plus pi times the emitted radiance on the front side (the winding's: emission is
+// one-sided, and a Lambertian emitter of radiance Le has the exitance pi Le); its world position
+// and that side's normal.
 // `voxel_sh`: per voxel, over its range of the proxies sorted by voxel, the sum of each VPL's
 // radiant intensity (flux / pi * max(0, n.w)) projected on the real spherical harmonics of
 // order 0 and 1 (c00 = flux / (2 sqrt(pi)), c1m = flux / sqrt(3 pi) n_m for m = -1, 0, 1 on
@@ -48,21 +50,27 @@ fn vpl(@builtin(global_invocation_id) id: vec3u) {
         front += spot_irradiance(l, world, n).rgb;
         back += spot_irradiance(l, world, -n).rgb;
     }
-    var side = n;
-    var e = front;
-    if dot(back, vec3f(1.0)) > dot(front, vec3f(1.0)) {
-        side = -n;
-        e = back;
-    }
     let m = materials[p.material];
     var albedo = m.kd;
     if m.texture >= 0 {
         albedo *= albedo_sample(albedo_textures, u32(m.texture), p.uv);
     }
+    var emission = m.emission;
+    if m.emission_texture >= 0 && any(emission > vec3f(0.0)) {
+        emission *= albedo_sample(albedo_textures, u32(m.emission_texture), p.uv);
+    }
+    let front_exitance = albedo * front + PI * emission;
+    let back_exitance = albedo * back;
+    var side = n;
+    var exitance = front_exitance;
+    if dot(back_exitance, vec3f(1.0)) > dot(front_exitance, vec3f(1.0)) {
+        side = -n;
+        exitance = back_exitance;
+    }
     let area = PI * p.radius * p.radius;
     vpl_position[i] = vec4f(world, p.radius);
     vpl_normal[i] = vec4f(side, area);
-    vpl_flux[i] = vec4f(albedo * e * area, 0.0);
+    vpl_flux[i] = vec4f(exitance * area, 0.0);
 }
 
 @compute @workgroup_size(#{WORKGROUP_1D})

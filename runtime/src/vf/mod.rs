@@ -10,7 +10,8 @@
 //!    longest side, the (key, proxy) pairs sorted by key on the GPU (`common::sort`), each
 //!    voxel's range of them;
 //! 2. `vpl light`, `voxel sh` ([`light::ProxyLight`], §3.1, Eq. 2, 3): the proxies lit through
-//!    the shadow maps become VPLs of flux `albedo E area`; per voxel the order-0/1 spherical
+//!    the shadow maps become VPLs of flux `albedo E area`, an emitter's front `pi Le area` more
+//!    (emissive surfaces light the scene through the VPLs); per voxel the order-0/1 spherical
 //!    harmonics of their intensity and their centroid;
 //! 3. `shadow rays` ([`march::SparseRays`], §3.1, Fig. 2 (c), (d)): from the G-buffer reduced
 //!    `march` times per side, `rays` cosine-distributed rays per pixel march the voxels and
@@ -313,10 +314,12 @@ pub const METHOD: MethodEntry = MethodEntry {
     // The sphere's check renders 32x24: 4x3 marching pixels, whose rays under the normal test
     // see about a third of the sphere's voxels (70% of the light is missing there). With every
     // voxel listed the gathering meets the closed form (tests/gpu/vf.rs); the images of
-    // reports/runtime.md measure what the sparse rays miss at real sizes.
+    // reports/runtime.md measure what the sparse rays miss at real sizes. Lit by its own
+    // emission the sphere misses 65.6% of the light for the same reason (lavapipe).
     checks: Checks {
         energy: Energy::Within(0.75),
         golden_flip: 0.01,
+        emissive: Energy::Within(0.72),
     },
 };
 
