@@ -358,3 +358,76 @@ fn every_gpu_method_builds_within_the_required_limits() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// Every pass a method's frames time is in its schedule under the same name, so that `cssm
+/// compare` and `cssm report error` find each timing's stage (prepare or frame): the
+/// radiosity's passes once carried other names than their declarations and their milliseconds
+/// were counted as frame time.
+#[test]
+fn every_timed_pass_is_in_the_schedule() {
+    let gpu = gpu();
+    if !gpu
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY)
+    {
+        eprintln!("skipped: the device has no timestamp queries");
+        return;
+    }
+    let (scene, file) = cornell();
+    let options = RenderOptions {
+        width: 32,
+        height: 24,
+        ..Default::default()
+    };
+    let mut failures = Vec::new();
+    for method in METHODS
+        .iter()
+        .filter(|m| matches!(m.backend, Backend::Gpu(_)))
+    {
+        let values = options.values(method);
+        let mut renderer = cssm_runtime::Renderer::new(
+            &gpu.device,
+            &gpu.queue,
+            scene,
+            Some(file),
+            method,
+            &values,
+            &options.settings(),
+        )
+        .unwrap_or_else(|e| panic!("{}: {e}", method.name));
+        // The first frame, which runs the prepare passes too, into a target of our own (the
+        // read-back loop reads the timings itself).
+        let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("timed target"),
+            size: wgpu::Extent3d {
+                width: options.width,
+                height: options.height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        renderer.render(&mut encoder, &target.create_view(&Default::default()));
+        gpu.queue.submit([encoder.finish()]);
+        let timings = renderer
+            .read_timings()
+            .unwrap_or_else(|e| panic!("{}: {e}", method.name));
+        assert!(!timings.is_empty(), "{}: no pass was timed", method.name);
+        let schedule = cssm_runtime::frame::schedule(method.passes);
+        for (name, _) in timings {
+            if !schedule.iter().any(|p| p.name == name) {
+                failures.push(format!(
+                    "{}: '{name}' is timed but not scheduled",
+                    method.name
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}

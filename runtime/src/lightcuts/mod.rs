@@ -180,6 +180,8 @@ pub const METHOD: MethodEntry = MethodEntry {
     passes: &[
         radiosity::PREPARE_PASSES[0],
         radiosity::PREPARE_PASSES[1],
+        radiosity::PREPARE_PASSES[2],
+        radiosity::PREPARE_PASSES[3],
         PassInfo {
             name: "final gather",
             stage: Stage::Frame,

@@ -186,6 +186,8 @@ impl AtlasLookup {
 const PASSES: &[PassInfo] = &[
     radiosity::PREPARE_PASSES[0],
     radiosity::PREPARE_PASSES[1],
+    radiosity::PREPARE_PASSES[2],
+    radiosity::PREPARE_PASSES[3],
     PassInfo {
         name: "atlas lookup",
         stage: Stage::Frame,

@@ -338,8 +338,10 @@ impl Radiosity {
     }
 }
 
-/// The passes of [`AtlasGi`], the view-independent part of the hierarchical-radiosity methods.
-pub const PREPARE_PASSES: [PassInfo; 2] = [
+/// The passes of [`AtlasGi`], the view-independent part of the hierarchical-radiosity methods,
+/// under the names their timestamps carry (`AtlasGi::run`), so that the timings of a frame
+/// find their stage in the schedule.
+pub const PREPARE_PASSES: [PassInfo; 4] = [
     PassInfo {
         name: "direct light into atlas",
         stage: Stage::Prepare,
@@ -347,10 +349,22 @@ pub const PREPARE_PASSES: [PassInfo; 2] = [
         writes: &[Slot::TexelRadiance],
     },
     PassInfo {
-        name: "radiosity: gather + pull",
+        name: "radiosity: direct into leaves",
         stage: Stage::Prepare,
         reads: &[Slot::Cssm, Slot::TexelRadiance],
+        writes: &[Slot::NodeRadiance],
+    },
+    PassInfo {
+        name: "radiosity: gather",
+        stage: Stage::Prepare,
+        reads: &[Slot::Cssm, Slot::TexelRadiance, Slot::NodeRadiance],
         writes: &[Slot::NodeRadiance, Slot::TexelIrradiance],
+    },
+    PassInfo {
+        name: "radiosity: pull",
+        stage: Stage::Prepare,
+        reads: &[Slot::NodeRadiance],
+        writes: &[Slot::NodeRadiance],
     },
 ];
 

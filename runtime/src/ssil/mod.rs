@@ -1162,6 +1162,12 @@ pub const METHOD: MethodEntry = MethodEntry {
             writes: &[Slot::Reduced],
         },
         PassInfo {
+            name: "ssil voxel levels",
+            stage: Stage::Frame,
+            reads: &[Slot::Reduced],
+            writes: &[Slot::Reduced],
+        },
+        PassInfo {
             name: "ssil gather",
             stage: Stage::Frame,
             reads: &[Slot::Reduced, Slot::Scene, Slot::View],
