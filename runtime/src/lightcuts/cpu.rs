@@ -7,8 +7,8 @@ use glam::{Vec2, Vec3};
 use crate::{
     gpu_types::{GpuMaterial, GpuNode},
     radiosity::transfer::{
-        brdf, brdf_bound, irradiance_bound, irradiance_from, jitter_in_disk, jitter_leaf,
-        tone_mapped,
+        brdf, brdf_bound, in_near_field, irradiance_bound, irradiance_from,
+        irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped,
     },
 };
 
@@ -71,13 +71,19 @@ pub fn gather_pixel(
         };
         if l.cmpgt(Vec3::ZERO).any() {
             let y = &texels[sender as usize];
+            let near = node.count == 1 && in_near_field(p, y.pos(), node.area);
             let position = match jitter {
-                Some((seed, receiver)) => {
+                Some((seed, receiver)) if !near => {
                     jitter_in_disk(seed, receiver, s as u32, y.pos(), y.nrm(), y.area)
                 }
-                None => y.pos(),
+                _ => y.pos(),
             };
-            let (e, w) = irradiance_from(p, n, position, Vec3::from(node.normal), node.area, l);
+            // The texel's footprint integrated exactly: what jittering would average to.
+            let (e, w) = if near {
+                irradiance_from_footprint(p, n, position, y.nrm(), node.area, l)
+            } else {
+                irradiance_from(p, n, position, Vec3::from(node.normal), node.area, l)
+            };
             if e.cmpgt(Vec3::ZERO).any() {
                 // The pixel's texels and the sender's (both ends, when the options ask).
                 let visibility = query

@@ -1,6 +1,6 @@
 #import cssm::types::{Material, Node, TraversalParams, View}
 #import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels, cssm_visibility_between}
-#import cssm::transfer::{brdf, brdf_bound, irradiance_bound, irradiance_from, jitter_in_disk, jitter_leaf, tone_mapped}
+#import cssm::transfer::{brdf, brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
 
 // Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
 // pixel instead of a receiver leaf, the oracle bounding the normalised Phong BRDF so glossy
@@ -52,10 +52,16 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
             if any(l > vec3f(0.0)) {
                 let y = cssm_texels[sender];
                 var y_position = y.position;
-                if params.jitter != 0u {
-                    y_position = jitter_in_disk(params.seed, receiver, s, y.position, y.normal, y.area);
+                var e: vec3f;
+                if node.count == 1u && in_near_field(p, y.position, node.area) {
+                    // The texel's footprint integrated exactly: what jittering would average to.
+                    e = irradiance_from_footprint(p, n, y.position, y.normal, node.area, l);
+                } else {
+                    if params.jitter != 0u {
+                        y_position = jitter_in_disk(params.seed, receiver, s, y.position, y.normal, y.area);
+                    }
+                    e = irradiance_from(p, n, y_position, node.normal, node.area, l);
                 }
-                let e = irradiance_from(p, n, y_position, node.normal, node.area, l);
                 if any(e > vec3f(0.0)) {
                     // The pixel's texels and the sender's (both ends, CSSM_FLAG_BOTH_ENDS).
                     var visibility = cssm_visibility_between(senders, p, n, cssm_senders_texel(sender), y_position, y.normal);

@@ -11,7 +11,7 @@ use cssm_raycast::SceneBvh;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::transfer::{irradiance_bound, irradiance_from, tone_mapped};
+use super::transfer::{irradiance_bound, irradiance_from, irradiance_from_texel, tone_mapped};
 use crate::gpu_types::GpuNode;
 
 const PI: f32 = std::f32::consts::PI;
@@ -70,8 +70,12 @@ pub fn gather_texel(
         let sender = node.representative;
         if sender != receiver && l.cmpgt(Vec3::ZERO).any() {
             let y = &texels[sender as usize];
-            let (unoccluded, _) =
-                irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l);
+            // A single texel's footprint is integrated in its near field.
+            let (unoccluded, _) = if node.count == 1 {
+                irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, l)
+            } else {
+                irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l)
+            };
             if unoccluded.cmpgt(Vec3::ZERO).any() {
                 // Both ends' cube maps when the options ask (QueryOptions::both_ends).
                 let visibility = query
@@ -170,8 +174,8 @@ pub fn radiosity(
 }
 
 /// Ground truth over the same texels: `iterations` Jacobi bounces where every texel gathers
-/// from every other texel with the same clamped transfer ([`super::transfer::irradiance_from`],
-/// the texel as a disk of its own area) and exact visibility (a ray cast between the two
+/// from every other texel with the same transfer ([`super::transfer::irradiance_from_texel`]:
+/// the texel's footprint in its near field, a clamped point beyond) and exact visibility (a ray cast between the two
 /// points, each lifted off its surface by `1e-4` of the scene diameter). Returns the indirect
 /// irradiance per texel. Quadratic in the texel count: for small atlases.
 pub fn brute_force(
@@ -212,7 +216,7 @@ pub fn brute_force(
                     .filter(|&s| visible[r][s])
                     .map(|s| {
                         let t = &texels[s];
-                        irradiance_from(p, n, t.pos(), t.nrm(), t.area, radiance[s]).0
+                        irradiance_from_texel(p, n, t.pos(), t.nrm(), t.area, radiance[s]).0
                     })
                     .sum()
             })

@@ -1,10 +1,11 @@
 #import cssm::types::{Node, TraversalParams}
 #import cssm::visibility::{cssm_senders_texel, cssm_texels, cssm_visibility_between}
-#import cssm::transfer::{TRANSFER_PI, irradiance_bound, irradiance_from, tone_mapped}
+#import cssm::transfer::{TRANSFER_PI, irradiance_bound, irradiance_from, irradiance_from_texel, tone_mapped}
 
 // GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
 // (texel) walks the hierarchy without a stack from the root, refining a sender while the oracle
-// says so, else gathering from it with the clamped form factor and CSSM visibility, then
+// says so, else gathering from it with the clamped form factor (a single texel near the receiver: its
+// footprint's exact form factor) and CSSM visibility, then
 // skipping its subtree (Fig. 10). Writes the texel's indirect irradiance and its leaf node's
 // new radiance (direct + reflected indirect); the pull pass (pull.wgsl) then rebuilds the
 // inner nodes. CPU twin: radiosity/cpu.rs::gather_texel.
@@ -44,7 +45,13 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
         let sender = node.representative;
         if sender != receiver && any(radiance > vec3f(0.0)) {
             let y = cssm_texels[sender];
-            let unoccluded = irradiance_from(p, n, y.position, node.normal, node.area, radiance);
+            // A single texel's footprint is integrated in its near field (transfer.rs).
+            var unoccluded: vec3f;
+            if node.count == 1u {
+                unoccluded = irradiance_from_texel(p, n, y.position, y.normal, node.area, radiance);
+            } else {
+                unoccluded = irradiance_from(p, n, y.position, node.normal, node.area, radiance);
+            }
             if any(unoccluded > vec3f(0.0)) {
                 // Both ends' cube maps when the flags ask (CSSM_FLAG_BOTH_ENDS).
                 let visibility = cssm_visibility_between(cssm_senders_texel(receiver), p, n, cssm_senders_texel(sender), y.position, y.normal);

@@ -14,7 +14,10 @@
 //! - Irradiance at `p` (normal `n`): `L * A * cos_r * cos_s / (d² + A / pi)`. The `A / pi` is the
 //!   clamping near the sender (§4.4, §5 "clamping is used"): it is the exact on-axis irradiance
 //!   from a disk of area `A` (`pi L a² / (h² + a²)`), so a close sender gives a finite disk's
-//!   light instead of a point's singularity.
+//!   light instead of a point's singularity. A single texel within [`NEAR_FIELD_SIZES`] texel
+//!   sizes of the receiver sends instead from its footprint, integrated exactly
+//!   ([`irradiance_from_footprint`]): the clamp is right on the sender's axis only, and beside a
+//!   crease, where most of the light comes from texels seen edge-on, a point loses it.
 //!
 //! Oracle (§4.3): an upper bound of the radiance the receiver would reflect from the whole node,
 //! `Σ L_i A_i cos cos / d_i² <= L A · max cos_r · max cos_s / d_min²` with the cosine maxima over
@@ -115,6 +118,109 @@ pub fn irradiance_from(
     let cos_r = n.dot(w).max(0.0);
     let cos_s = (-sender_normal.dot(w)).max(0.0);
     (radiance * (area * cos_r * cos_s / (dist2 + area / PI)), w)
+}
+
+/// Within this many texel sizes (`sqrt(A)`) of a single texel, the transfer integrates the
+/// texel's footprint ([`irradiance_from_footprint`]) instead of clamping a point
+/// ([`irradiance_from`]): the clamp is the exact value on the sender's axis only, and a receiver
+/// beside a crease, whose nearest senders lie across it almost in its own plane, gets a point's
+/// zero (`cos_s` = 0 at the texel's centre) where the texel's footprint above the crease lights it.
+/// At three sizes both agree within 4% of a facing sender's light, the most where the
+/// footprint straddles the receiver's horizon (`near_field_and_far_field_meet_at_its_edge`).
+pub const NEAR_FIELD_SIZES: f32 = 3.0;
+
+/// Whether a receiver at `p` is in the near field of the texel at `y` of area `area`.
+/// `transfer.wgsl`: `in_near_field`.
+pub fn in_near_field(p: Vec3, y: Vec3, area: f32) -> bool {
+    (y - p).length_squared() < NEAR_FIELD_SIZES * NEAR_FIELD_SIZES * area
+}
+
+/// Corners of the regular octagon of unit area (circumradius `1 / sqrt(2 sqrt 2)`), counter-
+/// clockwise about the normal in its tangent frame: a texel's footprint, its area and centre
+/// kept (the atlas stores no texel's shape, and the octagon is as isotropic as the disk of
+/// [`jitter_in_disk`] at eight corners).
+const OCTAGON: [(f32, f32); 8] = {
+    const R: f32 = 0.594_603_55; // 1 / sqrt(2 sqrt 2)
+    const D: f32 = R * std::f32::consts::FRAC_1_SQRT_2;
+    [
+        (R, 0.0),
+        (D, D),
+        (0.0, R),
+        (-D, D),
+        (-R, 0.0),
+        (-D, -D),
+        (0.0, -R),
+        (D, -D),
+    ]
+};
+
+/// Unoccluded irradiance at `p` (normal `n`) from a texel at `y` (unit normal `sender_normal`,
+/// area `area`, radiance `radiance`), integrated exactly over its footprint: Lambert's formula
+/// for a uniformly emitting polygon, `E = L/2 Σ Θ_i n·Γ_i` over the edges of the octagon of the
+/// texel's area, clipped to the receiver's upper hemisphere (Sutherland-Hodgman against its
+/// tangent plane); zero behind the sender (one-sided). The unit direction returned is towards
+/// the centre. `transfer.wgsl`: `irradiance_from_footprint`.
+pub fn irradiance_from_footprint(
+    p: Vec3,
+    n: Vec3,
+    y: Vec3,
+    sender_normal: Vec3,
+    area: f32,
+    radiance: Vec3,
+) -> (Vec3, Vec3) {
+    let d = y - p;
+    if d.length_squared() <= 0.0 || sender_normal.dot(-d) <= 0.0 {
+        return (Vec3::ZERO, Vec3::ZERO);
+    }
+    let scale = area.max(0.0).sqrt();
+    let (t, s) = tangent_frame(sender_normal);
+    let corner = |k: usize| d + (t * OCTAGON[k].0 + s * OCTAGON[k].1) * scale;
+    // Clip to the receiver's hemisphere: at most one corner more than the octagon's eight.
+    let mut clipped = [Vec3::ZERO; 9];
+    let mut count = 0;
+    for k in 0..8 {
+        let a = corner(k);
+        let b = corner((k + 1) % 8);
+        let (da, db) = (a.dot(n), b.dot(n));
+        if da >= 0.0 {
+            clipped[count] = a;
+            count += 1;
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            clipped[count] = a + (b - a) * (da / (da - db));
+            count += 1;
+        }
+    }
+    let mut sum = 0.0;
+    for i in 0..count {
+        let a = clipped[i];
+        let b = clipped[(i + 1) % count];
+        let c = a.cross(b);
+        let len = c.length();
+        if len > 0.0 {
+            sum += len.atan2(a.dot(b)) * n.dot(c) / len;
+        }
+    }
+    // Counter-clockwise about the sender's normal is clockwise seen from its front: -Σ.
+    let e = (-0.5 * sum).max(0.0);
+    (radiance * e, d.normalize())
+}
+
+/// The transfer from a single texel: [`irradiance_from_footprint`] in its near field,
+/// [`irradiance_from`] beyond. `transfer.wgsl`: `irradiance_from_texel`.
+pub fn irradiance_from_texel(
+    p: Vec3,
+    n: Vec3,
+    y: Vec3,
+    sender_normal: Vec3,
+    area: f32,
+    radiance: Vec3,
+) -> (Vec3, Vec3) {
+    if in_near_field(p, y, area) {
+        irradiance_from_footprint(p, n, y, sender_normal, area, radiance)
+    } else {
+        irradiance_from(p, n, y, sender_normal, area, radiance)
+    }
 }
 
 /// PCG hash (Jarzynski and Olano 2020), the jitter's random numbers on both sides.
@@ -232,6 +338,129 @@ mod tests {
                 assert!(axis.dot(d) <= bound + 1e-4, "{} > {bound}", axis.dot(d));
             }
         }
+    }
+
+    /// Irradiance from the octagon of `area` around `y` by a midpoint rule over a fine grid of
+    /// its tangent plane: the footprint's definition, summed instead of integrated.
+    fn octagon_by_quadrature(p: Vec3, n: Vec3, y: Vec3, normal: Vec3, area: f32) -> f32 {
+        let (t, s) = tangent_frame(normal);
+        let r = 0.594_603_55 * area.sqrt();
+        let steps = 600;
+        let h = 2.0 * r / steps as f32;
+        let inside = |u: f32, v: f32| {
+            // The octagon: |u|, |v| <= r cos(pi/8) and |u| + |v| <= sqrt 2 r cos(pi/8).
+            let apothem = r * (PI / 8.0).cos();
+            u.abs() <= apothem
+                && v.abs() <= apothem
+                && u.abs() + v.abs() <= std::f32::consts::SQRT_2 * apothem
+        };
+        let mut sum = 0.0f64;
+        for i in 0..steps {
+            for j in 0..steps {
+                let (u, v) = (-r + (i as f32 + 0.5) * h, -r + (j as f32 + 0.5) * h);
+                if !inside(u, v) {
+                    continue;
+                }
+                let d = y + t * u + s * v - p;
+                let dist2 = d.length_squared();
+                let w = d / dist2.sqrt();
+                let cos_r = n.dot(w).max(0.0);
+                let cos_s = (-normal.dot(w)).max(0.0);
+                sum += (cos_r * cos_s / dist2 * h * h) as f64;
+            }
+        }
+        sum as f32
+    }
+
+    #[test]
+    fn footprint_is_the_octagons_integral_wherever_the_receiver_is() {
+        let mut state = 3u32;
+        let mut rnd = || {
+            state = pcg_hash(state);
+            state as f32 / u32::MAX as f32
+        };
+        let area: f32 = 0.04;
+        let mut checked = 0;
+        while checked < 40 {
+            let normal = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let n = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let y = Vec3::new(1.0, -2.0, 0.5);
+            // In front of the sender, from a fifth of a texel size to four sizes away.
+            let offset = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 0.8;
+            let p = y + offset;
+            if (p - y).dot(normal) < 0.2 * area.sqrt() {
+                continue;
+            }
+            let (e, _) = irradiance_from_footprint(p, n, y, normal, area, Vec3::ONE);
+            let expected = octagon_by_quadrature(p, n, y, normal, area);
+            let scale = area / (p - y).length_squared();
+            assert!(
+                (e.x - expected).abs() <= 0.01 * expected + 1e-3 * scale,
+                "p {p} n {n} normal {normal}: {} vs quadrature {expected}",
+                e.x
+            );
+            checked += 1;
+        }
+    }
+
+    #[test]
+    fn footprint_lights_a_receiver_at_the_foot_of_a_wall() {
+        // A floor point at the crease, a wall texel standing on the crease: the texel's
+        // centre is in the receiver's plane (cos_s = 0 at it), its footprint is not.
+        let (area, size) = (0.01, 0.1);
+        let p = Vec3::ZERO;
+        let y = Vec3::new(0.0, 0.5 * size, 0.0);
+        let (point, _) = irradiance_from(p, Vec3::Y, y, Vec3::NEG_X, area, Vec3::ONE);
+        let (footprint, _) = irradiance_from_footprint(
+            p - Vec3::new(0.01 * size, 0.0, 0.0),
+            Vec3::Y,
+            y,
+            Vec3::NEG_X,
+            area,
+            Vec3::ONE,
+        );
+        assert!(point.x < 1e-6, "a point's light: {point}");
+        assert!(footprint.x > 0.5, "the footprint's light: {footprint}");
+        // Behind the sender: nothing.
+        let (behind, _) = irradiance_from_footprint(
+            Vec3::new(0.05, 0.0, 0.0),
+            Vec3::Y,
+            y,
+            Vec3::NEG_X,
+            area,
+            Vec3::ONE,
+        );
+        assert_eq!(behind, Vec3::ZERO);
+    }
+
+    #[test]
+    fn near_field_and_far_field_meet_at_its_edge() {
+        // On the edge of the near field the footprint and the clamped point agree within 4% of
+        // a facing sender's light in every orientation (3.7% measured, where the footprint
+        // straddles the receiver's horizon and its centre lies below it).
+        let mut state = 5u32;
+        let mut rnd = || {
+            state = pcg_hash(state);
+            state as f32 / u32::MAX as f32
+        };
+        let area: f32 = 0.25;
+        let y = Vec3::ZERO;
+        let mut worst = 0.0f32;
+        for _ in 0..2000 {
+            let dir = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let p = dir * (NEAR_FIELD_SIZES * area.sqrt());
+            let normal = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let n = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let (near, _) = irradiance_from_footprint(p, n, y, normal, area, Vec3::ONE);
+            let (far, _) = irradiance_from(p, n, y, normal, area, Vec3::ONE);
+            let facing = area / p.length_squared();
+            worst = worst.max((near.x - far.x).abs() / facing);
+            assert!(
+                (near.x - far.x).abs() <= 0.04 * facing,
+                "{near} vs {far} (facing {facing})"
+            );
+        }
+        assert!(worst > 0.0, "the two models are not the same");
     }
 
     #[test]

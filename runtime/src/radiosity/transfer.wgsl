@@ -72,6 +72,67 @@ fn irradiance_from(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, area: f32
     return radiance * (area * cos_r * cos_s / (dist2 + area / TRANSFER_PI));
 }
 
+// transfer::NEAR_FIELD_SIZES.
+const NEAR_FIELD_SIZES: f32 = 3.0;
+
+// transfer::in_near_field.
+fn in_near_field(p: vec3f, y: vec3f, area: f32) -> bool {
+    let d = y - p;
+    return dot(d, d) < NEAR_FIELD_SIZES * NEAR_FIELD_SIZES * area;
+}
+
+// transfer::irradiance_from_footprint: Lambert's formula over the octagon of the texel's area,
+// clipped to the receiver's hemisphere; xyz irradiance.
+fn irradiance_from_footprint(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, area: f32, radiance: vec3f) -> vec3f {
+    let d = y - p;
+    if dot(d, d) <= 0.0 || dot(sender_normal, -d) <= 0.0 {
+        return vec3f(0.0);
+    }
+    // transfer::OCTAGON: unit area, counter-clockwise about the normal.
+    let r = 0.59460355;
+    let c = r * 0.70710678;
+    var octagon = array<vec2f, 8>(vec2f(r, 0.0), vec2f(c, c), vec2f(0.0, r), vec2f(-c, c), vec2f(-r, 0.0), vec2f(-c, -c), vec2f(0.0, -r), vec2f(c, -c));
+    let scale = sqrt(max(area, 0.0));
+    let frame = tangent_frame(sender_normal);
+    var clipped: array<vec3f, 9>;
+    var count = 0u;
+    for (var k = 0u; k < 8u; k++) {
+        let ca = octagon[k];
+        let cb = octagon[(k + 1u) % 8u];
+        let a = d + (frame[0] * ca.x + frame[1] * ca.y) * scale;
+        let b = d + (frame[0] * cb.x + frame[1] * cb.y) * scale;
+        let da = dot(a, n);
+        let db = dot(b, n);
+        if da >= 0.0 {
+            clipped[count] = a;
+            count += 1u;
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            clipped[count] = a + (b - a) * (da / (da - db));
+            count += 1u;
+        }
+    }
+    var sum = 0.0;
+    for (var i = 0u; i < count; i++) {
+        let a = clipped[i];
+        let b = clipped[(i + 1u) % count];
+        let cr = cross(a, b);
+        let len = length(cr);
+        if len > 0.0 {
+            sum += atan2(len, dot(a, b)) * dot(n, cr) / len;
+        }
+    }
+    return radiance * max(-0.5 * sum, 0.0);
+}
+
+// transfer::irradiance_from_texel.
+fn irradiance_from_texel(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, area: f32, radiance: vec3f) -> vec3f {
+    if in_near_field(p, y, area) {
+        return irradiance_from_footprint(p, n, y, sender_normal, area, radiance);
+    }
+    return irradiance_from(p, n, y, sender_normal, area, radiance);
+}
+
 // transfer::pcg_hash.
 fn pcg_hash(x: u32) -> u32 {
     let state = x * 747796405u + 2891336453u;
