@@ -3,16 +3,34 @@
 
 use std::{process::ExitCode, time::Instant};
 
-use cssm::{bake, formats, summary::BakeSummary};
+use cssm::{
+    bake, formats,
+    summary::{BakeSummary, ChunkSummary, InspectSummary},
+};
 use formats::Scene;
 
-use crate::{CliResult, check_writable, cli::BakeConfig, load_scene, scene_dir};
+use crate::{
+    CliResult, check_writable,
+    cli::{BakeConfig, MergeArgs},
+    load_scene, scene_dir,
+};
 
 /// Bakes `scene` with a progress bar of depth maps on stderr.
 pub fn bake_with_progress(
     scene: &Scene,
     options: &bake::BakeOptions,
 ) -> Result<bake::Baked, bake::BakeError> {
+    with_progress(scene, &mut |progress| bake::bake(scene, options, progress))
+}
+
+/// Where a bake tells its progress.
+type ProgressSink<'a> = &'a mut (dyn FnMut(bake::Progress) + Send);
+
+/// Runs `bake` (a whole bake or a chunk of `scene`) with a progress bar on stderr.
+fn with_progress<T>(
+    scene: &Scene,
+    bake: &mut dyn FnMut(ProgressSink) -> Result<T, bake::BakeError>,
+) -> Result<T, bake::BakeError> {
     let bar = indicatif::ProgressBar::new(0);
     let style = |template: &str| {
         indicatif::ProgressStyle::with_template(template)
@@ -21,7 +39,7 @@ pub fn bake_with_progress(
     };
     let name = crate::printable(&scene.name);
     let mut stage = None;
-    let baked = bake::bake(scene, options, &mut |p| {
+    let baked = bake(&mut |p| {
         bar.set_length(p.total);
         bar.set_position(p.done);
         // Each stage its own style: a bar where the stage can tell how far it is.
@@ -48,8 +66,11 @@ pub fn bake_with_progress(
 
 pub fn run_bake(config: BakeConfig) -> CliResult {
     let start = Instant::now();
-    let dir = scene_dir(config.scene)?;
+    let dir = scene_dir(config.scene.clone())?;
     let scene = load_scene(&dir)?;
+    if let Some(spec) = config.chunk {
+        return run_bake_chunk(&scene, &config, spec, start);
+    }
     // The default name is the scene's as one safe file name in the current directory.
     let output = config
         .output
@@ -74,6 +95,83 @@ pub fn run_bake(config: BakeConfig) -> CliResult {
     if config.json {
         println!("{}", summary.to_json());
     } else {
+        println!("{summary}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `cssm bake --chunk I/N`: bakes one chunk and writes the chunk file.
+fn run_bake_chunk(
+    scene: &Scene,
+    config: &BakeConfig,
+    spec: formats::cssm::ChunkSpec,
+    start: Instant,
+) -> CliResult {
+    let output = config.output.clone().unwrap_or_else(|| {
+        format!(
+            "{}.chunk-{}-of-{}",
+            cssm::safe_file_stem(&scene.name),
+            spec.index(),
+            spec.count()
+        )
+        .into()
+    });
+    check_writable(&output, &scene.input_files())?;
+    let baked = with_progress(scene, &mut |progress| {
+        bake::bake_chunk(scene, &config.options, spec, config.file_coding, progress)
+    })
+    .map_err(|e| format!("{}: {}", scene.path.display(), cssm::flag_error(&e)))?;
+    let file_bytes =
+        formats::cssm::write_chunk_atomic(&output, &baked.chunk).map_err(|e| e.to_string())?;
+    let summary = ChunkSummary::new(
+        &output,
+        &baked.chunk,
+        &baked.stats,
+        file_bytes,
+        start.elapsed().as_secs_f64(),
+    );
+    if config.json {
+        println!("{}", summary.to_json());
+    } else {
+        println!("{summary}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `cssm merge`: reads every chunk, joins them and writes the file atomically.
+pub fn run_merge(args: MergeArgs) -> CliResult {
+    let bar = indicatif::ProgressBar::new(args.chunks.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} reading chunks [{bar:32}] {pos}/{len}, {elapsed}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let mut chunks = Vec::with_capacity(args.chunks.len());
+    for path in &args.chunks {
+        let chunk = formats::cssm::read_chunk(path).map_err(|e| e.to_string())?;
+        chunks.push((path.clone(), chunk));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let count = chunks.len();
+    let scene_name = chunks
+        .first()
+        .map(|(_, c)| c.file().scene.name.clone())
+        .unwrap_or_default();
+    let output = args
+        .output
+        .unwrap_or_else(|| format!("{}.cssm", cssm::safe_file_stem(&scene_name)).into());
+    check_writable(&output, &args.chunks)?;
+    let (file, coding) = formats::cssm::merge_chunks(chunks).map_err(|e| e.to_string())?;
+    let file_bytes =
+        formats::cssm::write_atomic_with(&output, &file, coding).map_err(|e| e.to_string())?;
+    let summary = InspectSummary::new(&output, &file, file_bytes);
+    if args.json {
+        println!("{}", summary.to_json());
+    } else {
+        println!("merged {count} chunks");
         println!("{summary}");
     }
     Ok(ExitCode::SUCCESS)

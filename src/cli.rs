@@ -45,6 +45,17 @@ pub enum Command {
         cssm bake ../shared/scenes/cornell-original/CornellBox-Original.obj -o mcguire.cssm\n  \
         cssm bake sponza.glb -o sponza.cssm")]
     Bake(BakeArgs),
+    /// Join the chunks of a chunked bake (cssm bake --chunk I/N) into one .cssm file.
+    ///
+    /// The merged file is byte for byte the one a single `cssm bake` with the same scene and
+    /// options writes. Every chunk 0 to N-1 must be given once, in any order; a missing one
+    /// (a failed job of the farm) is named, and chunks of another scene or other options are
+    /// refused. The output is written atomically: nothing is left half-written.
+    #[command(
+        after_help = "Examples:\n  cssm merge cornell.chunk-*-of-4 -o cornell.cssm\n  \
+        cssm merge parts/*.chunk-* -o sibenik.cssm --json"
+    )]
+    Merge(MergeArgs),
     /// Print the header and sizes of a .cssm file.
     #[command(
         after_help = "Examples:\n  cssm inspect cornell.cssm\n  cssm inspect cornell.cssm --json"
@@ -206,6 +217,13 @@ pub struct BakeArgs {
     /// diameter.
     #[arg(long, value_parser = finite_f32)]
     near: Option<f32>,
+    /// Bake only chunk I of N (I from 0 to N-1) for a batch farm: the depth maps of one
+    /// contiguous slice of the traversal, into a chunk file (default name
+    /// <scene>.chunk-I-of-N); `cssm merge` joins the N chunks into the file one bake writes.
+    /// In a Slurm job array: --chunk $SLURM_ARRAY_TASK_ID/N; in a Kubernetes indexed Job:
+    /// --chunk $JOB_COMPLETION_INDEX/N (docs/batch-bake.md).
+    #[arg(long, value_name = "I/N")]
+    chunk: Option<formats::cssm::ChunkSpec>,
     /// Print the summary as one JSON object.
     #[arg(long)]
     json: bool,
@@ -221,6 +239,8 @@ pub struct BakeConfig {
     pub options: bake::BakeOptions,
     /// How the file codes the runs.
     pub file_coding: FileCoding,
+    /// `--chunk I/N`: bake this chunk only.
+    pub chunk: Option<formats::cssm::ChunkSpec>,
     /// `--json`.
     pub json: bool,
 }
@@ -245,9 +265,23 @@ impl BakeArgs {
             output: self.output,
             options,
             file_coding: self.file_coding,
+            chunk: self.chunk,
             json: self.json,
         })
     }
+}
+
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    /// The chunk files (cssm bake --chunk I/N), all N of them, in any order.
+    #[arg(required = true, value_name = "CHUNKS")]
+    pub chunks: Vec<PathBuf>,
+    /// Output file. Default: <scene name>.cssm in the current directory.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args)]

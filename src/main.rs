@@ -47,6 +47,7 @@ fn main() -> ExitCode {
     .flatten();
     let result = match command {
         Command::Bake(args) => args.config().and_then(bake_cmd::run_bake),
+        Command::Merge(args) => bake_cmd::run_merge(args),
         Command::Inspect(args) => run_inspect(args),
         Command::Check(args) => check_cmd::run_check(args.config()),
         Command::Render(args) => args.config().and_then(render::run_render),

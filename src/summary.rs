@@ -333,6 +333,101 @@ impl fmt::Display for InspectSummary {
     }
 }
 
+/// `cssm bake --chunk I/N`: which slice the chunk holds and what baking it took.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ChunkSummary {
+    /// The chunk file written.
+    pub path: PathBuf,
+    /// Scene name.
+    pub scene: String,
+    /// Chunk index, from 0.
+    pub chunk: u32,
+    /// Chunks in all.
+    pub chunks: u32,
+    /// First map of the slice (position in the traversal).
+    pub first_map: u32,
+    /// One past its last map.
+    pub end_map: u32,
+    /// Maps of the whole bake.
+    pub total_maps: u32,
+    /// Rays cast for the slice.
+    pub rays: u64,
+    /// Runs of the slice.
+    pub runs: u64,
+    /// Chunk file size.
+    pub file_bytes: u64,
+    /// Whole process, seconds.
+    pub seconds: f64,
+}
+
+impl ChunkSummary {
+    /// The summary of `chunk`, written to `path` (`file_bytes`), baked with `stats`.
+    pub fn new(
+        path: &Path,
+        chunk: &formats::cssm::CssmChunk,
+        stats: &bake::BakeStats,
+        file_bytes: u64,
+        seconds: f64,
+    ) -> Self {
+        let maps = chunk.maps();
+        Self {
+            path: path.to_path_buf(),
+            scene: chunk.file().scene.name.clone(),
+            chunk: chunk.spec().index(),
+            chunks: chunk.spec().count(),
+            first_map: maps.start,
+            end_map: maps.end,
+            total_maps: chunk.total_maps(),
+            rays: stats.rays,
+            runs: stats.runs,
+            file_bytes,
+            seconds,
+        }
+    }
+
+    /// `--json`: one line.
+    pub fn to_json(&self) -> String {
+        json_line(self)
+    }
+}
+
+impl fmt::Display for ChunkSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "wrote {}: chunk {} of {} of {}",
+            self.path.display(),
+            self.chunk,
+            self.chunks,
+            self.scene
+        )?;
+        if self.first_map == self.end_map {
+            writeln!(
+                f,
+                "  depth maps     none (more chunks than segments of {} maps; merge it all the same)",
+                formats::cssm::SEGMENT_MAPS
+            )?;
+        } else {
+            writeln!(
+                f,
+                "  depth maps     {} to {} of {} ({} rays, {} runs)",
+                self.first_map,
+                self.end_map - 1,
+                self.total_maps,
+                self.rays,
+                self.runs
+            )?;
+        }
+        writeln!(f, "  file           {:>12}", human_bytes(self.file_bytes))?;
+        writeln!(f, "  time           {:.2} s", self.seconds)?;
+        write!(
+            f,
+            "  next           cssm merge <all {} chunks> -o <file>",
+            self.chunks
+        )
+    }
+}
+
 /// `cssm check`: the confusion matrix of the CSSM against exact ray casts over every pair, and
 /// the agreement over the pairs that exchange light ([`bake::check::Measurement`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1349,3 +1349,123 @@ fn compare_refuses_bad_input_and_writes_nothing() {
     assert!(stderr(&o).contains("not a directory"), "{}", stderr(&o));
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
 }
+
+#[test]
+fn chunks_merge_into_the_file_of_one_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    // Atlas 512: 179,761 maps, three segments of 65,536. Four chunks: chunk 0 empty, the others
+    // a segment each, the last one short.
+    let options = ["--atlas", "512", "--cube", "8", "--traversal", "hilbert"];
+    let bake = |extra: &[&str]| {
+        let mut args = vec!["bake", scene.to_str().unwrap()];
+        args.extend_from_slice(&options);
+        args.extend_from_slice(extra);
+        let o = cssm(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        o
+    };
+    bake(&["-o", &path("whole.cssm")]);
+    for i in 0..4 {
+        let o = bake(&[
+            "--chunk",
+            &format!("{i}/4"),
+            "-o",
+            &path(&format!("part-{i}")),
+            "--json",
+        ]);
+        let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let maps = summary["end_map"].as_u64().unwrap() - summary["first_map"].as_u64().unwrap();
+        assert_eq!(maps > 0, i > 0, "chunk {i}: {summary}");
+    }
+    // In any order.
+    let merged = path("merged.cssm");
+    let o = cssm(&[
+        "merge",
+        &path("part-3"),
+        &path("part-1"),
+        &path("part-0"),
+        &path("part-2"),
+        "-o",
+        &merged,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        std::fs::read(path("whole.cssm")).unwrap() == std::fs::read(&merged).unwrap(),
+        "the merged file differs from the single bake's"
+    );
+
+    // A failed job: its chunk is named, and nothing is written.
+    let out = dir.path().join("out.cssm");
+    let o = cssm(&[
+        "merge",
+        &path("part-0"),
+        &path("part-1"),
+        &path("part-3"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_fails(&o, "chunk 2 of 4 missing: bake it with --chunk 2/4", &out);
+    let o = cssm(&[
+        "merge",
+        &path("part-0"),
+        &path("part-1"),
+        &path("part-1"),
+        &path("part-2"),
+        &path("part-3"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_fails(&o, "are both chunk 1/4", &out);
+    // A whole file, a chunk of another bake, a truncated chunk.
+    let o = cssm(&["merge", &path("whole.cssm"), "-o", out.to_str().unwrap()]);
+    assert_fails(&o, "a whole .cssm file, not a chunk", &out);
+    let o = cssm(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "--atlas",
+        "32",
+        "--cube",
+        "8",
+        "--chunk",
+        "1/4",
+        "-o",
+        &path("other-1"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = cssm(&[
+        "merge",
+        &path("part-0"),
+        &path("other-1"),
+        &path("part-2"),
+        &path("part-3"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_fails(
+        &o,
+        "come from different bakes (their bake parameters differ)",
+        &out,
+    );
+    let bytes = std::fs::read(path("part-2")).unwrap();
+    std::fs::write(path("cut-2"), &bytes[..bytes.len() / 2]).unwrap();
+    let o = cssm(&[
+        "merge",
+        &path("part-0"),
+        &path("part-1"),
+        &path("cut-2"),
+        &path("part-3"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_fails(&o, "cut-2", &out);
+    // A chunk where a whole file belongs.
+    let o = cssm(&["inspect", &path("part-1")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("join the chunks with cssm merge"),
+        "{}",
+        stderr(&o)
+    );
+}

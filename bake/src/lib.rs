@@ -296,6 +296,56 @@ pub fn bake(
     options: &BakeOptions,
     progress: &mut (dyn FnMut(Progress) + Send),
 ) -> Result<Baked, BakeError> {
+    let (file, stats) = bake_slice(scene, options, None, progress)?;
+    Ok(Baked { file, stats })
+}
+
+/// A chunk of a chunked bake ([`bake_chunk`]) and the statistics of its slice.
+#[derive(Debug)]
+pub struct BakedChunk {
+    /// The chunk, ready for [`cssm_formats::cssm::write_chunk_atomic`].
+    pub chunk: cssm_formats::cssm::CssmChunk,
+    /// Statistics of the chunk's slice (its maps, rays and runs; the atlas and the traversal
+    /// are the whole bake's, which every chunk computes).
+    pub stats: BakeStats,
+}
+
+/// Bakes chunk `spec` of `scene` for a batch farm: the atlas, the traversal and the hierarchy
+/// of the whole bake (each chunk computes the same ones), and the depth maps of the chunk's
+/// slice of whole segments only ([`cssm_formats::cssm::ChunkSpec::maps`]).
+/// [`cssm_formats::cssm::merge_chunks`] joins the chunks into the file [`bake`] gives, byte for
+/// byte once written with `coding`.
+///
+/// ```no_run
+/// # fn demo(scene: &cssm_formats::Scene) -> Result<(), Box<dyn std::error::Error>> {
+/// use cssm_formats::cssm::{ChunkSpec, FileCoding, write_chunk_atomic};
+/// let spec: ChunkSpec = "3/8".parse()?;
+/// let options = cssm_bake::BakeOptions::default();
+/// let baked = cssm_bake::bake_chunk(scene, &options, spec, FileCoding::default(), &mut |_| {})?;
+/// write_chunk_atomic("scene.chunk-3-of-8".as_ref(), &baked.chunk)?;
+/// # Ok(()) }
+/// ```
+pub fn bake_chunk(
+    scene: &Scene,
+    options: &BakeOptions,
+    spec: cssm_formats::cssm::ChunkSpec,
+    coding: cssm_formats::cssm::FileCoding,
+    progress: &mut (dyn FnMut(Progress) + Send),
+) -> Result<BakedChunk, BakeError> {
+    let (mut file, stats) = bake_slice(scene, options, Some(spec), progress)?;
+    let runs = std::mem::take(&mut file.runs);
+    let chunk = cssm_formats::cssm::CssmChunk::new(spec, coding, file, runs)
+        .map_err(|e| BakeError::Scene(format!("chunk {spec}: {e}")))?;
+    Ok(BakedChunk { chunk, stats })
+}
+
+/// [`bake`], or with `chunk` the tables of the whole bake and the runs of the chunk's slice.
+fn bake_slice(
+    scene: &Scene,
+    options: &BakeOptions,
+    chunk: Option<cssm_formats::cssm::ChunkSpec>,
+    progress: &mut (dyn FnMut(Progress) + Send),
+) -> Result<(CssmFile, BakeStats), BakeError> {
     options.check()?;
     let n = options.cube_resolution;
     let far = scene.diameter();
@@ -357,7 +407,14 @@ pub fn bake(
     // 3. + 4. Depth cube maps, streamed in batches into the compressor (§3.2.1, §3.1).
     let t0 = Instant::now();
     let pixel_count = 6 * n * n;
-    let map_count = sequence.len() as u32;
+    // A chunk bakes its slice of whole segments: the compressor starts each segment afresh, so
+    // its runs are those of the same segments in the whole bake.
+    let slice = match chunk {
+        Some(spec) => spec.maps(sequence.len() as u32),
+        None => 0..sequence.len() as u32,
+    };
+    let slice = &sequence[slice.start as usize..slice.end as usize];
+    let map_count = slice.len() as u32;
     let mut compressor = compress::Compressor::with_options(
         pixel_count,
         map_count,
@@ -372,9 +429,10 @@ pub fn bake(
     // Enough maps per batch to keep every core busy, small enough to stay in cache-sized memory.
     let batch_maps = (4 * rayon::current_num_threads())
         .max(8)
-        .min(map_count as usize);
+        .min(map_count as usize)
+        .max(1);
     let mut batch = vec![cubemap::DONT_CARE; batch_maps * pixel_count as usize];
-    for (b, ids) in sequence.chunks(batch_maps).enumerate() {
+    for (b, ids) in slice.chunks(batch_maps).enumerate() {
         let slots = &mut batch[..ids.len() * pixel_count as usize];
         stats.rays += render_maps(
             &bvh,
@@ -424,7 +482,7 @@ pub fn bake(
         hierarchy,
         runs,
     };
-    Ok(Baked { file, stats })
+    Ok((file, stats))
 }
 
 /// Renders the cube maps of texels `ids` into `slots` (`6 * n * n` intervals each), in parallel;

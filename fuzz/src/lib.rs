@@ -94,7 +94,8 @@ pub fn cssm_file(data: &[u8]) -> Outcome {
     }
 }
 
-/// `cssm_payload`: the first byte's bit 0 selects the flags (0, or [`cssm::FLAG_PACKED_RUNS`]),
+/// `cssm_payload`: the first byte's bit 1 selects a chunk ([`cssm::FLAG_CHUNK`], decoded with
+/// [`cssm::decode_chunk`]), else its bit 0 the flags (0, or [`cssm::FLAG_PACKED_RUNS`]),
 /// the rest is a raw (bincode) payload, framed with a valid header and checksum by
 /// [`cssm::frame_payload`] so that every mutation reaches bincode and the semantic checks; then
 /// [`cssm::decode`] and, on success, [`cssm::validate_for_scene`] against the built-in Cornell
@@ -103,6 +104,18 @@ pub fn cssm_payload(data: &[u8]) -> Outcome {
     let Some((&first, raw)) = data.split_first() else {
         return Err("empty input".into());
     };
+    if first & 2 != 0 {
+        // A chunk of a chunked bake (`cssm bake --chunk`): one that passes its checks and is
+        // the only chunk of its cut merges into a file that passes every check.
+        let bytes = cssm::frame_payload(cssm::FLAG_CHUNK, raw).expect("frame_payload of any bytes");
+        let chunk = cssm::decode_chunk(&bytes).map_err(|e| e.to_string())?;
+        if chunk.spec().count() == 1 {
+            let (file, _) = cssm::merge_chunks(vec![("input".into(), chunk)])
+                .expect("a valid chunk 0/1 merges");
+            check_file(&file, None);
+        }
+        return Ok(());
+    }
     let flags = u32::from(first) & cssm::FLAG_PACKED_RUNS;
     let bytes = cssm::frame_payload(flags, raw).expect("frame_payload of any bytes");
     let file = cssm::decode(&bytes).map_err(|e| e.to_string())?;

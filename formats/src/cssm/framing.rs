@@ -211,7 +211,7 @@ pub(super) fn check_header(bytes: &[u8]) -> Result<(), CssmError> {
         return Err(CssmError::UnsupportedVersion { version });
     }
     let flags = u32_at(bytes, 12);
-    if flags & !FLAG_PACKED_RUNS != 0 {
+    if flags & !(FLAG_PACKED_RUNS | super::FLAG_CHUNK) != 0 {
         return Err(CssmError::UnsupportedFlags { flags });
     }
     let (uncompressed_len, compressed_len) = (u64_at(bytes, 16), u64_at(bytes, 24));

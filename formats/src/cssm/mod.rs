@@ -29,6 +29,7 @@
 //!
 //! [`validate`]: fn@validate
 
+mod chunk;
 mod framing;
 mod runs;
 mod validate;
@@ -42,6 +43,10 @@ use serde::{Deserialize, Serialize};
 use crate::hierarchy::Hierarchy;
 use crate::texel::{Texel, Traversal};
 
+pub use chunk::{
+    ChunkSpec, CssmChunk, FLAG_CHUNK, MAX_CHUNKS, MergeError, decode_chunk, encode_chunk,
+    merge_chunks, read_chunk, write_chunk_atomic,
+};
 pub use framing::{
     FLAG_PACKED_RUNS, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_UNCOMPRESSED_BYTES, MAX_ZSTD_RATIO,
     PLAUSIBLE_NEWER_VERSIONS, RATIO_FREE_BYTES, ZSTD_LEVEL, frame_payload,
@@ -226,13 +231,22 @@ pub enum CssmError {
     },
     /// Reserved flag bits are set.
     #[error(
-        "unknown header flags {flags:#x} (this build knows {FLAG_PACKED_RUNS:#x}, packed runs): \
-         a corrupted file or one from a newer build"
+        "unknown header flags {flags:#x} (this build knows {FLAG_PACKED_RUNS:#x}, packed runs, \
+         and {FLAG_CHUNK:#x}, a chunk): a corrupted file or one from a newer build"
     )]
     UnsupportedFlags {
         /// Flags found in the header.
         flags: u32,
     },
+    /// A chunk of a chunked bake where a whole file was expected.
+    #[error(
+        "one chunk of a chunked bake (cssm bake --chunk), not a whole file: join the chunks \
+         with cssm merge"
+    )]
+    IsChunk,
+    /// A whole file where a chunk was expected.
+    #[error("a whole .cssm file, not a chunk of a chunked bake (cssm bake --chunk)")]
+    NotAChunk,
     /// The header's compressed length does not match the bytes that follow it.
     #[error(
         "header says {expected} payload bytes follow but {actual} do: file is {}",
@@ -356,6 +370,9 @@ fn encode_into<W: Write>(
 /// [`validate`]: fn@validate
 pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
     let (flags, raw) = unframe(bytes)?;
+    if flags & FLAG_CHUNK != 0 {
+        return Err(CssmError::IsChunk);
+    }
     let file = if flags & FLAG_PACKED_RUNS != 0 {
         let p: PackedFile = decode_body(&raw)?;
         // The sizes the run data will be unpacked to must agree with the tables already read
@@ -397,6 +414,16 @@ pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
 /// first the header: a foreign file, however large, is refused after its first bytes; a file
 /// longer than its header says is refused before the rest is read.
 pub fn read(path: &Path) -> Result<CssmFile, CssmError> {
+    let bytes = read_bytes(path)?;
+    decode(&bytes).map_err(|e| CssmError::File {
+        path: path.to_path_buf(),
+        inner: Box::new(e),
+    })
+}
+
+/// The bytes of the file at `path` after the checks of its header that [`read`] makes before
+/// reading the rest (regular file, header, length); errors name the path.
+fn read_bytes(path: &Path) -> Result<Vec<u8>, CssmError> {
     let io = |error| CssmError::Io {
         path: path.to_path_buf(),
         error,
@@ -428,5 +455,5 @@ pub fn read(path: &Path) -> Result<CssmFile, CssmError> {
         .take(total + 1 - HEADER_LEN as u64)
         .read_to_end(&mut bytes)
         .map_err(io)?;
-    decode(&bytes).map_err(in_file)
+    Ok(bytes)
 }

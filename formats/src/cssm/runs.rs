@@ -19,7 +19,7 @@ pub const SEGMENT_MAPS: u32 = 1 << 16;
 /// the first one starts at 0. A run is one `u32`: `(start_within_segment << 16) | depth16`.
 /// The depth of map `m` at pixel `p` is the value of the last run of segment `m / SEGMENT_MAPS`
 /// whose start is `<= m % SEGMENT_MAPS`: a binary search over a handful of entries.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RunData {
     /// Number of depth maps (= defined texels).
     pub map_count: u32,

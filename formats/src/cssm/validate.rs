@@ -20,6 +20,24 @@ macro_rules! invalid {
 /// [`encode`]: super::encode
 pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
     let p = &file.params;
+    validate_params(p)?;
+    let maps = file.runs.map_count as usize;
+    if maps == 0 {
+        invalid!("no depth maps (map_count 0)");
+    }
+    if file.texels.len() != maps || file.sequence.len() != maps {
+        invalid!(
+            "map_count {maps}, {} texels and {} sequence entries must all be equal",
+            file.texels.len(),
+            file.sequence.len()
+        );
+    }
+    validate_tables(file)?;
+    validate_runs(&file.runs, p.cube_resolution)
+}
+
+/// The parameters' ranges.
+pub(super) fn validate_params(p: &super::BakeParams) -> Result<(), CssmError> {
     if !ATLAS_RESOLUTION_RANGE.contains(&p.atlas_resolution) {
         invalid!(
             "atlas_resolution {} outside {}..={}",
@@ -42,23 +60,18 @@ pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
     if !(p.far.is_finite() && p.far > p.near) {
         invalid!("far {} must be finite and > near {}", p.far, p.near);
     }
-    let r = &file.runs;
-    let n = p.cube_resolution;
-    if r.pixel_count != 6 * n * n {
+    Ok(())
+}
+
+/// The checks of everything but the run data, for a file of `file.texels.len()` maps: the
+/// tables (triangle_uvs, sequence, texels) and the hierarchy. A chunk of a chunked bake
+/// ([`super::chunk`]) holds the whole tables and a slice of the runs.
+pub(super) fn validate_tables(file: &CssmFile) -> Result<(), CssmError> {
+    let p = &file.params;
+    let maps = file.texels.len();
+    if file.sequence.len() != maps {
         invalid!(
-            "pixel_count {} != 6 * {n} * {n} = {}",
-            r.pixel_count,
-            6 * n * n
-        );
-    }
-    let maps = r.map_count as usize;
-    if maps == 0 {
-        invalid!("no depth maps (map_count 0)");
-    }
-    if file.texels.len() != maps || file.sequence.len() != maps {
-        invalid!(
-            "map_count {maps}, {} texels and {} sequence entries must all be equal",
-            file.texels.len(),
+            "{maps} texels and {} sequence entries must be equal",
             file.sequence.len()
         );
     }
@@ -123,6 +136,22 @@ pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
     }
     if let Err(e) = file.hierarchy.validate(maps) {
         invalid!("hierarchy: {e}");
+    }
+    Ok(())
+}
+
+/// The run-data layout that [`RunData::lookup`] relies on, for cube resolution `n`: offsets,
+/// run starts, `6 n²` pixels. `runs.map_count` may be 0 (an empty chunk).
+///
+/// [`RunData::lookup`]: super::RunData::lookup
+pub(super) fn validate_runs(r: &super::RunData, n: u32) -> Result<(), CssmError> {
+    let maps = r.map_count as usize;
+    if r.pixel_count != 6 * n * n {
+        invalid!(
+            "pixel_count {} != 6 * {n} * {n} = {}",
+            r.pixel_count,
+            6 * n * n
+        );
     }
     let segments = r.segment_count() as u64;
     let slots = segments * r.pixel_count as u64;

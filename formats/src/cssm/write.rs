@@ -186,7 +186,7 @@ pub fn destination(path: &Path) -> Result<PathBuf, CssmError> {
 
 /// The atomic write frame: `fill(file, destination)` writes the contents into the temporary
 /// file, which then replaces [`destination`]`(path)`.
-fn write_atomic_by(
+pub(super) fn write_atomic_by(
     path: &Path,
     fill: &mut dyn FnMut(&mut std::fs::File, &Path) -> Result<(), CssmError>,
 ) -> Result<(), CssmError> {
