@@ -971,6 +971,7 @@ fn final_gather_vs_twin(
                     ks: m.ks,
                     texture: -1,
                     emission_texture: -1,
+                    normal_texture: -1,
                     ..Default::default()
                 };
                 cssm_runtime::lightcuts::cpu::gather_pixel(

@@ -1,0 +1,251 @@
+//! Bump and normal maps: the high-frequency surface detail of the CSSM paper's Fig. 1 (right),
+//! which tilts the shading normal of the G-buffer (hence of the direct light and the final
+//! gather) and of the CPU references (`docs/scene-format.md`, *Bump and normal maps*).
+//!
+//! Every map reaches the GPU as a tangent-space normal map, one layer of the scene's texture
+//! array: a height map is turned into one on load ([`height_to_normals`]), a normal map is
+//! decoded and scaled ([`decode_normals`]). A layer holds unit normals as floats in `[-1, 1]`
+//! (the array is `Rgba32Float`), so the bilinear sample of `albedo_sample` on the GPU and of
+//! [`crate::load::AlbedoTexture::sample`] on the CPU are the same numbers. Each triangle gets a
+//! flat tangent frame from its positions and UVs ([`tangent_frame`], the vertex buffer carries
+//! it) and [`perturb`] (twin of `perturb_normal` in `common/albedo.wgsl`) tilts the geometric
+//! normal by the sample.
+
+use glam::Vec3;
+
+use crate::load::TEXTURE_SIZE;
+
+/// Height of a white texel at bump multiplier 1, in units of the texture's side (UV 0 to 1):
+/// a height map's grey level `g` is a height of `multiplier * g * BUMP_HEIGHT` (MTL `-bm`
+/// multiplies it). One 512th of the texture, so at multiplier 1 a map rising from black to
+/// white over one texel of a 512-texel image is a 45-degree slope. Fixed in UV units (not in
+/// texels of [`TEXTURE_SIZE`], nor in world units), the look depends neither on the
+/// resampling nor on the scene's scale.
+pub const BUMP_HEIGHT: f32 = 1.0 / 512.0;
+
+/// The least cosine between the shading normal and the geometric normal on the side the eye
+/// sees: a tilt past it is pulled back to it, so no pixel shades from below its own surface
+/// (black or light leaking from behind) whatever the map holds.
+pub const MIN_SHADING_COS: f32 = 0.05;
+
+/// Below this length a vector has no direction for [`perturb`].
+const TINY: f32 = 1e-12;
+
+/// A height map of [`TEXTURE_SIZE`]² grey levels (row-major, row 0 the top of the image, v
+/// up) turned into unit tangent-space normals (x along +u, y along +v, z out of the surface):
+/// central differences with repeat wrapping of the height `multiplier * g * BUMP_HEIGHT`
+/// (UV units), the normal of the height field being `(-dh/du, -dh/dv, 1)` normalised.
+pub fn height_to_normals(grey: &[f32], multiplier: f32) -> Vec<[f32; 3]> {
+    let n = TEXTURE_SIZE as usize;
+    assert_eq!(
+        grey.len(),
+        n * n,
+        "a height map of TEXTURE_SIZE squared texels"
+    );
+    // Texels per unit of UV, over two texels of central difference.
+    let per_uv = multiplier * BUMP_HEIGHT * TEXTURE_SIZE as f32 / 2.0;
+    (0..n * n)
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            let at = |x: usize, y: usize| grey[(y % n) * n + (x % n)];
+            let dh_du = (at(x + 1, y) - at(x + n - 1, y)) * per_uv;
+            // Rows run down the image, v up it.
+            let dh_dv = (at(x, y + n - 1) - at(x, y + 1)) * per_uv;
+            Vec3::new(-dh_du, -dh_dv, 1.0).normalize().to_array()
+        })
+        .collect()
+}
+
+/// Texels of a tangent-space normal map (RGB in `[0, 1]` as stored, not sRGB-decoded) turned
+/// into unit normals: `2c - 1` with x and y times `scale` (glTF `normalTexture.scale`),
+/// normalised; a texel that decodes to zero length is the unperturbed `(0, 0, 1)`.
+pub fn decode_normals(rgb: &[[f32; 3]], scale: f32) -> Vec<[f32; 3]> {
+    rgb.iter()
+        .map(|c| {
+            let n = Vec3::new(
+                (2.0 * c[0] - 1.0) * scale,
+                (2.0 * c[1] - 1.0) * scale,
+                2.0 * c[2] - 1.0,
+            );
+            n.try_normalize().unwrap_or(Vec3::Z).to_array()
+        })
+        .collect()
+}
+
+/// The flat tangent frame of a triangle with corners `p` and texture coordinates `uv`: the unit
+/// tangent (the direction of +u in the triangle's plane) and the handedness, +1 when +v runs
+/// along `normal x tangent` (`normal` the winding's, `(p1 - p0) x (p2 - p0)`), -1 where the UVs
+/// are mirrored. `None` for a triangle whose UVs (or positions) span no area: it gets no
+/// perturbation. The bitangent is `handedness * normal x tangent`, orthogonal to both.
+pub fn tangent_frame(p: [Vec3; 3], uv: [[f32; 2]; 3]) -> Option<(Vec3, f32)> {
+    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+    let (du1, dv1) = (uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]);
+    let (du2, dv2) = (uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]);
+    let det = du1 * dv2 - du2 * dv1;
+    let normal = e1.cross(e2).try_normalize()?;
+    // dp/du and dp/dv solve [e1 e2] = [dp/du dp/dv] [du1 du2; dv1 dv2]; dividing by |det|
+    // keeps their directions and makes a tiny UV area no worse than a large one.
+    if det.abs() <= f32::EPSILON * (du1.abs() + du2.abs()) * (dv1.abs() + dv2.abs()) {
+        return None;
+    }
+    let sign = det.signum();
+    let dp_du = (e1 * dv2 - e2 * dv1) * sign;
+    let dp_dv = (e2 * du1 - e1 * du2) * sign;
+    let tangent = (dp_du - normal * normal.dot(dp_du)).try_normalize()?;
+    let handedness = if normal.cross(tangent).dot(dp_dv) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    Some((tangent, handedness))
+}
+
+/// The shading normal at a point whose map sample (bilinear, [`crate::load::AlbedoTexture::sample`])
+/// is `sample`, on a surface of unit geometric normal `n` (turned towards the eye) with the unit
+/// tangent `t` and bitangent `b` of its frame turned with it (negated together with `n` when
+/// the back is seen, so that the back's normal is the front's negated). Kept at least
+/// [`MIN_SHADING_COS`] above the surface; a zero sample or a degenerate result gives `n`.
+/// Twin of `perturb_normal` in `common/albedo.wgsl`.
+pub fn perturb(sample: Vec3, n: Vec3, t: Vec3, b: Vec3) -> Vec3 {
+    // The same operations, in the same order, as the WGSL twin.
+    let p = t * sample.x + b * sample.y + n * sample.z;
+    let length = p.length();
+    if !(length > TINY) {
+        return n;
+    }
+    let p = p / length;
+    let d = p.dot(n);
+    if d >= MIN_SHADING_COS {
+        return p;
+    }
+    let along = p - n * d;
+    let length = along.length();
+    if !(length > TINY) {
+        return n;
+    }
+    n * MIN_SHADING_COS + along / length * (1.0 - MIN_SHADING_COS * MIN_SHADING_COS).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Vec3, b: Vec3, tol: f32) -> bool {
+        (a - b).abs().max_element() <= tol
+    }
+
+    #[test]
+    fn a_flat_height_map_gives_the_unperturbed_normal() {
+        let n = TEXTURE_SIZE as usize;
+        for g in [0.0, 0.5, 1.0] {
+            let normals = height_to_normals(&vec![g; n * n], 3.0);
+            assert!(normals.iter().all(|&v| v == [0.0, 0.0, 1.0]));
+        }
+    }
+
+    /// A grey ramp rising along +u by `k` per texel is the height `m k g BUMP_HEIGHT` per
+    /// texel, i.e. the slope `dh/du = m k BUMP_HEIGHT TEXTURE_SIZE`; the normal is
+    /// `(-slope, 0, 1)` normalised (away from the wrap-around seam). Likewise along +v,
+    /// which runs up the image.
+    #[test]
+    fn a_linear_ramp_gives_the_analytic_normal() {
+        let n = TEXTURE_SIZE as usize;
+        let k = 1.0 / 1024.0;
+        let m = 64.0;
+        let slope = m * k * BUMP_HEIGHT * TEXTURE_SIZE as f32;
+        let along_u: Vec<f32> = (0..n * n).map(|i| (i % n) as f32 * k).collect();
+        let expected = Vec3::new(-slope, 0.0, 1.0).normalize();
+        let normals = height_to_normals(&along_u, m);
+        for y in [0, 7, n - 1] {
+            for x in 1..n - 1 {
+                let got = Vec3::from(normals[y * n + x]);
+                assert!(close(got, expected, 1e-5), "{x},{y}: {got} vs {expected}");
+            }
+        }
+        // The seam (the ramp drops back to 0) tilts the other way.
+        assert!(normals[0][0] > 0.0);
+        // Rows run down the image: a grey rising down the rows falls along +v.
+        let down_rows: Vec<f32> = (0..n * n).map(|i| (i / n) as f32 * k).collect();
+        let normals = height_to_normals(&down_rows, m);
+        let expected = Vec3::new(0.0, slope, 1.0).normalize();
+        let got = Vec3::from(normals[100 * n + 3]);
+        assert!(close(got, expected, 1e-5), "{got} vs {expected}");
+        // A negative multiplier turns bumps into dents.
+        let got = Vec3::from(height_to_normals(&along_u, -m)[100 * n + 3]);
+        assert!(close(got, Vec3::new(slope, 0.0, 1.0).normalize(), 1e-5));
+        // At -bm 1, black to white over one texel (2 texels of central difference) is 45
+        // degrees: slope 1.
+        let step: Vec<f32> = (0..n * n).map(|i| (i % n) as f32).collect();
+        let got = Vec3::from(height_to_normals(&step, 1.0)[5]);
+        assert!(
+            close(got, Vec3::new(-1.0, 0.0, 1.0).normalize(), 1e-5),
+            "{got}"
+        );
+    }
+
+    #[test]
+    fn normal_map_texels_decode_and_scale() {
+        let got = decode_normals(&[[0.5, 0.5, 1.0], [1.0, 0.5, 0.5], [0.5, 0.5, 0.5]], 1.0);
+        assert_eq!(got, vec![[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]);
+        let c = [0.75, 0.5, 0.5 + 0.5 * 0.75f32.sqrt()];
+        let got = Vec3::from(decode_normals(&[c], 0.5)[0]);
+        let expected = Vec3::new(0.25, 0.0, 0.75f32.sqrt()).normalize();
+        assert!(close(got, expected, 1e-6), "{got} vs {expected}");
+    }
+
+    #[test]
+    fn tangent_frames_follow_the_uvs() {
+        let p = [
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 3.0, 0.0),
+        ];
+        // u along x, v along y: tangent +x, right-handed about +z.
+        let (t, s) = tangent_frame(p, [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]).unwrap();
+        assert!(close(t, Vec3::X, 1e-6) && s == 1.0, "{t} {s}");
+        // Mirrored in u: tangent -x, left-handed (bitangent = -(z x -x) = +y, still +v).
+        let (t, s) = tangent_frame(p, [[1.0, 0.0], [0.0, 0.0], [1.0, 1.0]]).unwrap();
+        assert!(close(t, Vec3::NEG_X, 1e-6) && s == -1.0, "{t} {s}");
+        let b = s * Vec3::Z.cross(t);
+        assert!(close(b, Vec3::Y, 1e-6), "{b}");
+        // Rotated UVs: u along y, v along -x.
+        let (t, s) = tangent_frame(p, [[0.0, 0.0], [0.0, -2.0], [3.0, 0.0]]).unwrap();
+        assert!(close(t, Vec3::Y, 1e-6) && s == 1.0, "{t} {s}");
+        // Skewed UVs: the tangent is dp/du (v held), not the gradient of u: corner 1 is
+        // (u, v) = (1, 0.5), so dp/du = p1 - 0.5 (p2 - p0) = (2, -1.5, 0).
+        let (t, _) = tangent_frame(p, [[0.0, 0.0], [1.0, 0.5], [0.0, 1.0]]).unwrap();
+        assert!(close(t, Vec3::new(0.8, -0.6, 0.0), 1e-6), "{t}");
+        // A tilted triangle: the tangent lies in its plane.
+        let q = [
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ];
+        let (t, _) = tangent_frame(q, [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]).unwrap();
+        assert!(close(t, Vec3::new(1.0, 0.0, 1.0).normalize(), 1e-6), "{t}");
+        // Degenerate UVs (all equal, or on one line): no frame.
+        assert!(tangent_frame(p, [[0.5, 0.5]; 3]).is_none());
+        assert!(tangent_frame(p, [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]).is_none());
+        // A degenerate triangle: no frame.
+        assert!(tangent_frame([Vec3::ZERO; 3], [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]).is_none());
+    }
+
+    #[test]
+    fn perturbation_stays_above_the_surface() {
+        let (n, t, b) = (Vec3::Z, Vec3::X, Vec3::Y);
+        assert_eq!(perturb(Vec3::Z, n, t, b), Vec3::Z);
+        let tilt = Vec3::new(0.6, 0.0, 0.8);
+        assert!(close(perturb(tilt, n, t, b), tilt, 1e-6));
+        // Seen from the back, the frame turns with the normal: the normal is negated whole.
+        assert!(close(perturb(tilt, -n, -t, -b), -tilt, 1e-6));
+        // Below the surface or in it: pulled back to MIN_SHADING_COS, towards the tilt.
+        for s in [Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 0.0, -0.5)] {
+            let p = perturb(s, n, t, b);
+            assert!((p.length() - 1.0).abs() < 1e-6 && (p.z - MIN_SHADING_COS).abs() < 1e-6);
+            assert!(p.x > 0.9, "{p}");
+        }
+        // Straight below, or zero: the geometric normal.
+        assert_eq!(perturb(Vec3::NEG_Z, n, t, b), n);
+        assert_eq!(perturb(Vec3::ZERO, n, t, b), n);
+    }
+}
