@@ -230,6 +230,128 @@ mod tests {
         assert!(tangent_frame([Vec3::ZERO; 3], [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]).is_none());
     }
 
+    /// A 2 x 2 quad at z = 0 facing +z (UVs 0 to 1 along x and y) whose material has the
+    /// normal map `map`, a spot light 2 above its centre pointing down, seen from +z.
+    fn lit_quad(map: Option<cssm_formats::NormalMap>) -> cssm_formats::Scene {
+        let positions = vec![
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        ];
+        let mut scene = cssm_formats::Scene::from_triangles(positions, vec![[0, 1, 2], [0, 2, 3]]);
+        scene.texcoords = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        scene.materials[0].normal_map = map;
+        scene.lights.push(cssm_formats::SpotLight {
+            position: Vec3::new(0.0, 0.0, 2.0),
+            direction: Vec3::NEG_Z,
+            cutoff_deg: 80.0,
+            intensity: [4.0; 3],
+        });
+        scene
+    }
+
+    /// The path tracer sees the normal map: under a constant map tilted by 40 degrees about
+    /// +v, the direct light on the plane is the untilted one times `(n_s . l) / (n_g . l)`,
+    /// pixel by pixel (the cosine law with the shading normal).
+    #[test]
+    fn the_path_tracer_shades_with_the_tilted_normal() {
+        use crate::common::{camera::View, compose::Component};
+        use crate::reference::{EmitterSampling, ReferenceOptions, render_reference};
+        let dir = tempfile::tempdir().unwrap();
+        let tilt = 40f32.to_radians();
+        let encoded = Vec3::new(tilt.sin(), 0.0, tilt.cos()) * 0.5 + 0.5;
+        let rgb = (encoded * 255.0).round().to_array().map(|c| c as u8);
+        let file = dir.path().join("tilted.png");
+        image::RgbImage::from_pixel(8, 8, image::Rgb(rgb))
+            .save(&file)
+            .unwrap();
+        // What the loader makes of the quantised texel.
+        let ns = Vec3::from(decode_normals(&[rgb.map(|c| c as f32 / 255.0)], 1.0)[0]);
+        assert!((ns.dot(Vec3::Z) - tilt.cos()).abs() < 0.01, "{ns}");
+        let map = cssm_formats::NormalMap {
+            source: cssm_formats::TextureSource::File(file),
+            kind: cssm_formats::NormalMapKind::Tangent { scale: 1.0 },
+        };
+        let options = ReferenceOptions {
+            samples_per_pixel: 1,
+            bounces: 0,
+            component: Component::Direct,
+            seed: 1,
+            clamp: None,
+            emitters: EmitterSampling::Mis,
+        };
+        let render = |scene: &cssm_formats::Scene| {
+            let (materials, textures) = crate::load::cpu_materials(scene).expect("textures");
+            let bvh = cssm_raycast::SceneBvh::new(scene);
+            let view = View::of_scene(scene, 32, 24);
+            let image = render_reference(
+                scene,
+                &view,
+                &materials,
+                &textures,
+                &bvh,
+                &options,
+                &|_, _| {},
+            );
+            (image, view)
+        };
+        let tilted_scene = lit_quad(Some(map));
+        let (tilted, view) = render(&tilted_scene);
+        let (flat, _) = render(&lit_quad(None));
+        let mut compared = 0;
+        for (i, (t, f)) in tilted.iter().zip(&flat).enumerate() {
+            if f.x <= 0.0 {
+                continue;
+            }
+            let dir = view.primary_ray(i as u32 % 32, i as u32 / 32);
+            let p = view.eye + dir * (-view.eye.z / dir.z);
+            let l = (tilted_scene.lights[0].position - p).normalize();
+            let expected = ns.dot(l).max(0.0) / l.z;
+            assert!(
+                (t.x / f.x - expected).abs() < 1e-3,
+                "pixel {i}: {} vs {expected}",
+                t.x / f.x
+            );
+            compared += 1;
+        }
+        assert!(compared > 150, "{compared} lit pixels");
+        // The tilt shows: the centre is darker by about cos 40 degrees.
+        let centre = 12 * 32 + 16;
+        assert!((tilted[centre].x / flat[centre].x - tilt.cos()).abs() < 0.05);
+    }
+
+    /// An image that does not decode, as a bump map or as a normal map, is an error naming the
+    /// file and what it was read as, not a panic.
+    #[test]
+    fn an_undecodable_map_is_an_error_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("broken-bump.png");
+        std::fs::write(&file, b"\x89PNG\r\n\x1a\n not an image").unwrap();
+        for (kind, what) in [
+            (
+                cssm_formats::NormalMapKind::Height { multiplier: 1.0 },
+                "bump map",
+            ),
+            (
+                cssm_formats::NormalMapKind::Tangent { scale: 1.0 },
+                "normal map",
+            ),
+        ] {
+            let map = cssm_formats::NormalMap {
+                source: cssm_formats::TextureSource::File(file.clone()),
+                kind,
+            };
+            let e = crate::load::cpu_materials(&lit_quad(Some(map))).unwrap_err();
+            assert!(matches!(e, crate::RuntimeError::Texture { .. }), "{e:?}");
+            let message = e.to_string();
+            assert!(
+                message.contains("broken-bump.png") && message.contains(what),
+                "{message}"
+            );
+        }
+    }
+
     #[test]
     fn perturbation_stays_above_the_surface() {
         let (n, t, b) = (Vec3::Z, Vec3::X, Vec3::Y);

@@ -24,6 +24,8 @@ pub struct CpuPixel {
     /// Bit `i` set when light `i` reaches the point (inside its cone, on the front side,
     /// unshadowed).
     pub lit: u32,
+    /// Unit shading normal turned towards the eye (normal-mapped): the G-buffer's normal.
+    pub normal: Vec3,
 }
 
 /// Irradiance at `p` (normal `n`) from `light`, and the unit direction to the light, when the
@@ -257,6 +259,7 @@ pub fn render_screen(
                 radiance: reflected + emitted,
                 triangle,
                 lit,
+                normal: n,
             }
         })
         .collect()
