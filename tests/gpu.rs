@@ -10,6 +10,8 @@ mod emissive;
 mod filters;
 #[path = "gpu/methods.rs"]
 mod methods;
+#[path = "gpu/normal_maps.rs"]
+mod normal_maps;
 #[path = "gpu/octree.rs"]
 mod octree;
 #[path = "gpu/rsm.rs"]
