@@ -110,7 +110,7 @@ pub fn perturb(sample: Vec3, n: Vec3, t: Vec3, b: Vec3) -> Vec3 {
     // The same operations, in the same order, as the WGSL twin.
     let p = t * sample.x + b * sample.y + n * sample.z;
     let length = p.length();
-    if !(length > TINY) {
+    if length.is_nan() || length <= TINY {
         return n;
     }
     let p = p / length;
@@ -120,7 +120,7 @@ pub fn perturb(sample: Vec3, n: Vec3, t: Vec3, b: Vec3) -> Vec3 {
     }
     let along = p - n * d;
     let length = along.length();
-    if !(length > TINY) {
+    if length.is_nan() || length <= TINY {
         return n;
     }
     n * MIN_SHADING_COS + along / length * (1.0 - MIN_SHADING_COS * MIN_SHADING_COS).sqrt()

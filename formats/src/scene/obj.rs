@@ -510,7 +510,7 @@ mod tests {
             assert_eq!((got_file.as_str(), got_kind), (file, kind), "{statement}");
             // The file does not exist: the warning of a missing `map_Kd`.
             let w = warnings.join("\n");
-            assert!(w.contains(&format!("material `white`: texture")), "{w}");
+            assert!(w.contains("material `white`: texture"), "{w}");
             assert!(w.contains(&format!("{file} not found")), "{statement}: {w}");
         }
         // Sibenik's pair (`map_bump` and `bump` of one file): one height map, one warning.
