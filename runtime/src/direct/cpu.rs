@@ -78,7 +78,7 @@ pub(crate) fn ray_epsilon(scene: &Scene) -> f32 {
 
 /// Unit geometric (flat) normal of `triangle`, flipped to the side of `towards` (the direction
 /// from the surface point to the viewer or the previous path vertex): surfaces are two-sided.
-pub(crate) fn facing_normal(scene: &Scene, triangle: u32, towards: Vec3) -> Vec3 {
+pub fn facing_normal(scene: &Scene, triangle: u32, towards: Vec3) -> Vec3 {
     let [a, b, c] = scene.triangle(triangle as usize);
     let n = (b - a).cross(c - a).normalize_or_zero();
     if n.dot(towards) < 0.0 { -n } else { n }
@@ -103,7 +103,7 @@ fn texcoords_at(scene: &Scene, triangle: u32, p: Vec3) -> [f32; 2] {
 /// seen from, [`facing_normal`]) tilted by the material's normal map in the triangle's flat
 /// tangent frame, as the G-buffer pass does (`gbuffer.wgsl`, [`crate::normal_map::perturb`]);
 /// `n` itself without a normal map, texture coordinates or a frame.
-pub(crate) fn shading_normal(
+pub fn shading_normal(
     scene: &Scene,
     m: &GpuMaterial,
     textures: &[AlbedoTexture],
