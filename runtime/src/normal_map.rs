@@ -352,6 +352,91 @@ mod tests {
         }
     }
 
+    /// A glTF `normalTexture` embedded in a GLB reaches the texture array as a normal layer:
+    /// decoded as stored (not sRGB), its x and y times `scale`, normalised.
+    #[test]
+    fn an_embedded_gltf_normal_texture_becomes_a_normal_layer() {
+        let texel = [200u8, 100, 230];
+        let mut png = Vec::new();
+        image::RgbImage::from_pixel(4, 4, image::Rgb(texel))
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        // The binary chunk: 4 positions, 4 texture coordinates, 6 indices, then the PNG.
+        let mut bin = Vec::new();
+        let positions = [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+        let uvs = [[0f32, 1.], [1., 1.], [1., 0.], [0., 0.]];
+        for v in positions.iter().flatten().chain(uvs.iter().flatten()) {
+            bin.extend_from_slice(&v.to_le_bytes());
+        }
+        for i in [0u32, 1, 2, 0, 2, 3] {
+            bin.extend_from_slice(&i.to_le_bytes());
+        }
+        let png_offset = bin.len();
+        bin.extend_from_slice(&png);
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        let mut json = format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+            "nodes": [{{"mesh": 0}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}},
+              "indices": 2, "material": 0}}]}}],
+            "materials": [{{"name": "bumpy", "normalTexture": {{"index": 0, "scale": 0.5}}}}],
+            "textures": [{{"source": 0}}],
+            "images": [{{"bufferView": 3, "mimeType": "image/png"}}],
+            "buffers": [{{"byteLength": {}}}],
+            "bufferViews": [
+              {{"buffer": 0, "byteOffset": 0, "byteLength": 48}},
+              {{"buffer": 0, "byteOffset": 48, "byteLength": 32}},
+              {{"buffer": 0, "byteOffset": 80, "byteLength": 24}},
+              {{"buffer": 0, "byteOffset": {png_offset}, "byteLength": {}}}],
+            "accessors": [
+              {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                "min": [0, 0, 0], "max": [1, 1, 0]}},
+              {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"}},
+              {{"bufferView": 2, "componentType": 5125, "count": 6, "type": "SCALAR"}}]}}"#,
+            bin.len(),
+            png.len()
+        );
+        while json.len() % 4 != 0 {
+            json.push(' ');
+        }
+        let mut glb = Vec::new();
+        let total = 12 + 8 + json.len() + 8 + bin.len();
+        glb.extend_from_slice(b"glTF");
+        glb.extend_from_slice(&2u32.to_le_bytes());
+        glb.extend_from_slice(&(total as u32).to_le_bytes());
+        glb.extend_from_slice(&(json.len() as u32).to_le_bytes());
+        glb.extend_from_slice(b"JSON");
+        glb.extend_from_slice(json.as_bytes());
+        glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        glb.extend_from_slice(b"BIN\0");
+        glb.extend_from_slice(&bin);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bumpy.glb");
+        std::fs::write(&path, glb).unwrap();
+        let scene = cssm_formats::Scene::load(&path).expect("the GLB loads");
+        let (materials, textures) = crate::load::cpu_materials(&scene).expect("textures");
+        let m = materials[0];
+        assert!(m.normal_texture >= 0 && m.texture < 0, "{m:?}");
+        let c = texel.map(|c| c as f32 / 255.0);
+        let expected = Vec3::new(
+            (2.0 * c[0] - 1.0) * 0.5,
+            (2.0 * c[1] - 1.0) * 0.5,
+            2.0 * c[2] - 1.0,
+        )
+        .normalize();
+        let layer = &textures[m.normal_texture as usize];
+        assert!(
+            layer
+                .texels
+                .iter()
+                .all(|&t| close(Vec3::from(t), expected, 1e-6))
+        );
+        // Every triangle has a frame (the quad's UVs span area).
+        assert!((0..2).all(|t| crate::load::triangle_tangent(&scene, t)[3] != 0.0));
+    }
+
     #[test]
     fn perturbation_stays_above_the_surface() {
         let (n, t, b) = (Vec3::Z, Vec3::X, Vec3::Y);
