@@ -10,6 +10,8 @@ mod emissive;
 mod filters;
 #[path = "gpu/methods.rs"]
 mod methods;
+#[path = "gpu/normal_maps.rs"]
+mod normal_maps;
 #[path = "gpu/octree.rs"]
 mod octree;
 #[path = "gpu/rsm.rs"]
@@ -856,19 +858,20 @@ fn cpu_receivers(
     w: u32,
     h: u32,
 ) -> Vec<Option<(cssm_runtime::lightcuts::cpu::Receiver, u32)>> {
-    use cssm_runtime::common::camera::View;
+    use cssm_runtime::{common::camera::View, direct::cpu};
     let bvh = cssm_raycast::SceneBvh::new(scene);
     let view = View::of_scene(scene, w, h);
+    let (materials, textures) = cssm_runtime::load::cpu_materials(scene).expect("textures");
     (0..w * h)
         .map(|i| {
             let dir = view.primary_ray(i % w, i / w);
             let (t, triangle) = bvh.closest_hit(view.eye, dir, 0.0, f32::INFINITY)?;
             let p = view.eye + dir * t;
             let [a, b, c] = scene.triangle(triangle as usize);
-            let mut n = (b - a).cross(c - a).normalize_or_zero();
-            if n.dot(view.eye - p) < 0.0 {
-                n = -n;
-            }
+            // The G-buffer's normal: the geometric one tilted by the material's normal map.
+            let n = cpu::facing_normal(scene, triangle, view.eye - p);
+            let material = &materials[scene.triangle_materials[triangle as usize] as usize];
+            let n = cpu::shading_normal(scene, material, &textures, triangle, p, n);
             let bary = cssm_runtime::direct::cpu::barycentric(p, a, b, c);
             let uv = file.triangle_uvs[triangle as usize];
             let atlas = glam::Vec2::from(uv[0]) * bary[0]
@@ -921,7 +924,8 @@ fn interior(
 }
 
 /// Relative RMSE over the interior pixels of the GPU final gather (1 bounce, `w`x`h`, oracle
-/// `threshold`) against its CPU twin gathering from the same node radiance.
+/// `threshold`) against its CPU twin gathering from the same node radiance (receivers with the
+/// G-buffer's normal-mapped shading normals), and the GPU's radiance.
 fn final_gather_vs_twin(
     scene: &Scene,
     file: &CssmFile,
@@ -929,7 +933,7 @@ fn final_gather_vs_twin(
     h: u32,
     threshold: f32,
     jitter: bool,
-) -> f64 {
+) -> (f64, Vec<glam::Vec3>) {
     use cssm_runtime::{common::compose::Component, radiosity::RadiosityOptions};
     let options = RenderOptions {
         width: w,
@@ -971,6 +975,7 @@ fn final_gather_vs_twin(
                     ks: m.ks,
                     texture: -1,
                     emission_texture: -1,
+                    normal_texture: -1,
                     ..Default::default()
                 };
                 cssm_runtime::lightcuts::cpu::gather_pixel(
@@ -997,16 +1002,16 @@ fn final_gather_vs_twin(
         100.0 * rmse,
         keep.iter().filter(|&&k| k).count()
     );
-    rmse
+    (rmse, vec3s(&image.radiance))
 }
 
 #[test]
 fn final_gather_matches_cpu_twin() {
     let (scene, file) = cornell32();
     let threshold = cssm_runtime::radiosity::DEFAULT_THRESHOLD;
-    let rmse = final_gather_vs_twin(scene, file, 64, 48, threshold, false);
+    let (rmse, _) = final_gather_vs_twin(scene, file, 64, 48, threshold, false);
     // §4.5: every sender a random point of a random texel of its node, drawn alike on both sides.
-    let jittered = final_gather_vs_twin(scene, file, 64, 48, threshold, true);
+    let (jittered, _) = final_gather_vs_twin(scene, file, 64, 48, threshold, true);
     assert!(rmse < 0.01, "relative RMSE {rmse}");
     assert!(jittered < 0.01, "jittered: relative RMSE {jittered}");
 }
@@ -1019,8 +1024,8 @@ fn final_gather_matches_cpu_twin() {
 #[test]
 fn final_gather_long_cuts_match_cpu_twin() {
     let (scene, file) = cornell();
-    let short = final_gather_vs_twin(scene, file, 40, 30, 0.1, false);
-    let long = final_gather_vs_twin(
+    let (short, _) = final_gather_vs_twin(scene, file, 40, 30, 0.1, false);
+    let (long, _) = final_gather_vs_twin(
         scene,
         file,
         40,

@@ -25,6 +25,10 @@ pub struct GpuVertex {
     pub triangle: u32,
     /// Index of the triangle's object in `Scene::objects` (its row of the object motion).
     pub object: u32,
+    /// The triangle's flat tangent frame for its normal map ([`crate::normal_map::tangent_frame`]):
+    /// xyz the unit tangent (+u), w the handedness (+1, or -1 for mirrored UVs; the bitangent is
+    /// `w * normal x tangent`); all zero where the UVs are degenerate: no perturbation.
+    pub tangent: [f32; 4],
 }
 
 /// A material (conventions in `docs/architecture.md`).
@@ -48,8 +52,9 @@ pub struct GpuMaterial {
     /// `emission` times the mean of its texture (`emission` without one): what an atlas texel
     /// of the material emits, the atlas sampling no textures (§4.7: the radiosity's source).
     pub emission_mean: [f32; 3],
-    /// Unused.
-    pub _pad: f32,
+    /// Layer of the tangent-space normal map in the same texture array (a height map turned
+    /// into one on load, [`crate::normal_map`]), or -1 for none: it tilts the shading normal.
+    pub normal_texture: i32,
 }
 
 /// A spot light with its shadow-map transform.
@@ -210,6 +215,7 @@ mod tests {
                     offset_of!(GpuMaterial, emission_texture),
                 ),
                 ("emission_mean", offset_of!(GpuMaterial, emission_mean)),
+                ("normal_texture", offset_of!(GpuMaterial, normal_texture)),
             ],
         );
         check(
@@ -334,6 +340,7 @@ mod tests {
             offset_of!(GpuVertex, material),
             offset_of!(GpuVertex, triangle),
             offset_of!(GpuVertex, object),
+            offset_of!(GpuVertex, tangent),
         ];
         assert_eq!(offsets, fields.map(|f| f as u64));
     }

@@ -56,6 +56,7 @@ pub mod frame;
 pub mod gpu_types;
 pub mod load;
 pub mod method;
+pub mod normal_map;
 pub mod radiosity;
 mod renderer;
 pub mod shaders;

@@ -146,7 +146,7 @@ pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) ->
 }
 
 /// The scene's materials as the GPU and the CPU references see them, with their textures
-/// (albedo and emission, one array; what [`SceneGpu`] uploads).
+/// (albedo, emission and normals, one array; what [`SceneGpu`] uploads).
 ///
 /// # Errors
 /// A texture that cannot be read.
@@ -175,7 +175,7 @@ pub fn cpu_materials(
                 emission: m.emission,
                 emission_texture: layers.emission,
                 emission_mean,
-                _pad: 0.0,
+                normal_texture: layers.normal,
             }
         })
         .collect();
@@ -478,31 +478,74 @@ pub struct TextureLayers {
     pub albedo: i32,
     /// Emission texture (`map_Ke`, glTF `emissiveTexture`).
     pub emission: i32,
+    /// Tangent-space normals (MTL `norm`, glTF `normalTexture`, or MTL `bump` turned into
+    /// normals; [`crate::normal_map`]).
+    pub normal: i32,
+}
+
+/// How an image becomes a layer: the same image may be two layers (an albedo texture used as
+/// a height map too, or a height map at two multipliers).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum LayerKind {
+    /// sRGB colours decoded to linear (albedo, emission).
+    Colour,
+    /// A height map turned into normals at this bump multiplier.
+    Height(f32),
+    /// A tangent-space normal map at this scale.
+    Normal(f32),
 }
 
 /// Reads every material's textures (albedo: `map_Kd`, glTF `baseColorTexture`; emission:
-/// `map_Ke`, glTF `emissiveTexture`), each image once, resampled to [`TEXTURE_SIZE`]; returns
-/// the textures (one array for both kinds) and each material's layers.
+/// `map_Ke`, glTF `emissiveTexture`; normals: `Material::normal_map`), each image once per way
+/// it is read, resampled to [`TEXTURE_SIZE`]; returns the textures (one array for all kinds,
+/// normals as unit vectors, see [`crate::normal_map`]) and each material's layers.
 ///
 /// # Errors
-/// [`RuntimeError::Texture`] for an image that cannot be read.
+/// [`RuntimeError::Texture`] for an image that cannot be read, naming its file.
 pub fn load_textures(
     scene: &Scene,
 ) -> Result<(Vec<AlbedoTexture>, Vec<TextureLayers>), RuntimeError> {
+    use cssm_formats::NormalMapKind;
     let mut textures = Vec::new();
-    let mut sources: Vec<&TextureSource> = Vec::new();
+    let mut sources: Vec<(&TextureSource, LayerKind)> = Vec::new();
     let mut layers = Vec::with_capacity(scene.materials.len());
     for m in &scene.materials {
-        let mut layer = [-1i32; 2];
-        for (slot, source) in layer.iter_mut().zip([&m.map_kd, &m.map_emission]) {
-            let Some(source) = source else { continue };
-            *slot = match sources.iter().position(|s| *s == source) {
+        let normal = m.normal_map.as_ref().map(|n| {
+            let kind = match n.kind {
+                NormalMapKind::Height { multiplier } => LayerKind::Height(multiplier),
+                NormalMapKind::Tangent { scale } => LayerKind::Normal(scale),
+            };
+            (&n.source, kind)
+        });
+        let wanted = [
+            m.map_kd.as_ref().map(|s| (s, LayerKind::Colour)),
+            m.map_emission.as_ref().map(|s| (s, LayerKind::Colour)),
+            normal,
+        ];
+        let mut layer = [-1i32; 3];
+        for (slot, wanted) in layer.iter_mut().zip(wanted) {
+            let Some((source, kind)) = wanted else {
+                continue;
+            };
+            *slot = match sources.iter().position(|s| *s == (source, kind)) {
                 Some(i) => i as i32,
                 None => {
-                    sources.push(source);
-                    textures.push(AlbedoTexture {
-                        texels: decode_texture(source)?,
-                    });
+                    let texels = match kind {
+                        LayerKind::Colour => decode_texture(source)?,
+                        LayerKind::Height(multiplier) => {
+                            let grey: Vec<f32> = decode_image(source, "bump map")?
+                                .iter()
+                                .map(|c| (c[0] + c[1] + c[2]) / 3.0)
+                                .collect();
+                            crate::normal_map::height_to_normals(&grey, multiplier)
+                        }
+                        LayerKind::Normal(scale) => crate::normal_map::decode_normals(
+                            &decode_image(source, "normal map")?,
+                            scale,
+                        ),
+                    };
+                    sources.push((source, kind));
+                    textures.push(AlbedoTexture { texels });
                     textures.len() as i32 - 1
                 }
             };
@@ -510,6 +553,7 @@ pub fn load_textures(
         layers.push(TextureLayers {
             albedo: layer[0],
             emission: layer[1],
+            normal: layer[2],
         });
     }
     Ok((textures, layers))
@@ -523,12 +567,34 @@ pub fn load_textures(
 /// [`RuntimeError::Texture`] naming the file (or the scene file that embeds the image) when it
 /// cannot be read or decoded.
 pub fn decode_texture(source: &TextureSource) -> Result<Vec<[f32; 3]>, RuntimeError> {
-    let texture_error = |reason: String| RuntimeError::Texture {
-        path: source.origin().to_path_buf(),
-        reason: match source {
-            TextureSource::File(_) => reason,
-            TextureSource::Embedded { label, .. } => format!("{label}: {reason}"),
-        },
+    Ok(decode_image(source, "")?
+        .into_iter()
+        .map(|c| c.map(srgb_to_linear))
+        .collect())
+}
+
+/// Decodes the image of `source` and resamples it to [`TEXTURE_SIZE`]² texels, each channel
+/// as stored, in `[0, 1]` (no transfer function: height and normal maps hold values, not
+/// colours). `what` ("normal map", ...; empty for a colour texture) prefixes the reason of an
+/// error.
+///
+/// # Errors
+/// [`RuntimeError::Texture`] naming the file (or the scene file that embeds the image) when it
+/// cannot be read or decoded.
+pub fn decode_image(source: &TextureSource, what: &str) -> Result<Vec<[f32; 3]>, RuntimeError> {
+    let texture_error = |reason: String| {
+        let reason = if what.is_empty() {
+            reason
+        } else {
+            format!("{what}: {reason}")
+        };
+        RuntimeError::Texture {
+            path: source.origin().to_path_buf(),
+            reason: match source {
+                TextureSource::File(_) => reason,
+                TextureSource::Embedded { label, .. } => format!("{label}: {reason}"),
+            },
+        }
     };
     // Decoded within image's default limits (512 MiB of allocation).
     let img = match source {
@@ -570,7 +636,7 @@ pub fn decode_texture(source: &TextureSource) -> Result<Vec<[f32; 3]>, RuntimeEr
     );
     Ok(rgb
         .pixels()
-        .map(|p| p.0.map(|c| srgb_to_linear(c as f32 / 255.0)))
+        .map(|p| p.0.map(|c| c as f32 / 255.0))
         .collect())
 }
 
@@ -581,6 +647,19 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     } else {
         ((c + 0.055) / 1.055).powf(2.4)
     }
+}
+
+/// The tangent frame of triangle `t` of `scene` as [`GpuVertex::tangent`] holds it: zero
+/// without texture coordinates or with degenerate ones.
+pub fn triangle_tangent(scene: &Scene, t: usize) -> [f32; 4] {
+    if scene.texcoords.is_empty() {
+        return [0.0; 4];
+    }
+    let uv = scene.triangles[t].map(|v| scene.texcoords[v as usize]);
+    crate::normal_map::tangent_frame(scene.triangle(t), uv)
+        .map_or([0.0; 4], |(tangent, handedness)| {
+            tangent.extend(handedness).to_array()
+        })
 }
 
 /// A scene in GPU memory: one vertex per triangle corner, materials, textures (albedo and
@@ -609,13 +688,13 @@ pub struct SceneGpu {
 }
 
 impl SceneGpu {
-    /// Vertex buffer layout of [`GpuVertex`] (locations 0 to 5).
+    /// Vertex buffer layout of [`GpuVertex`] (locations 0 to 7).
     pub const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<GpuVertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![
             0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Uint32, 5 => Uint32,
-            6 => Uint32
+            6 => Uint32, 7 => Float32x4
         ],
     };
 
@@ -645,6 +724,7 @@ impl SceneGpu {
             };
             let [a, b, c] = scene.triangle(t);
             let normal = (b - a).cross(c - a).normalize_or_zero();
+            let tangent = triangle_tangent(scene, t);
             for (k, &v) in tri.iter().enumerate() {
                 vertices.push(GpuVertex {
                     position: scene.positions[v as usize].to_array(),
@@ -656,6 +736,7 @@ impl SceneGpu {
                     material: scene.triangle_materials[t],
                     triangle: t as u32,
                     object,
+                    tangent,
                 });
             }
         }

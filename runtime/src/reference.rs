@@ -79,7 +79,7 @@ use crate::{
     common::camera::View,
     direct::cpu::{
         albedo_at, brdf, direct_radiance, emission_at, emitted_radiance, facing_normal,
-        front_normal, ray_epsilon,
+        front_normal, ray_epsilon, shading_normal,
     },
     gpu_types::GpuMaterial,
     load::AlbedoTexture,
@@ -330,8 +330,12 @@ pub fn render_reference(
 struct Vertex<'a> {
     /// Position.
     p: Vec3,
-    /// Unit normal on the side the path arrives from.
+    /// Unit shading normal on the side the path arrives from (the geometric one tilted by the
+    /// material's normal map): the cosines, the BRDF and the sampled lobes take it.
     n: Vec3,
+    /// Unit geometric normal on that side: ray origins are lifted along it, and a direction
+    /// below it leaves no light (the surface itself is in the way).
+    ng: Vec3,
     /// Unit direction back along the path (towards the eye or the previous vertex).
     v: Vec3,
     /// Kd times the albedo texture at `p`.
@@ -358,9 +362,11 @@ impl<'a> Tracer<'a> {
     /// (decides the side of the normal), seen from the unit direction `v`.
     fn vertex(&self, triangle: u32, p: Vec3, towards: Vec3, v: Vec3) -> Vertex<'a> {
         let material = &self.materials[self.scene.triangle_materials[triangle as usize] as usize];
+        let ng = facing_normal(self.scene, triangle, towards);
         Vertex {
             p,
-            n: facing_normal(self.scene, triangle, towards),
+            n: shading_normal(self.scene, material, self.textures, triangle, p, ng),
+            ng,
             v,
             albedo: albedo_at(self.scene, material, self.textures, triangle, p),
             material,
@@ -370,7 +376,7 @@ impl<'a> Tracer<'a> {
     /// Radiance leaving `x` towards `x.v` straight from the lights (next-event estimation).
     fn direct(&self, x: &Vertex) -> Vec3 {
         direct_radiance(
-            self.scene, self.bvh, self.eps, x.p, x.n, x.v, x.albedo, x.material,
+            self.scene, self.bvh, self.eps, x.p, x.ng, x.n, x.v, x.albedo, x.material,
         )
         .0
     }
@@ -385,7 +391,7 @@ impl<'a> Tracer<'a> {
         };
         let wi = (y - x.p).normalize();
         let cos_i = x.n.dot(wi);
-        if cos_i <= 0.0 || !pdf.is_finite() {
+        if cos_i <= 0.0 || x.ng.dot(wi) <= 0.0 || !pdf.is_finite() {
             return Vec3::ZERO;
         }
         let m = &self.materials[self.scene.triangle_materials[t as usize] as usize];
@@ -394,7 +400,7 @@ impl<'a> Tracer<'a> {
             return Vec3::ZERO;
         }
         let lifted = y + front_normal(self.scene, t) * self.eps;
-        if !self.bvh.segment_clear(x.p + x.n * self.eps, lifted) {
+        if !self.bvh.segment_clear(x.p + x.ng * self.eps, lifted) {
             return Vec3::ZERO;
         }
         let weight = match self.sampling {
@@ -488,7 +494,11 @@ impl<'a> Tracer<'a> {
             if throughput == Vec3::ZERO {
                 break;
             }
-            let origin = x.p + x.n * self.eps;
+            // A direction the shading normal allows but the surface hides carries no light.
+            if x.ng.dot(wi) <= 0.0 {
+                break;
+            }
+            let origin = x.p + x.ng * self.eps;
             let Some((t, triangle)) = self.bvh.closest_hit(origin, wi, 0.0, f32::INFINITY) else {
                 break;
             };
@@ -960,12 +970,14 @@ mod tests {
                 ks: [ks; 3],
                 texture: -1,
                 emission_texture: -1,
+                normal_texture: -1,
                 ..Default::default()
             };
             let v = Vec3::new(view_angle.sin(), 0.0, view_angle.cos());
             let x = Vertex {
                 p: Vec3::ZERO,
                 n,
+                ng: n,
                 v,
                 albedo: Vec3::splat(kd),
                 material: &material,

@@ -12,7 +12,8 @@ struct Material {
     emission_texture: i32,
     // Emission times its texture's mean: what an atlas texel emits.
     emission_mean: vec3f,
-    padding: f32,
+    // Layer of the tangent-space normal map in the albedo array, or -1 (gpu_types.rs).
+    normal_texture: i32,
 }
 
 struct SpotLight {

@@ -15,8 +15,8 @@ use glam::{Affine3A, Mat4, Vec3};
 use super::toml::{CameraToml, LightKind, LightToml};
 use super::validate::{check_camera, check_light};
 use super::{
-    Builder, Camera, DEFAULT_RESOLUTION, FileCounts, Hasher, Material, ObjectKind, SceneError,
-    SpotLight, TextureSource, read_bounded,
+    Builder, Camera, DEFAULT_RESOLUTION, FileCounts, Hasher, Material, NormalMap, NormalMapKind,
+    ObjectKind, SceneError, SpotLight, TextureSource, read_bounded,
 };
 
 /// Extensions the loader understands; a file that requires any other is refused, as the glTF
@@ -434,7 +434,27 @@ impl Builder {
             }
             let map_kd = texture(pbr.base_color_texture());
             let map_emission = texture(m.emissive_texture());
-            for t in [&map_kd, &map_emission].into_iter().flatten() {
+            let normal_map = match m.normal_texture() {
+                Some(n) if !n.scale().is_finite() => {
+                    return Err(gltf_error(
+                        path,
+                        format!("material `{name}` has a non-finite normalTexture scale"),
+                    ));
+                }
+                Some(n) => images
+                    .get(n.texture().source().index())
+                    .cloned()
+                    .map(|source| NormalMap {
+                        source,
+                        kind: NormalMapKind::Tangent { scale: n.scale() },
+                    }),
+                None => None,
+            };
+            let sources = [map_kd.as_ref(), map_emission.as_ref()];
+            let sources = sources
+                .into_iter()
+                .chain([normal_map.as_ref().map(|n| &n.source)]);
+            for t in sources.flatten() {
                 if let Some(file) = t.file() {
                     self.warn_about_texture(path, &name, file);
                 }
@@ -447,6 +467,7 @@ impl Builder {
                 map_kd,
                 emission,
                 map_emission,
+                normal_map,
             });
         }
         if !alpha_ignored.is_empty() {
@@ -527,11 +548,13 @@ impl Builder {
                 let material = primitive.material();
                 let pbr = material.pbr_metallic_roughness();
                 // One set of texture coordinates per primitive: the albedo texture's, else the
-                // emission texture's, else the first.
+                // emission texture's, else the normal texture's, else the first.
                 let set = pbr
                     .base_color_texture()
                     .or(material.emissive_texture())
-                    .map_or(0, |i| i.tex_coord());
+                    .map(|i| i.tex_coord())
+                    .or(material.normal_texture().map(|n| n.tex_coord()))
+                    .unwrap_or(0);
                 let uv_set = primitive
                     .get(&gltf::Semantic::TexCoords(set))
                     .map(|a| (set, a));
@@ -727,7 +750,7 @@ pub(crate) mod tests {
 
     use super::{convert_material, equivalent_cone, phong_exponent, primitive_triangles};
     use crate::scene::tests::{scene, write};
-    use crate::scene::{ObjectKind, Scene, SceneError, TextureSource};
+    use crate::scene::{NormalMap, NormalMapKind, ObjectKind, Scene, SceneError, TextureSource};
 
     /// One buffer of a test glTF: a unit quad in the xy plane (4 positions, 4 texture
     /// coordinates, 6 indices), little-endian, 104 bytes.
@@ -1001,6 +1024,42 @@ pub(crate) mod tests {
         let file = s.path.parent().unwrap().join("bricks.png");
         assert_eq!(s.materials[0].map_kd, Some(TextureSource::File(file)));
         assert!(s.warnings.join("\n").contains("bricks.png not found"));
+    }
+
+    /// `normalTexture` becomes a tangent-space normal map with its scale (1 when the file
+    /// gives none); a missing image file is a warning, as for the albedo texture.
+    #[test]
+    fn normal_texture_becomes_a_tangent_space_normal_map() {
+        let with_normal = |normal: &str| {
+            let json = quad_gltf().replace(
+                r#""pbrMetallicRoughness": {"#,
+                &format!(r#""normalTexture": {normal}, "pbrMetallicRoughness": {{"#),
+            );
+            json.replacen(
+                r#""buffers""#,
+                r#""textures": [{"source": 0}], "images": [{"uri": "n.png"}], "buffers""#,
+                1,
+            )
+        };
+        let dir = scene(&[("t.gltf", &with_normal(r#"{"index": 0, "scale": 0.25}"#))]);
+        let s = Scene::load(&dir.path().join("t.gltf")).unwrap();
+        let file = s.path.parent().unwrap().join("n.png");
+        let expected = NormalMap {
+            source: TextureSource::File(file.clone()),
+            kind: NormalMapKind::Tangent { scale: 0.25 },
+        };
+        assert_eq!(s.materials[0].normal_map, Some(expected));
+        assert!(s.materials[0].map_kd.is_none());
+        assert!(s.input_files().contains(&file));
+        let w = s.warnings.join("\n");
+        assert!(
+            w.contains("material `glow`: texture") && w.contains("n.png not found"),
+            "{w}"
+        );
+        let dir = scene(&[("t.gltf", &with_normal(r#"{"index": 0}"#))]);
+        let s = Scene::load(&dir.path().join("t.gltf")).unwrap();
+        let kind = s.materials[0].normal_map.as_ref().map(|n| n.kind);
+        assert_eq!(kind, Some(NormalMapKind::Tangent { scale: 1.0 }));
     }
 
     /// Loads `json` as `bad.gltf` and returns the error's message.

@@ -90,6 +90,41 @@ pub struct Material {
     pub emission: [f32; 3],
     /// Emission texture (`map_Ke`, glTF `emissiveTexture`), multiplying `emission`, if any.
     pub map_emission: Option<TextureSource>,
+    /// Surface detail that tilts the shading normal (MTL `bump`/`map_Bump`, `norm`; glTF
+    /// `normalTexture`), if any: the high-frequency detail of the CSSM paper's Fig. 1 (right).
+    pub normal_map: Option<NormalMap>,
+}
+
+/// A texture that perturbs the shading normal of a material (`docs/scene-format.md`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalMap {
+    /// The image.
+    pub source: TextureSource,
+    /// How its texels describe the surface.
+    pub kind: NormalMapKind,
+}
+
+/// What the texels of a [`NormalMap`] hold.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NormalMapKind {
+    /// A height map (MTL `bump`, `map_Bump`): the grey level `g` in `[0, 1]` (the mean of the
+    /// channels, read as stored, not sRGB-decoded) is a height of `multiplier * g / 512` in
+    /// units of the texture's side (UV 0 to 1): a white texel next to a black one at
+    /// `multiplier` 1 is a 45-degree step on a 512-texel texture. The runtime turns it into a
+    /// tangent-space normal map on load; the convention depends neither on the scene's size
+    /// nor on the image's resolution.
+    Height {
+        /// MTL `-bm` (1 without it); negative values turn bumps into dents.
+        multiplier: f32,
+    },
+    /// A tangent-space normal map (MTL `norm`, glTF `normalTexture`): RGB `c` in `[0, 1]`,
+    /// read as stored (not sRGB-decoded), is the unit normal `2c - 1` in the frame (tangent
+    /// along +u, bitangent along +v, geometric normal), the OpenGL / glTF convention.
+    Tangent {
+        /// glTF `normalTexture.scale` (MTL `-bm` for `norm`; 1 without it): multiplies the
+        /// normal's tangent components before it is normalised.
+        scale: f32,
+    },
 }
 
 impl Material {
@@ -108,12 +143,18 @@ impl Material {
             map_kd: None,
             emission: [0.0; 3],
             map_emission: None,
+            normal_map: None,
         }
     }
 
     /// Whether the material emits light.
     pub fn emits(&self) -> bool {
         self.emission.iter().any(|&e| e > 0.0)
+    }
+
+    /// The image of [`Material::normal_map`], if any.
+    pub fn normal_source(&self) -> Option<&TextureSource> {
+        self.normal_map.as_ref().map(|n| &n.source)
     }
 }
 
@@ -242,11 +283,14 @@ impl Scene {
     /// Every file the scene reads: [`Scene::files`] and the materials' textures. A command
     /// never writes onto one of them.
     pub fn input_files(&self) -> Vec<PathBuf> {
-        let textures = self
-            .materials
-            .iter()
-            .flat_map(|m| [&m.map_kd, &m.map_emission]);
-        let textures = textures.filter_map(|t| t.as_ref()?.file().map(Path::to_path_buf));
+        let textures = self.materials.iter().flat_map(|m| {
+            [
+                m.map_kd.as_ref(),
+                m.map_emission.as_ref(),
+                m.normal_source(),
+            ]
+        });
+        let textures = textures.filter_map(|t| t?.file().map(Path::to_path_buf));
         self.files.iter().cloned().chain(textures).collect()
     }
 

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Vec3};
 
-use super::{Builder, Hasher, Material, SceneError, TextureSource, read_bounded};
+use super::{
+    Builder, Hasher, Material, NormalMap, NormalMapKind, SceneError, TextureSource, read_bounded,
+};
 
 /// An MTL library the OBJ asked for: its path and its bytes (or why they could not be read).
 type MtlRead = (PathBuf, Result<Vec<u8>, SceneError>);
@@ -196,6 +198,24 @@ impl Builder {
             };
             let map_kd = texture(m.diffuse_texture.as_ref());
             let map_emission = texture(m.unknown_param.get("map_Ke"));
+            // `normalise_mtl` rewrote the bump and normal-map statements as
+            // `<BUMP_KEY|NORM_KEY> <multiplier> <file>`; the last one of a material wins.
+            let detail = |key: &str| {
+                let value = m.unknown_param.get(key)?;
+                let (multiplier, file) = value.split_once(' ')?;
+                Some((multiplier.parse::<f32>().ok()?, file.to_string()))
+            };
+            let normal_map = match (detail(NORM_KEY), detail(BUMP_KEY)) {
+                (Some((scale, file)), _) => texture(Some(&file)).map(|source| NormalMap {
+                    source,
+                    kind: NormalMapKind::Tangent { scale },
+                }),
+                (None, Some((multiplier, file))) => texture(Some(&file)).map(|source| NormalMap {
+                    source,
+                    kind: NormalMapKind::Height { multiplier },
+                }),
+                (None, None) => None,
+            };
             self.materials.push(Material {
                 name: m.name.clone(),
                 kd,
@@ -204,6 +224,7 @@ impl Builder {
                 map_kd,
                 emission,
                 map_emission,
+                normal_map,
             });
         }
 
@@ -287,9 +308,75 @@ impl Builder {
     }
 }
 
+/// The key `normalise_mtl` files a height map under (`bump`, `map_Bump` in any case).
+const BUMP_KEY: &str = "cssm_bump";
+/// The key `normalise_mtl` files a tangent-space normal map under (`norm`, `map_norm`).
+const NORM_KEY: &str = "cssm_norm";
+
+/// Options of an MTL texture statement and how many values each takes (at most; `-o`, `-s`
+/// and `-t` take one to three numbers), from the MTL specification.
+const TEXTURE_OPTIONS: &[(&str, usize)] = &[
+    ("-blendu", 1),
+    ("-blendv", 1),
+    ("-bm", 1),
+    ("-boost", 1),
+    ("-cc", 1),
+    ("-clamp", 1),
+    ("-imfchan", 1),
+    ("-mm", 2),
+    ("-o", 3),
+    ("-s", 3),
+    ("-t", 3),
+    ("-texres", 1),
+    ("-type", 1),
+];
+
+/// Parses the arguments of a bump or normal-map statement (`[options] file`): the `-bm`
+/// multiplier (1 without it) and the file name (the words after the options, spaces kept as
+/// single spaces). Other options are skipped: the runtime does not apply them.
+fn texture_statement(values: &[&str]) -> Result<(f32, String), String> {
+    let mut multiplier = 1.0f32;
+    let mut i = 0;
+    while i < values.len() {
+        let Some(&(option, count)) = TEXTURE_OPTIONS.iter().find(|(o, _)| *o == values[i]) else {
+            break;
+        };
+        i += 1;
+        if option == "-bm" {
+            multiplier = match values.get(i).map(|v| v.parse::<f32>()) {
+                Some(Ok(v)) if v.is_finite() => v,
+                _ => return Err("`-bm` needs a finite number".into()),
+            };
+            i += 1;
+            continue;
+        }
+        // The option's values: `count` words, fewer for `-o`, `-s`, `-t` when a non-number
+        // (the file) follows sooner.
+        let numeric = count == 3;
+        let mut taken = 0;
+        while taken < count && i < values.len() - 1 {
+            if numeric && taken > 0 && values[i].parse::<f32>().is_err() {
+                break;
+            }
+            i += 1;
+            taken += 1;
+        }
+        if taken == 0 {
+            return Err(format!("`{option}` needs a value"));
+        }
+    }
+    if i >= values.len() {
+        return Err("names no texture file".into());
+    }
+    Ok((multiplier, values[i..].join(" ")))
+}
+
 /// Makes an MTL acceptable to tobj: a colour statement (`Ka`, `Kd`, `Ks`, `Ke`) with a single
 /// value means grey (MTL spec) but panics tobj, so it is expanded to three values; one with two
-/// values is an error naming the line.
+/// values is an error naming the line. Bump statements (`bump`, `map_Bump`, any case, as
+/// exporters write them) and normal-map statements (`norm`, `map_norm`) are rewritten as
+/// `cssm_bump`/`cssm_norm <multiplier> <file>` (their options parsed here, so that errors name
+/// the line), which tobj keeps as unknown parameters.
 fn normalise_mtl(bytes: &[u8]) -> Result<String, String> {
     let text = std::str::from_utf8(bytes).map_err(|_| "not valid UTF-8".to_string())?;
     let mut out = String::with_capacity(text.len() + 64);
@@ -298,6 +385,20 @@ fn normalise_mtl(bytes: &[u8]) -> Result<String, String> {
         let key = words.next();
         let values: Vec<&str> = words.collect();
         match key {
+            Some(k)
+                if ["bump", "map_bump", "norm", "map_norm"]
+                    .iter()
+                    .any(|b| k.eq_ignore_ascii_case(b)) =>
+            {
+                let key = if k.to_ascii_lowercase().ends_with("norm") {
+                    NORM_KEY
+                } else {
+                    BUMP_KEY
+                };
+                let (multiplier, file) =
+                    texture_statement(&values).map_err(|e| format!("line {}: `{k}` {e}", i + 1))?;
+                out.push_str(&format!("{key} {multiplier} {file}"));
+            }
             Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")) if values.len() < 3 => match values[..] {
                 [v] => out.push_str(&format!("{k} {v} {v} {v}")),
                 _ => {
@@ -318,7 +419,7 @@ fn normalise_mtl(bytes: &[u8]) -> Result<String, String> {
 #[cfg(test)]
 mod tests {
     use crate::scene::tests::{QUAD_OBJ, err, scene};
-    use crate::scene::{Scene, SceneError};
+    use crate::scene::{NormalMapKind, Scene, SceneError};
 
     #[test]
     fn nan_vertex_is_an_error() {
@@ -371,6 +472,100 @@ mod tests {
         let w = s.warnings.join("\n");
         assert!(w.contains("an `mtllib` line names no file"), "{w}");
         assert_eq!(s.triangles.len(), 2);
+    }
+
+    /// The bump statements of the MTL (`bump`, `map_Bump`, any case, with `-bm` and other
+    /// options) give a height map, `norm` a tangent-space normal map; a missing file is the
+    /// same warning as a missing `map_Kd`; a malformed statement is an error naming the line.
+    #[test]
+    fn bump_and_normal_maps_from_the_mtl() {
+        let material = |mtl: &str| {
+            let dir = scene(&[("quad.obj", QUAD_OBJ), ("quad.mtl", mtl)]);
+            let s = Scene::load(dir.path()).unwrap();
+            let m = s.materials[0].normal_map.clone().expect("a normal map");
+            let file = m.source.file().unwrap().strip_prefix(&s.path).unwrap();
+            (file.to_string_lossy().into_owned(), m.kind, s.warnings)
+        };
+        let height = |multiplier| NormalMapKind::Height { multiplier };
+        for (statement, file, kind) in [
+            ("bump kamen-bump.png", "kamen-bump.png", height(1.0)),
+            ("map_Bump kamen-bump.png", "kamen-bump.png", height(1.0)),
+            ("  map_bump kamen-bump.png", "kamen-bump.png", height(1.0)),
+            ("MAP_BUMP -bm 0.5 b.png", "b.png", height(0.5)),
+            ("Bump -bm -2 b.png", "b.png", height(-2.0)),
+            (
+                "bump -s 2 2 1 -bm 0.25 -clamp on b c.png",
+                "b c.png",
+                height(0.25),
+            ),
+            ("bump -o 0.5 -mm 0 1 b.png", "b.png", height(1.0)),
+            ("norm n.png", "n.png", NormalMapKind::Tangent { scale: 1.0 }),
+            (
+                "norm -bm 0.5 n.png",
+                "n.png",
+                NormalMapKind::Tangent { scale: 0.5 },
+            ),
+        ] {
+            let (got_file, got_kind, warnings) = material(&format!("newmtl white\n{statement}\n"));
+            assert_eq!((got_file.as_str(), got_kind), (file, kind), "{statement}");
+            // The file does not exist: the warning of a missing `map_Kd`.
+            let w = warnings.join("\n");
+            assert!(w.contains("material `white`: texture"), "{w}");
+            assert!(w.contains(&format!("{file} not found")), "{statement}: {w}");
+        }
+        // Sibenik's pair (`map_bump` and `bump` of one file): one height map, one warning.
+        let (file, kind, warnings) = material(
+            "newmtl white\nmap_Kd wood.png\nmap_bump kamen-bump.png\nbump kamen-bump.png\n",
+        );
+        assert_eq!((file.as_str(), kind), ("kamen-bump.png", height(1.0)));
+        assert_eq!(
+            warnings
+                .iter()
+                .filter(|w| w.contains("kamen-bump.png"))
+                .count(),
+            1,
+            "{warnings:?}"
+        );
+        // A normal map wins over a height map.
+        let (file, kind, _) = material("newmtl white\nnorm n.png\nbump b.png\n");
+        assert_eq!(
+            (file.as_str(), kind),
+            ("n.png", NormalMapKind::Tangent { scale: 1.0 })
+        );
+        // An existing file: no warning.
+        let dir = scene(&[
+            ("quad.obj", QUAD_OBJ),
+            ("quad.mtl", "newmtl white\nbump b.png\n"),
+            ("b.png", "not checked here"),
+        ]);
+        let s = Scene::load(dir.path()).unwrap();
+        assert!(
+            !s.warnings.join("\n").contains("texture"),
+            "{:?}",
+            s.warnings
+        );
+        assert!(s.input_files().contains(&s.path.join("b.png")));
+        // Malformed statements name the line.
+        for (statement, problem) in [
+            ("bump -bm", "`-bm` needs a finite number"),
+            ("bump -bm x b.png", "`-bm` needs a finite number"),
+            ("bump -bm nan b.png", "`-bm` needs a finite number"),
+            ("map_Bump -bm 2", "names no texture file"),
+            ("norm", "names no texture file"),
+        ] {
+            let e = err(&[
+                ("quad.obj", QUAD_OBJ),
+                (
+                    "quad.mtl",
+                    &format!("newmtl white\nKd 1 1 1\n{statement}\n"),
+                ),
+            ]);
+            assert!(
+                e.contains("quad.mtl") && e.contains("line 3"),
+                "{statement}: {e}"
+            );
+            assert!(e.contains(problem), "{statement}: {e}");
+        }
     }
 
     #[test]

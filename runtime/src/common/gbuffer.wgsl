@@ -1,9 +1,11 @@
 #import cssm::types::{Material, View}
-#import cssm::albedo::albedo_sample
+#import cssm::albedo::{albedo_sample, perturb_normal}
 
-// G-buffer raster pass: world position, camera-facing normal, material, albedo, atlas
+// G-buffer raster pass: world position, camera-facing shading normal, material, albedo, atlas
 // coordinates and the emitted radiance towards the eye per pixel, sampled at pixel centres (the
-// rays of the CPU references). Emission is one-sided: a surface emits from its front, the side
+// rays of the CPU references). The shading normal is the flat geometric one tilted by the
+// material's normal map in the triangle's flat tangent frame (normal_map.rs; CPU twin
+// direct/cpu.rs::shading_normal). Emission is one-sided: a surface emits from its front, the side
 // its winding normal faces (direct/cpu.rs::emitted_radiance is the twin).
 // Needs types.wgsl (View, Material) and albedo.wgsl.
 
@@ -21,6 +23,7 @@ struct VertexIn {
     @location(4) material: u32,
     @location(5) triangle: u32,
     @location(6) object: u32,
+    @location(7) tangent: vec4f,
 }
 
 struct VertexOut {
@@ -31,6 +34,8 @@ struct VertexOut {
     @location(3) atlas_uv: vec2f,
     @location(4) @interpolate(flat) material: u32,
     @location(5) @interpolate(flat) triangle: u32,
+    // xyz: unit tangent of the triangle's UVs (moved with it), w: handedness, 0 for none.
+    @location(6) @interpolate(flat) tangent: vec4f,
 }
 
 @vertex
@@ -45,13 +50,17 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.atlas_uv = v.atlas_uv;
     out.material = v.material;
     out.triangle = v.triangle;
+    out.tangent = vec4f(0.0);
+    if v.tangent.w != 0.0 {
+        out.tangent = vec4f(normalize((motion * vec4f(v.tangent.xyz, 0.0)).xyz), v.tangent.w);
+    }
     return out;
 }
 
 struct GBufferOut {
     // xyz: world position; w: 1 where a surface covers the pixel.
     @location(0) position: vec4f,
-    // xyz: unit normal turned towards the eye; w: material index.
+    // xyz: unit shading normal turned towards the eye (normal-mapped); w: material index.
     @location(1) normal: vec4f,
     // rgb: Lambertian albedo (Kd times the texture); w: triangle index.
     @location(2) albedo: vec4f,
@@ -70,6 +79,15 @@ fn fs_main(f: VertexOut) -> GBufferOut {
         n = -n;
     }
     let m = materials[f.material];
+    // The frame turns with the normal: seen from the back, the perturbed normal is the front's
+    // negated. Emission's side stays the geometric one's (`front`).
+    if m.normal_texture >= 0 && f.tangent.w != 0.0 {
+        let side = select(-1.0, 1.0, front);
+        let t = f.tangent.xyz * side;
+        let b = cross(f.normal, f.tangent.xyz) * (f.tangent.w * side);
+        let s = albedo_sample(albedo_textures, u32(m.normal_texture), f.uv);
+        n = perturb_normal(s, n, t, b);
+    }
     var albedo = m.kd;
     if m.texture >= 0 {
         albedo *= albedo_sample(albedo_textures, u32(m.texture), f.uv);

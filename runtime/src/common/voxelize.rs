@@ -478,8 +478,8 @@ mod tests {
 
     #[test]
     fn the_vertex_words_match_gpu_vertex() {
-        // `voxelize.wgsl` reads the vertex buffer as 13 words per vertex.
-        assert_eq!(std::mem::size_of::<crate::gpu_types::GpuVertex>(), 13 * 4);
+        // `voxelize.wgsl` reads the vertex buffer as 17 words per vertex.
+        assert_eq!(std::mem::size_of::<crate::gpu_types::GpuVertex>(), 17 * 4);
         assert_eq!(std::mem::offset_of!(crate::gpu_types::GpuVertex, uv), 6 * 4);
         assert_eq!(
             std::mem::offset_of!(crate::gpu_types::GpuVertex, material),

@@ -31,7 +31,7 @@ struct VoxelParams {
 @group(0) @binding(5) var<storage, read_write> fragment_count: atomic<u32>;
 @group(0) @binding(6) var<storage, read_write> fragments: array<VoxelFragment>;
 
-const WORDS_PER_VERTEX: u32 = 13u;
+const WORDS_PER_VERTEX: u32 = 17u;
 // Columns per tile side (`voxelize::TILE`).
 const TILE: u32 = 16u;
 

@@ -3,8 +3,9 @@
 //! samples, plus the radiance a surface seen from its front emits (the G-buffer's emission,
 //! [`emitted_radiance`]).
 //!
-//! Its shading pieces (light, BRDF, albedo, facing normal) are shared with the path tracer,
-//! [`crate::reference`], so the two see the same scene.
+//! Its shading pieces (light, BRDF, albedo, facing and normal-mapped shading normal) are shared
+//! with the path tracer, [`crate::reference`], so the two see the same scene. The atlas
+//! ([`render_atlas`]) keeps the geometric normals, as the bake's texels do.
 
 use cssm_formats::{CssmFile, Scene};
 use cssm_raycast::SceneBvh;
@@ -23,6 +24,8 @@ pub struct CpuPixel {
     /// Bit `i` set when light `i` reaches the point (inside its cone, on the front side,
     /// unshadowed).
     pub lit: u32,
+    /// Unit shading normal turned towards the eye (normal-mapped): the G-buffer's normal.
+    pub normal: Vec3,
 }
 
 /// Irradiance at `p` (normal `n`) from `light`, and the unit direction to the light, when the
@@ -35,15 +38,34 @@ pub(crate) fn spot_irradiance(
     p: Vec3,
     n: Vec3,
 ) -> Option<(Vec3, Vec3)> {
+    shaded_spot_irradiance(light, bvh, eps, p, n, n)
+}
+
+/// [`spot_irradiance`] at a point whose shading normal `shading` (normal-mapped,
+/// [`shading_normal`]) differs from its geometric normal `geometric` (both on the side the
+/// light is reflected to): the cosine is the shading normal's, the side and the shadow ray's
+/// lift the geometric normal's (a light below the surface does not reach it, whatever the
+/// shading normal says).
+pub(crate) fn shaded_spot_irradiance(
+    light: &cssm_formats::scene::SpotLight,
+    bvh: &SceneBvh,
+    eps: f32,
+    p: Vec3,
+    geometric: Vec3,
+    shading: Vec3,
+) -> Option<(Vec3, Vec3)> {
     let to_light = light.position - p;
     let dist2 = to_light.dot(to_light);
     let l = to_light / dist2.sqrt();
-    let cos_i = n.dot(l);
+    let cos_i = shading.dot(l);
     let dir = light.direction.normalize();
-    if cos_i <= 0.0 || (-l).dot(dir) < light.cutoff_deg.to_radians().cos() {
+    if cos_i <= 0.0
+        || geometric.dot(l) <= 0.0
+        || (-l).dot(dir) < light.cutoff_deg.to_radians().cos()
+    {
         return None;
     }
-    if !bvh.segment_clear(p + n * eps, light.position) {
+    if !bvh.segment_clear(p + geometric * eps, light.position) {
         return None;
     }
     Some((Vec3::from(light.intensity) * (cos_i / dist2), l))
@@ -56,7 +78,7 @@ pub(crate) fn ray_epsilon(scene: &Scene) -> f32 {
 
 /// Unit geometric (flat) normal of `triangle`, flipped to the side of `towards` (the direction
 /// from the surface point to the viewer or the previous path vertex): surfaces are two-sided.
-pub(crate) fn facing_normal(scene: &Scene, triangle: u32, towards: Vec3) -> Vec3 {
+pub fn facing_normal(scene: &Scene, triangle: u32, towards: Vec3) -> Vec3 {
     let [a, b, c] = scene.triangle(triangle as usize);
     let n = (b - a).cross(c - a).normalize_or_zero();
     if n.dot(towards) < 0.0 { -n } else { n }
@@ -75,6 +97,38 @@ fn texcoords_at(scene: &Scene, triangle: u32, p: Vec3) -> [f32; 2] {
         let t = scene.texcoords[v as usize];
         [acc[0] + t[0] * w, acc[1] + t[1] * w]
     })
+}
+
+/// The shading normal at `p` on `triangle`: its geometric normal `n` (turned to the side it is
+/// seen from, [`facing_normal`]) tilted by the material's normal map in the triangle's flat
+/// tangent frame, as the G-buffer pass does (`gbuffer.wgsl`, [`crate::normal_map::perturb`]);
+/// `n` itself without a normal map, texture coordinates or a frame.
+pub fn shading_normal(
+    scene: &Scene,
+    m: &GpuMaterial,
+    textures: &[AlbedoTexture],
+    triangle: u32,
+    p: Vec3,
+    n: Vec3,
+) -> Vec3 {
+    if m.normal_texture < 0 || scene.texcoords.is_empty() {
+        return n;
+    }
+    let [tx, ty, tz, handedness] = crate::load::triangle_tangent(scene, triangle as usize);
+    if handedness == 0.0 {
+        return n;
+    }
+    // The frame turns with the normal (the back's normal is the front's negated).
+    let winding = front_normal(scene, triangle);
+    let side = if winding.dot(n) < 0.0 { -1.0 } else { 1.0 };
+    let tangent = Vec3::new(tx, ty, tz);
+    let t = tangent * side;
+    let b = winding.cross(tangent) * (handedness * side);
+    let Some(map) = textures.get(m.normal_texture as usize) else {
+        return n;
+    };
+    let sample = map.sample(texcoords_at(scene, triangle, p));
+    crate::normal_map::perturb(sample, n, t, b)
 }
 
 /// Albedo at `p` on `triangle`: the material's Kd times its albedo texture, sampled as the
@@ -144,14 +198,17 @@ pub(crate) fn brdf(albedo: Vec3, m: &GpuMaterial, l: Vec3, n: Vec3, v: Vec3) -> 
     albedo / std::f32::consts::PI + lobe
 }
 
-/// Radiance leaving `p` (normal `n`, facing the unit direction `v`) under every light of
-/// `scene`, exactly shadowed, and the lights that reach `p` as a bit set (bit `min(i, 31)`).
+/// Radiance leaving `p` (geometric normal `ng`, shading normal `n`, both on the side of the
+/// unit direction `v`) under every light of `scene`, exactly shadowed, and the lights that
+/// reach `p` as a bit set (bit `min(i, 31)`). The cosine and the BRDF take the shading normal,
+/// the side and the shadow ray the geometric one ([`shaded_spot_irradiance`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn direct_radiance(
     scene: &Scene,
     bvh: &SceneBvh,
     eps: f32,
     p: Vec3,
+    ng: Vec3,
     n: Vec3,
     v: Vec3,
     albedo: Vec3,
@@ -160,7 +217,7 @@ pub(crate) fn direct_radiance(
     let mut radiance = Vec3::ZERO;
     let mut lit = 0;
     for (k, light) in scene.lights.iter().enumerate() {
-        let Some((e, l)) = spot_irradiance(light, bvh, eps, p, n) else {
+        let Some((e, l)) = shaded_spot_irradiance(light, bvh, eps, p, ng, n) else {
             continue;
         };
         lit |= 1 << k.min(31);
@@ -192,15 +249,17 @@ pub fn render_screen(
                 };
             };
             let p = view.eye + dir * t;
-            let n = facing_normal(scene, triangle, view.eye - p);
+            let ng = facing_normal(scene, triangle, view.eye - p);
             let m = &materials[scene.triangle_materials[triangle as usize] as usize];
+            let n = shading_normal(scene, m, textures, triangle, p, ng);
             let albedo = albedo_at(scene, m, textures, triangle, p);
-            let (reflected, lit) = direct_radiance(scene, bvh, eps, p, n, -dir, albedo, m);
+            let (reflected, lit) = direct_radiance(scene, bvh, eps, p, ng, n, -dir, albedo, m);
             let emitted = emitted_radiance(scene, m, textures, triangle, p, view.eye - p);
             CpuPixel {
                 radiance: reflected + emitted,
                 triangle,
                 lit,
+                normal: n,
             }
         })
         .collect()
