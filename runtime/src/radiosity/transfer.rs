@@ -135,6 +135,10 @@ pub fn in_near_field(p: Vec3, y: Vec3, area: f32) -> bool {
     (y - p).length_squared() < NEAR_FIELD_SIZES * NEAR_FIELD_SIZES * area
 }
 
+/// Receivers closer than this many texel sizes to a texel's plane are in it
+/// ([`irradiance_from_footprint`]).
+const COPLANAR: f32 = 1e-3;
+
 /// Corners of the regular octagon of unit area (circumradius `1 / sqrt(2 sqrt 2)`), counter-
 /// clockwise about the normal in its tangent frame: a texel's footprint, its area and centre
 /// kept (the atlas stores no texel's shape, and the octagon is as isotropic as the disk of
@@ -169,10 +173,13 @@ pub fn irradiance_from_footprint(
     radiance: Vec3,
 ) -> (Vec3, Vec3) {
     let d = y - p;
-    if d.length_squared() <= 0.0 || sender_normal.dot(-d) <= 0.0 {
+    let scale = area.max(0.0).sqrt();
+    // In front of the sender by a margin: a receiver in the texel's own plane (its neighbour
+    // on the same surface) gets nothing, whatever the rounding, even where a tilted shading
+    // normal (a normal map) puts the texel above its horizon.
+    if d.length_squared() <= 0.0 || sender_normal.dot(-d) <= COPLANAR * scale {
         return (Vec3::ZERO, Vec3::ZERO);
     }
-    let scale = area.max(0.0).sqrt();
     let (t, s) = tangent_frame(sender_normal);
     let corner = |k: usize| d + (t * OCTAGON[k].0 + s * OCTAGON[k].1) * scale;
     // Clip to the receiver's hemisphere: at most one corner more than the octagon's eight.

@@ -85,14 +85,15 @@ fn in_near_field(p: vec3f, y: vec3f, area: f32) -> bool {
 // clipped to the receiver's hemisphere; xyz irradiance.
 fn irradiance_from_footprint(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, area: f32, radiance: vec3f) -> vec3f {
     let d = y - p;
-    if dot(d, d) <= 0.0 || dot(sender_normal, -d) <= 0.0 {
+    let scale = sqrt(max(area, 0.0));
+    // transfer::COPLANAR: a receiver in the texel's plane gets nothing, whatever the rounding.
+    if dot(d, d) <= 0.0 || dot(sender_normal, -d) <= 1e-3 * scale {
         return vec3f(0.0);
     }
     // transfer::OCTAGON: unit area, counter-clockwise about the normal.
     let r = 0.59460355;
     let c = r * 0.70710678;
     var octagon = array<vec2f, 8>(vec2f(r, 0.0), vec2f(c, c), vec2f(0.0, r), vec2f(-c, c), vec2f(-r, 0.0), vec2f(-c, -c), vec2f(0.0, -r), vec2f(c, -c));
-    let scale = sqrt(max(area, 0.0));
     let frame = tangent_frame(sender_normal);
     var clipped: array<vec3f, 9>;
     var count = 0u;
