@@ -126,9 +126,8 @@ fn run_bake_chunk(
     let summary = ChunkSummary::new(
         &output,
         &baked.chunk,
-        &baked.stats,
+        Some((&baked.stats, start.elapsed().as_secs_f64())),
         file_bytes,
-        start.elapsed().as_secs_f64(),
     );
     if config.json {
         println!("{}", summary.to_json());

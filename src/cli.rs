@@ -56,7 +56,7 @@ pub enum Command {
         cssm merge parts/*.chunk-* -o sibenik.cssm --json"
     )]
     Merge(MergeArgs),
-    /// Print the header and sizes of a .cssm file.
+    /// Print the header and sizes of a .cssm file, or which slice a chunk (cssm bake --chunk) holds.
     #[command(
         after_help = "Examples:\n  cssm inspect cornell.cssm\n  cssm inspect cornell.cssm --json"
     )]

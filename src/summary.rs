@@ -350,24 +350,24 @@ pub struct ChunkSummary {
     pub end_map: u32,
     /// Maps of the whole bake.
     pub total_maps: u32,
-    /// Rays cast for the slice.
-    pub rays: u64,
+    /// Rays cast for the slice (when it was just baked; `cssm inspect` of a chunk cannot tell).
+    pub rays: Option<u64>,
     /// Runs of the slice.
     pub runs: u64,
     /// Chunk file size.
     pub file_bytes: u64,
-    /// Whole process, seconds.
-    pub seconds: f64,
+    /// Whole process, seconds (when it was just baked).
+    pub seconds: Option<f64>,
 }
 
 impl ChunkSummary {
-    /// The summary of `chunk`, written to `path` (`file_bytes`), baked with `stats`.
+    /// The summary of `chunk`, at `path` (`file_bytes`); with the bake's `stats` and seconds
+    /// when it was just baked.
     pub fn new(
         path: &Path,
         chunk: &formats::cssm::CssmChunk,
-        stats: &bake::BakeStats,
+        baked: Option<(&bake::BakeStats, f64)>,
         file_bytes: u64,
-        seconds: f64,
     ) -> Self {
         let maps = chunk.maps();
         Self {
@@ -378,10 +378,10 @@ impl ChunkSummary {
             first_map: maps.start,
             end_map: maps.end,
             total_maps: chunk.total_maps(),
-            rays: stats.rays,
-            runs: stats.runs,
+            rays: baked.map(|(stats, _)| stats.rays),
+            runs: chunk.file().runs.runs.len() as u64,
             file_bytes,
-            seconds,
+            seconds: baked.map(|(_, seconds)| seconds),
         }
     }
 
@@ -395,7 +395,8 @@ impl fmt::Display for ChunkSummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "wrote {}: chunk {} of {} of {}",
+            "{}{}: chunk {} of {} of {}",
+            if self.seconds.is_some() { "wrote " } else { "" },
             self.path.display(),
             self.chunk,
             self.chunks,
@@ -410,16 +411,18 @@ impl fmt::Display for ChunkSummary {
         } else {
             writeln!(
                 f,
-                "  depth maps     {} to {} of {} ({} rays, {} runs)",
+                "  depth maps     {} to {} of {} ({}{} runs)",
                 self.first_map,
                 self.end_map - 1,
                 self.total_maps,
-                self.rays,
+                self.rays.map_or(String::new(), |r| format!("{r} rays, ")),
                 self.runs
             )?;
         }
         writeln!(f, "  file           {:>12}", human_bytes(self.file_bytes))?;
-        writeln!(f, "  time           {:.2} s", self.seconds)?;
+        if let Some(seconds) = self.seconds {
+            writeln!(f, "  time           {seconds:.2} s")?;
+        }
         write!(
             f,
             "  next           cssm merge <all {} chunks> -o <file>",

@@ -1460,12 +1460,21 @@ fn chunks_merge_into_the_file_of_one_bake() {
         out.to_str().unwrap(),
     ]);
     assert_fails(&o, "cut-2", &out);
-    // A chunk where a whole file belongs.
-    let o = cssm(&["inspect", &path("part-1")]);
+    // A chunk where a whole file belongs; `cssm inspect` tells which slice it holds.
+    let o = cssm(&["check", &path("part-1")]);
     assert_eq!(o.status.code(), Some(2));
     assert!(
         stderr(&o).contains("join the chunks with cssm merge"),
         "{}",
         stderr(&o)
     );
+    let o = cssm(&["inspect", &path("part-1"), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        (summary["chunk"].as_u64(), summary["chunks"].as_u64()),
+        (Some(1), Some(4))
+    );
+    assert_eq!(summary["first_map"].as_u64(), Some(0));
+    assert_eq!(summary["end_map"].as_u64(), Some(65_536));
 }
