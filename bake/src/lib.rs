@@ -18,6 +18,7 @@
 pub mod atlas;
 pub mod check;
 pub mod compress;
+pub mod csm;
 pub mod cubemap;
 pub mod traverse;
 
