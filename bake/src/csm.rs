@@ -313,7 +313,11 @@ mod tests {
 
     #[test]
     fn csm_agrees_with_ray_casts_outside_the_hull() {
-        let object = torus(48, 24);
+        // CSM_OBJECT=mesh.obj measures another object (reports/csm.md: the bunny).
+        let object = match std::env::var_os("CSM_OBJECT") {
+            Some(path) => Scene::load(std::path::Path::new(&path)).expect("CSM_OBJECT loads"),
+            None => torus(48, 24),
+        };
         // CSM_DIRECTIONS and CSM_RESOLUTION override the sizes for the sweep of reports/csm.md.
         let size = |name: &str, default: u32| {
             std::env::var(name)
@@ -358,9 +362,11 @@ mod tests {
         }
         let agreement = agree as f64 / pairs as f64;
         eprintln!(
-            "torus CSM {k}x{k} directions, {res}x{res} pixels: ratio {ratio:.1} : 1, agreement \
+            "{} ({} triangles) CSM {k}x{k} directions, {res}x{res} pixels: ratio {ratio:.1} : 1, agreement \
              {:.2}% over {pairs} segments ({blocked} blocked; {false_visible} false visible, \
              {false_occluded} false occluded)",
+            object.name,
+            object.triangles.len(),
             100.0 * agreement
         );
         assert!(
