@@ -205,12 +205,15 @@ fn versions_and_flags() {
         err.to_string(),
         "file version 1 is not supported (this build reads version 2); re-bake it"
     );
+    // Bit 1 is a chunk of a chunked bake (FLAG_CHUNK), bit 2 nothing yet.
     let mut flags = bytes.clone();
-    flags[12] = 2;
+    flags[12] = 4;
     assert!(matches!(
         cssm::decode(&flags),
-        Err(CssmError::UnsupportedFlags { flags: 2 })
+        Err(CssmError::UnsupportedFlags { flags: 4 })
     ));
+    flags[12] = 2;
+    assert!(matches!(cssm::decode(&flags), Err(CssmError::IsChunk)));
 }
 
 #[test]
