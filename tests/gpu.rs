@@ -973,9 +973,6 @@ fn final_gather_vs_twin(
                     kd: m.kd,
                     ns: m.ns,
                     ks: m.ks,
-                    texture: -1,
-                    emission_texture: -1,
-                    normal_texture: -1,
                     ..Default::default()
                 };
                 cssm_runtime::lightcuts::cpu::gather_pixel(
