@@ -38,7 +38,7 @@ use cssm_runtime::{
     },
     frame::FrameSettings,
     load::CssmGpu,
-    method::{self, Backend, CpuSetup, MethodEntry, OptionValue, OptionValues},
+    method::{self, Backend, CpuSetup, Energy, MethodEntry, OptionValue, OptionValues},
     visibility::{QueryKernel, QueryPair},
 };
 
@@ -267,6 +267,105 @@ fn gpu_matches_cpu_without_filtering() {
     let (n, differ, worst) = compare(options, 20_000, 11);
     eprintln!("unfiltered: {differ} of {n} differ, largest difference {worst}");
     assert!(differ as f64 <= 1e-4 * n as f64, "{differ} of {n} differ");
+}
+
+/// Holds `method`'s indirect image of a closed sphere to its energy rule (`Checks::energy` for
+/// the sphere lit by a spot light, `Checks::emissive` for the sphere that emits), `expected`
+/// being the closed form of the mean indirect radiance (each pixel's mean over its channels).
+/// `lit_on_screen` says whether the wall the screen shows receives light (it emits): then an
+/// [`Energy::OnScreenOnly`] method must show some (mean above 0), where the spot light's sphere,
+/// whose camera looks away from the lit wall, only bounds it below by 0. Every non-finite pixel
+/// fails. Returns the failure, if any, for the caller to collect over the method table.
+fn energy_failure(
+    name: &str,
+    rule: Energy,
+    image: &Image,
+    expected: f32,
+    lit_on_screen: bool,
+) -> Option<String> {
+    let values: Vec<f32> = image
+        .radiance
+        .iter()
+        .map(|p| (p[0] + p[1] + p[2]) / 3.0)
+        .collect();
+    if values.iter().any(|v| !v.is_finite()) {
+        return Some(format!("{name}: a pixel is not finite"));
+    }
+    let mean = values.iter().sum::<f32>() / values.len() as f32;
+    match rule {
+        Energy::NoIndirect => {
+            eprintln!("{name}: no indirect light expected, mean {mean}");
+            values
+                .iter()
+                .any(|&v| v != 0.0)
+                .then(|| format!("{name}: indirect light where none is"))
+        }
+        Energy::OnScreenOnly => {
+            eprintln!(
+                "{name}: mean indirect radiance {mean:.5} from the pixels on screen, closed form \
+                 {expected:.5} from the whole sphere"
+            );
+            // Written so that a NaN mean fails.
+            let above_floor = if lit_on_screen {
+                mean > 0.0
+            } else {
+                mean >= 0.0
+            };
+            (!above_floor || mean > expected * 1.02).then(|| {
+                let floor = if lit_on_screen { "(0" } else { "[0" };
+                format!("{name}: mean {mean} outside {floor}, the closed form {expected}]")
+            })
+        }
+        Energy::Within(tolerance) => {
+            let error = (mean / expected - 1.0).abs();
+            eprintln!(
+                "{name}: mean indirect radiance {mean:.5}, closed form {expected:.5}, relative \
+                 error {:.2}% (tolerance {:.1}%)",
+                100.0 * error,
+                100.0 * tolerance
+            );
+            (error.is_nan() || error > tolerance)
+                .then(|| format!("{name}: relative error {error} above {tolerance}"))
+        }
+    }
+}
+
+/// The energy rule's thresholds, on made-up images (no GPU): what each rule lets through and
+/// what it fails, so that the method-table tests built on it cannot pass vacuously.
+#[test]
+fn energy_rule_thresholds() {
+    let image = |values: &[f32]| Image {
+        width: values.len() as u32,
+        height: 1,
+        radiance: values.iter().map(|&v| [v, v, v, 1.0]).collect(),
+        display: Vec::new(),
+        first_timings: Vec::new(),
+        timings: Vec::new(),
+    };
+    let fails = |rule, values: &[f32], lit_on_screen| {
+        energy_failure("m", rule, &image(values), 1.0, lit_on_screen).is_some()
+    };
+    for lit in [false, true] {
+        for rule in [
+            Energy::Within(0.05),
+            Energy::NoIndirect,
+            Energy::OnScreenOnly,
+        ] {
+            assert!(fails(rule, &[1.0, f32::NAN], lit), "{rule:?}");
+            assert!(fails(rule, &[1.0, f32::INFINITY], lit), "{rule:?}");
+        }
+        assert!(!fails(Energy::Within(0.05), &[1.0, 1.08], lit));
+        assert!(fails(Energy::Within(0.05), &[1.0, 1.12], lit));
+        assert!(fails(Energy::Within(0.05), &[1.0, 0.88], lit));
+        assert!(!fails(Energy::NoIndirect, &[0.0, 0.0], lit));
+        assert!(fails(Energy::NoIndirect, &[0.0, 1e-6], lit));
+        assert!(!fails(Energy::OnScreenOnly, &[0.5, 1.5], lit));
+        assert!(!fails(Energy::OnScreenOnly, &[1.0, 1.03], lit));
+        assert!(fails(Energy::OnScreenOnly, &[1.0, 1.05], lit));
+        assert!(fails(Energy::OnScreenOnly, &[-0.5, 0.25], lit));
+        // A black image: lost energy, allowed only where the screen shows no lit wall.
+        assert_eq!(fails(Energy::OnScreenOnly, &[0.0, 0.0], lit), lit);
+    }
 }
 
 /// Relative RMSE of `gpu` against `cpu` over the pixels `keep` marks.
@@ -973,9 +1072,6 @@ fn final_gather_vs_twin(
                     kd: m.kd,
                     ns: m.ns,
                     ks: m.ks,
-                    texture: -1,
-                    emission_texture: -1,
-                    normal_texture: -1,
                     ..Default::default()
                 };
                 cssm_runtime::lightcuts::cpu::gather_pixel(

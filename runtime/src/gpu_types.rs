@@ -32,8 +32,13 @@ pub struct GpuVertex {
 }
 
 /// A material (conventions in `docs/architecture.md`).
+///
+/// `Default` is a black, non-emissive material with no textures: every texture layer is -1.
+/// It is written by hand because a derived one would put 0 there, which means layer 0 of the
+/// texture array, not "none". The all-zero bytes of `Zeroable` stay a valid material (then
+/// sampling layer 0), for code that wants exactly that.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
     /// Lambertian albedo, linear RGB.
     pub kd: [f32; 3],
@@ -55,6 +60,17 @@ pub struct GpuMaterial {
     /// Layer of the tangent-space normal map in the same texture array (a height map turned
     /// into one on load, [`crate::normal_map`]), or -1 for none: it tilts the shading normal.
     pub normal_texture: i32,
+}
+
+impl Default for GpuMaterial {
+    fn default() -> Self {
+        Self {
+            texture: -1,
+            emission_texture: -1,
+            normal_texture: -1,
+            ..Zeroable::zeroed()
+        }
+    }
 }
 
 /// A spot light with its shadow-map transform.
@@ -186,6 +202,24 @@ pub struct GpuTraversalParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The default material samples no texture: layer 0 is a real texture, -1 none.
+    #[test]
+    fn the_default_material_has_no_textures() {
+        let m = GpuMaterial::default();
+        assert_eq!(
+            (m.texture, m.emission_texture, m.normal_texture),
+            (-1, -1, -1)
+        );
+        // Everything else is zero, as the derived default was.
+        let zeroed_textures = GpuMaterial {
+            texture: 0,
+            emission_texture: 0,
+            normal_texture: 0,
+            ..m
+        };
+        assert_eq!(zeroed_textures, Zeroable::zeroed());
+    }
 
     /// Every struct above has the size and member offsets naga computes for its WGSL twin.
     #[test]

@@ -968,9 +968,6 @@ mod tests {
                 kd: [kd; 3],
                 ns,
                 ks: [ks; 3],
-                texture: -1,
-                emission_texture: -1,
-                normal_texture: -1,
                 ..Default::default()
             };
             let v = Vec3::new(view_angle.sin(), 0.0, view_angle.cos());

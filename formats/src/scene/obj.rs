@@ -89,6 +89,7 @@ impl Builder {
         // MTL libraries: read them ourselves to bound their size and hash them.
         let mtl_files: RefCell<Vec<MtlRead>> = RefCell::default();
         let mtl_errors: RefCell<Vec<SceneError>> = RefCell::default();
+        let mtl_warnings: RefCell<Vec<String>> = RefCell::default();
         let nameless_mtllib = std::cell::Cell::new(false);
         let options = tobj::LoadOptions {
             triangulate: true,
@@ -107,7 +108,12 @@ impl Builder {
                 let mtl_path = obj_dir.join(mtl);
                 match read_bounded(&mtl_path) {
                     Ok(mtl_bytes) => {
-                        let parsed = normalise_mtl(&mtl_bytes).and_then(|text| {
+                        let parsed = normalise_mtl(&mtl_bytes).and_then(|(text, warnings)| {
+                            mtl_warnings.borrow_mut().extend(
+                                warnings
+                                    .into_iter()
+                                    .map(|w| format!("{}: {w}", mtl_path.display())),
+                            );
                             tobj::load_mtl_buf(&mut text.as_bytes()).map_err(|e| e.to_string())
                         });
                         let parsed = match parsed {
@@ -144,6 +150,7 @@ impl Builder {
                 None => e.to_string(),
             },
         })?;
+        self.warnings.append(&mut mtl_warnings.borrow_mut());
         if nameless_mtllib.get() {
             self.warnings.push(format!(
                 "{}: an `mtllib` line names no file; its materials become the grey Lambertian \
@@ -331,14 +338,32 @@ const TEXTURE_OPTIONS: &[(&str, usize)] = &[
     ("-type", 1),
 ];
 
-/// Parses the arguments of a bump or normal-map statement (`[options] file`): the `-bm`
-/// multiplier (1 without it) and the file name (the words after the options, spaces kept as
-/// single spaces). Other options are skipped: the runtime does not apply them.
-fn texture_statement(values: &[&str]) -> Result<(f32, String), String> {
+/// A parsed MTL texture statement (`[options] file`).
+#[derive(Debug)]
+struct TextureStatement {
+    /// The `-bm` multiplier (1 without it); only bump statements use it.
+    multiplier: f32,
+    /// The file name: the words after the options, spaces kept as single spaces.
+    file: String,
+    /// The options that change the texture lookup (`-s`, `-o`, `-t` away from their identity
+    /// values, `-clamp on`), as written. The renderer (GPU and CPU twins) samples every
+    /// texture with the mesh's UVs, repeating; these are skipped, and the caller warns rather
+    /// than let the texture silently land elsewhere than the exporter meant.
+    ignored: Vec<String>,
+}
+
+/// Parses the arguments of a texture statement (`map_Kd`, `map_Ke`, bump, normal map):
+/// `[options] file`. Options that do not change the lookup are skipped silently; those that
+/// do are listed in `ignored`.
+fn texture_statement(values: &[&str]) -> Result<TextureStatement, String> {
     let mut multiplier = 1.0f32;
+    let mut ignored = Vec::new();
     let mut i = 0;
     while i < values.len() {
-        let Some(&(option, count)) = TEXTURE_OPTIONS.iter().find(|(o, _)| *o == values[i]) else {
+        let Some(&(option, count)) = TEXTURE_OPTIONS
+            .iter()
+            .find(|(o, _)| o.eq_ignore_ascii_case(values[i]))
+        else {
             break;
         };
         i += 1;
@@ -351,10 +376,12 @@ fn texture_statement(values: &[&str]) -> Result<(f32, String), String> {
             continue;
         }
         // The option's values: `count` words, fewer for `-o`, `-s`, `-t` when a non-number
-        // (the file) follows sooner.
+        // (the file) follows sooner. No word is kept back for the file: `map_Kd -s 2 2 1` is
+        // a statement without a file (an error), not a texture named `1`.
         let numeric = count == 3;
+        let first = i;
         let mut taken = 0;
-        while taken < count && i < values.len() - 1 {
+        while taken < count && i < values.len() {
             if numeric && taken > 0 && values[i].parse::<f32>().is_err() {
                 break;
             }
@@ -364,42 +391,82 @@ fn texture_statement(values: &[&str]) -> Result<(f32, String), String> {
         if taken == 0 {
             return Err(format!("`{option}` needs a value"));
         }
+        let given = &values[first..i];
+        // Identity values (`-s 1 1 1`, `-o 0 0 0`, as some exporters always write) change
+        // nothing: no warning for them.
+        let is = |identity: f32| given.iter().all(|v| v.parse::<f32>() == Ok(identity));
+        let changes_lookup = match option {
+            "-s" => !is(1.0),
+            "-o" | "-t" => !is(0.0),
+            "-clamp" => !given[0].eq_ignore_ascii_case("off"),
+            _ => false,
+        };
+        if changes_lookup {
+            ignored.push(format!("{option} {}", given.join(" ")));
+        }
     }
     if i >= values.len() {
         return Err("names no texture file".into());
     }
-    Ok((multiplier, values[i..].join(" ")))
+    Ok(TextureStatement {
+        multiplier,
+        file: values[i..].join(" "),
+        ignored,
+    })
 }
 
 /// Makes an MTL acceptable to tobj: a colour statement (`Ka`, `Kd`, `Ks`, `Ke`) with a single
 /// value means grey (MTL spec) but panics tobj, so it is expanded to three values; one with two
-/// values is an error naming the line. Bump statements (`bump`, `map_Bump`, any case, as
-/// exporters write them) and normal-map statements (`norm`, `map_norm`) are rewritten as
-/// `cssm_bump`/`cssm_norm <multiplier> <file>` (their options parsed here, so that errors name
-/// the line), which tobj keeps as unknown parameters.
-fn normalise_mtl(bytes: &[u8]) -> Result<String, String> {
+/// values is an error naming the line. Texture statements are parsed here (options skipped,
+/// errors naming the line) and written back with the bare file name: `map_Kd` and `map_Ke`
+/// (any case, as exporters write them) as `map_Kd`/`map_Ke <file>`, which tobj reads
+/// case-sensitively and with no option parsing of its own; bump statements (`bump`,
+/// `map_Bump`) and normal-map statements (`norm`, `map_norm`) as
+/// `cssm_bump`/`cssm_norm <multiplier> <file>`, which tobj keeps as unknown parameters.
+/// Returns the text and warnings (`line N: ...`) for options the renderer cannot apply.
+fn normalise_mtl(bytes: &[u8]) -> Result<(String, Vec<String>), String> {
     let text = std::str::from_utf8(bytes).map_err(|_| "not valid UTF-8".to_string())?;
     let mut out = String::with_capacity(text.len() + 64);
+    let mut warnings = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         let key = words.next();
         let values: Vec<&str> = words.collect();
-        match key {
-            Some(k)
-                if ["bump", "map_bump", "norm", "map_norm"]
-                    .iter()
-                    .any(|b| k.eq_ignore_ascii_case(b)) =>
-            {
-                let key = if k.to_ascii_lowercase().ends_with("norm") {
-                    NORM_KEY
-                } else {
-                    BUMP_KEY
-                };
-                let (multiplier, file) =
+        let texture_key = key.and_then(|k| {
+            [
+                ("map_kd", "map_Kd"),
+                ("map_ke", "map_Ke"),
+                ("bump", BUMP_KEY),
+                ("map_bump", BUMP_KEY),
+                ("norm", NORM_KEY),
+                ("map_norm", NORM_KEY),
+            ]
+            .iter()
+            .find(|(spelling, _)| k.eq_ignore_ascii_case(spelling))
+            .map(|&(_, key)| (k, key))
+        });
+        match (key, texture_key) {
+            (_, Some((k, key))) => {
+                let statement =
                     texture_statement(&values).map_err(|e| format!("line {}: `{k}` {e}", i + 1))?;
-                out.push_str(&format!("{key} {multiplier} {file}"));
+                for option in &statement.ignored {
+                    warnings.push(format!(
+                        "line {}: `{k}` option `{option}` ignored (the renderer does not scale, \
+                         offset, perturb or clamp texture lookups); {} is used as is",
+                        i + 1,
+                        statement.file
+                    ));
+                }
+                if key == BUMP_KEY || key == NORM_KEY {
+                    out.push_str(&format!(
+                        "{key} {} {}",
+                        statement.multiplier, statement.file
+                    ));
+                } else {
+                    out.push_str(&format!("{key} {}", statement.file));
+                }
             }
-            Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")) if values.len() < 3 => match values[..] {
+            (Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")), None) if values.len() < 3 => match values[..] {
                 [v] => out.push_str(&format!("{k} {v} {v} {v}")),
                 _ => {
                     return Err(format!(
@@ -413,7 +480,7 @@ fn normalise_mtl(bytes: &[u8]) -> Result<String, String> {
         }
         out.push('\n');
     }
-    Ok(out)
+    Ok((out, warnings))
 }
 
 #[cfg(test)]
@@ -552,6 +619,110 @@ mod tests {
             ("bump -bm nan b.png", "`-bm` needs a finite number"),
             ("map_Bump -bm 2", "names no texture file"),
             ("norm", "names no texture file"),
+        ] {
+            let e = err(&[
+                ("quad.obj", QUAD_OBJ),
+                (
+                    "quad.mtl",
+                    &format!("newmtl white\nKd 1 1 1\n{statement}\n"),
+                ),
+            ]);
+            assert!(
+                e.contains("quad.mtl") && e.contains("line 3"),
+                "{statement}: {e}"
+            );
+            assert!(e.contains(problem), "{statement}: {e}");
+        }
+    }
+
+    /// `map_Kd` and `map_Ke` go through the option parsing of the bump statements: any case,
+    /// options skipped (a warning naming the file, line and option for those that change the
+    /// lookup), a statement with no file an error naming the line.
+    #[test]
+    fn diffuse_and_emission_maps_take_options() {
+        let load = |mtl: &str| {
+            let dir = scene(&[("quad.obj", QUAD_OBJ), ("quad.mtl", mtl)]);
+            let s = Scene::load(dir.path()).unwrap();
+            let name = |t: &Option<crate::scene::TextureSource>| {
+                let file = t.as_ref()?.file()?.strip_prefix(&s.path).ok()?;
+                Some(file.to_string_lossy().into_owned())
+            };
+            let m = &s.materials[0];
+            (name(&m.map_kd), name(&m.map_emission), s.warnings.clone())
+        };
+        let lookup_warning = |w: &[String], key: &str, option: &str, file: &str| {
+            w.iter().any(|w| {
+                w.contains("quad.mtl: line 2:")
+                    && w.contains(&format!("`{key}` option `{option}` ignored"))
+                    && w.contains(&format!("{file} is used as is"))
+            })
+        };
+        for (statement, file, ignored) in [
+            ("map_Kd wood.png", "wood.png", None),
+            ("MAP_KD wood.png", "wood.png", None),
+            ("  Map_Kd  wood.png", "wood.png", None),
+            ("map_Kd -s 2 2 1 wood.png", "wood.png", Some("-s 2 2 1")),
+            ("map_Kd -o 0.5 wood.png", "wood.png", Some("-o 0.5")),
+            (
+                "map_Kd -clamp on my wood.png",
+                "my wood.png",
+                Some("-clamp on"),
+            ),
+            // Identity values and options that do not move the lookup: no warning.
+            (
+                "map_Kd -s 1 1 1 -o 0 0 0 -blendu off -clamp off -mm 0 1 wood.png",
+                "wood.png",
+                None,
+            ),
+        ] {
+            let (kd, ke, w) = load(&format!("newmtl white\n{statement}\n"));
+            assert_eq!((kd.as_deref(), ke), (Some(file), None), "{statement}");
+            match ignored {
+                Some(option) => {
+                    assert!(
+                        lookup_warning(
+                            &w,
+                            statement.split_whitespace().next().unwrap(),
+                            option,
+                            file
+                        ),
+                        "{statement}: {w:?}"
+                    )
+                }
+                None => assert!(
+                    !w.iter().any(|w| w.contains("ignored")),
+                    "{statement}: {w:?}"
+                ),
+            }
+            // The file does not exist: the usual missing-texture warning, with its real name.
+            assert!(
+                w.iter().any(|w| w.contains(&format!("{file} not found"))),
+                "{statement}: {w:?}"
+            );
+        }
+        for statement in ["map_Ke glow.png", "MAP_KE -s 2 glow.png"] {
+            let (kd, ke, w) = load(&format!("newmtl white\n{statement}\n"));
+            assert_eq!((kd, ke.as_deref()), (None, Some("glow.png")), "{statement}");
+            assert_eq!(
+                lookup_warning(
+                    &w,
+                    statement.split_whitespace().next().unwrap(),
+                    "-s 2",
+                    "glow.png"
+                ),
+                statement.contains("-s"),
+                "{statement}: {w:?}"
+            );
+        }
+        // Bump statements warn the same way.
+        let (_, _, w) = load("newmtl white\nbump -o 0.1 0.2 b.png\n");
+        assert!(lookup_warning(&w, "bump", "-o 0.1 0.2", "b.png"), "{w:?}");
+        // A statement with only options names the line.
+        for (statement, problem) in [
+            ("map_Kd -s 2 2 1", "names no texture file"),
+            ("MAP_KD", "names no texture file"),
+            ("map_Ke -clamp on", "names no texture file"),
+            ("map_Kd -blendu", "`-blendu` needs a value"),
         ] {
             let e = err(&[
                 ("quad.obj", QUAD_OBJ),
