@@ -54,6 +54,9 @@ fn with_progress<T>(
                 }
                 bake::Stage::Pack => "{spinner} baking {msg}, attempt {pos}, {elapsed}",
                 bake::Stage::Order => "{spinner} baking {msg}, {elapsed}",
+                bake::Stage::Csm => {
+                    "{spinner} baking {msg} [{bar:32}] {pos}/{len} maps, {per_sec}, eta {eta}"
+                }
             }));
             bar.set_message(format!("{name}: {}", p.stage.describe()));
             bar.reset_elapsed();

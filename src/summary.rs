@@ -31,6 +31,15 @@ fn json_line<T: Serialize>(value: &T) -> String {
         .to_string()
 }
 
+/// Fields of moving objects stay out of a static scene's JSON, which keeps the keys it always had.
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
+fn is_zero_seconds(s: &f64) -> bool {
+    *s == 0.0
+}
+
 fn human_bytes(bytes: u64) -> String {
     crate::human_bytes(bytes, 2)
 }
@@ -77,8 +86,18 @@ pub struct BakeSummary {
     pub file_bytes: u64,
     /// Uncompressed / GPU-resident size: the ratio of the paper's tables.
     pub ratio_gpu: f64,
-    /// Uncompressed / file size.
+    /// Uncompressed / file size (with the coherent shadow maps' uncompressed size when the
+    /// scene has moving objects: the file holds both).
     pub ratio_file: f64,
+    /// Coherent shadow maps of the rigid objects.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub csms: u64,
+    /// Their run data in memory.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub csm_gpu_bytes: u64,
+    /// Their bake time.
+    #[serde(default, skip_serializing_if = "is_zero_seconds")]
+    pub csm_seconds: f64,
     /// Atlas time.
     pub atlas_seconds: f64,
     /// Traversal time.
@@ -131,7 +150,11 @@ impl BakeSummary {
             gpu_bytes: s.gpu_bytes,
             file_bytes,
             ratio_gpu: s.ratio_gpu(),
-            ratio_file: s.uncompressed_bytes as f64 / file_bytes.max(1) as f64,
+            ratio_file: (s.uncompressed_bytes + s.csm_uncompressed_bytes) as f64
+                / file_bytes.max(1) as f64,
+            csms: s.csms,
+            csm_gpu_bytes: s.csm_gpu_bytes,
+            csm_seconds: s.csm_time.as_secs_f64(),
             atlas_seconds: s.atlas_time.as_secs_f64(),
             traversal_seconds: s.traversal_time.as_secs_f64(),
             maps_seconds: s.maps_time.as_secs_f64(),
@@ -181,6 +204,15 @@ impl fmt::Display for BakeSummary {
             self.ratio_gpu,
             self.runs
         )?;
+        if self.csms > 0 {
+            writeln!(
+                f,
+                "  moving objects {:>12}  in {} coherent shadow map{}",
+                human_bytes(self.csm_gpu_bytes),
+                self.csms,
+                if self.csms == 1 { "" } else { "s" }
+            )?;
+        }
         writeln!(
             f,
             "  file           {:>12}  ratio {:.1} : 1",
@@ -189,13 +221,17 @@ impl fmt::Display for BakeSummary {
         )?;
         write!(
             f,
-            "  time {:.2} s (atlas {:.2} s, traversal {:.2} s, depth maps {:.2} s, hierarchy {:.2} s)",
+            "  time {:.2} s (atlas {:.2} s, traversal {:.2} s, depth maps {:.2} s, hierarchy {:.2} s",
             self.total_seconds,
             self.atlas_seconds,
             self.traversal_seconds,
             self.maps_seconds,
             self.hierarchy_seconds
-        )
+        )?;
+        if self.csms > 0 {
+            write!(f, ", moving objects {:.2} s", self.csm_seconds)?;
+        }
+        write!(f, ")")
     }
 }
 
@@ -246,8 +282,14 @@ pub struct InspectSummary {
     pub file_bytes: u64,
     /// Uncompressed / GPU-resident size.
     pub ratio_gpu: f64,
-    /// Uncompressed / file size.
+    /// Uncompressed / file size (the coherent shadow maps counted in both).
     pub ratio_file: f64,
+    /// Coherent shadow maps of the rigid objects (one per `[[objects]]` entry).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub csms: u64,
+    /// Their run data in memory, bytes.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub csm_gpu_bytes: u64,
 }
 
 impl InspectSummary {
@@ -274,7 +316,15 @@ impl InspectSummary {
             gpu_bytes: gpu,
             file_bytes,
             ratio_gpu: uncompressed as f64 / gpu.max(1) as f64,
-            ratio_file: uncompressed as f64 / file_bytes.max(1) as f64,
+            ratio_file: (uncompressed
+                + file
+                    .csms
+                    .iter()
+                    .map(|c| c.runs.uncompressed_bytes())
+                    .sum::<u64>()) as f64
+                / file_bytes.max(1) as f64,
+            csms: file.csms.len() as u64,
+            csm_gpu_bytes: file.csms.iter().map(|c| c.runs.gpu_bytes()).sum(),
         }
     }
 
@@ -329,7 +379,17 @@ impl fmt::Display for InspectSummary {
             "  file           {:>12}  ratio {:.1} : 1",
             human_bytes(self.file_bytes),
             self.ratio_file
-        )
+        )?;
+        if self.csms > 0 {
+            write!(
+                f,
+                "\n  moving objects {:>12}  in {} coherent shadow map{}",
+                human_bytes(self.csm_gpu_bytes),
+                self.csms,
+                if self.csms == 1 { "" } else { "s" }
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -637,6 +697,9 @@ mod tests {
             file_bytes: 20_001,
             ratio_gpu: 9.6,
             ratio_file: 384_000.0 / 20_001.0,
+            csms: 0,
+            csm_gpu_bytes: 0,
+            csm_seconds: 0.0,
             atlas_seconds: 0.01,
             traversal_seconds: 0.001,
             maps_seconds: 0.1,
@@ -804,6 +867,8 @@ mod tests {
             file_bytes: 20_001,
             ratio_gpu: 9.6,
             ratio_file: 384_000.0 / 20_001.0,
+            csms: 0,
+            csm_gpu_bytes: 0,
         };
         let i = &inspect;
         let old = serde_json::json!({

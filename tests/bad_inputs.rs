@@ -116,7 +116,7 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
             b"# not a cssm file\nv 0 0 0\n".to_vec(),
         ),
         ("cssm-foreign/empty.cssm", Vec::new()),
-        ("cssm-newer/version-3.cssm", with(&|b| b[8] = 3)),
+        ("cssm-newer/version-4.cssm", with(&|b| b[8] = 4)),
         ("cssm-oversized/bomb.cssm", bomb),
         (
             "cssm-oversized/declared-9gib.cssm",

@@ -224,6 +224,14 @@ pub struct BakeStats {
     pub maps_time: Duration,
     /// Time spent building the texel hierarchy (§4.2).
     pub hierarchy_time: Duration,
+    /// Coherent shadow maps of the rigid objects: how many.
+    pub csms: u64,
+    /// Their uncompressed size (2 bytes per pixel of every map).
+    pub csm_uncompressed_bytes: u64,
+    /// Their run data in memory.
+    pub csm_gpu_bytes: u64,
+    /// Time spent baking them.
+    pub csm_time: Duration,
 }
 
 impl BakeStats {
@@ -255,6 +263,9 @@ pub enum Stage {
     Order,
     /// Depth cube maps ray cast and compressed (§3.2.1, §3.1).
     Maps,
+    /// The coherent shadow maps of the rigid objects (§3.1, §3.3): [`Progress::done`] counts
+    /// their depth maps. Only in scenes with `[[objects]]`.
+    Csm,
 }
 
 impl Stage {
@@ -266,6 +277,7 @@ impl Stage {
             Stage::Pack => "atlas: packing",
             Stage::Order => "texel order",
             Stage::Maps => "depth maps",
+            Stage::Csm => "coherent shadow maps of the moving objects",
         }
     }
 }
@@ -276,7 +288,7 @@ pub struct Progress {
     /// The stage running.
     pub stage: Stage,
     /// Work done: percent for [`Stage::Charts`] and [`Stage::Parameterize`], attempts for
-    /// [`Stage::Pack`], depth maps for [`Stage::Maps`].
+    /// [`Stage::Pack`], depth maps for [`Stage::Maps`] and [`Stage::Csm`].
     pub done: u64,
     /// Work in all, 0 where the stage cannot tell ([`Stage::Pack`], [`Stage::Order`]).
     pub total: u64,
@@ -463,6 +475,23 @@ fn bake_slice(
     let hierarchy = Hierarchy::build(&atlas.texels);
     stats.hierarchy_time = t0.elapsed();
 
+    // 6. A coherent shadow map per rigid object (§3.3), in its own space.
+    let t0 = Instant::now();
+    let csms = csm::bake_objects(scene, csm::CsmOptions::default(), &mut |done, total| {
+        progress(Progress {
+            stage: Stage::Csm,
+            done,
+            total,
+        })
+    });
+
+    if !csms.is_empty() {
+        stats.csm_time = t0.elapsed();
+    }
+    stats.csms = csms.len() as u64;
+    stats.csm_uncompressed_bytes = csms.iter().map(|c| c.runs.uncompressed_bytes()).sum();
+    stats.csm_gpu_bytes = csms.iter().map(|c| c.runs.gpu_bytes()).sum();
+
     let file = CssmFile {
         params: BakeParams {
             atlas_resolution: atlas.resolution,
@@ -482,6 +511,7 @@ fn bake_slice(
         sequence,
         hierarchy,
         runs,
+        csms,
     };
     Ok((file, stats))
 }

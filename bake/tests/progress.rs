@@ -35,6 +35,7 @@ fn every_stage_is_reported_in_order_and_counts_up() {
             Stage::Charts | Stage::Parameterize => assert_eq!((last.done, last.total), (100, 100)),
             Stage::Pack => assert!(last.done >= 1 && last.total == 0, "{last:?}"),
             Stage::Order => assert_eq!(last.total, 0),
+            Stage::Csm => unreachable!("the Cornell box has no moving objects"),
             Stage::Maps => {
                 let maps = baked.file.texels.len() as u64;
                 assert_eq!((last.done, last.total), (maps, maps));

@@ -5,6 +5,7 @@
 //! - [`texel`]: the atlas texel table and traversal kinds.
 //! - [`hierarchy`]: the median-cut texel hierarchy with bounding spheres and normal cones (§4.2).
 //! - [`visibility`]: the CPU reference visibility query over a baked CSSM (§3.2.2).
+//! - [`csm`]: the coherent shadow maps of rigid objects and their CPU query (§3.1, §3.3).
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -12,6 +13,7 @@
 #[cfg(test)]
 extern crate self as cssm_formats;
 
+pub mod csm;
 pub mod cssm;
 pub mod cube;
 pub mod files;

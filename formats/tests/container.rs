@@ -148,17 +148,25 @@ fn foreign_files_are_refused() {
 
 #[test]
 fn versions_and_flags() {
-    assert_eq!(FORMAT_VERSION, 2);
+    assert_eq!(FORMAT_VERSION, 3);
     let bytes = cssm::encode(&sample()).unwrap();
-    assert_eq!(bytes[8..12], 2u32.to_le_bytes());
+    assert_eq!(bytes[8..12], 3u32.to_le_bytes());
     let mut newer = bytes.clone();
-    newer[8..12].copy_from_slice(&3u32.to_le_bytes());
+    newer[8..12].copy_from_slice(&4u32.to_le_bytes());
     let err = cssm::decode(&newer).unwrap_err();
-    assert!(matches!(err, CssmError::NewerVersion { version: 3 }));
+    assert!(matches!(err, CssmError::NewerVersion { version: 4 }));
     assert!(
         err.to_string()
-            .contains("file version 3 is newer than this build's version 2; upgrade cssm"),
+            .contains("file version 4 is newer than this build's version 3; upgrade cssm"),
         "{err}"
+    );
+    // Version 2 (before the coherent shadow maps of rigid objects): re-bake.
+    let mut v2 = bytes.clone();
+    v2[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let err = cssm::decode(&v2).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "file version 2 is not supported (this build reads version 3); re-bake it"
     );
     let mut older = bytes.clone();
     older[8..12].copy_from_slice(&1u32.to_le_bytes());
@@ -169,9 +177,9 @@ fn versions_and_flags() {
     // A flipped bit or byte in the version field is corruption, not a newer build's file.
     for version in [
         0u32,
-        2 | 1 << 31,
-        2 | 0x80 << 8,
-        2 + 1 + cssm::PLAUSIBLE_NEWER_VERSIONS,
+        FORMAT_VERSION | 1 << 31,
+        FORMAT_VERSION | 0x80 << 8,
+        FORMAT_VERSION + 1 + cssm::PLAUSIBLE_NEWER_VERSIONS,
     ] {
         let mut corrupt = bytes.clone();
         corrupt[8..12].copy_from_slice(&version.to_le_bytes());
@@ -203,7 +211,7 @@ fn versions_and_flags() {
     );
     assert_eq!(
         err.to_string(),
-        "file version 1 is not supported (this build reads version 2); re-bake it"
+        "file version 1 is not supported (this build reads version 3); re-bake it"
     );
     // Bit 1 is a chunk of a chunked bake (FLAG_CHUNK), bit 2 nothing yet.
     let mut flags = bytes.clone();
@@ -352,6 +360,7 @@ fn packed_payload_unchecked(f: &CssmFile) -> Vec<u8> {
         f.runs.map_count,
         f.runs.pixel_count,
         PackedRuns::pack(&f.runs),
+        &f.csms,
     );
     bincode::serde::encode_to_vec(body, bincode::config::standard()).unwrap()
 }

@@ -817,6 +817,7 @@ pub fn tiny_file(scene: &Scene) -> CssmFile {
             offsets,
             runs,
         },
+        csms: Vec::new(),
     }
 }
 

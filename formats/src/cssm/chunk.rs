@@ -22,7 +22,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::framing::{compress_payload, decode_body, unframe};
-use super::validate::{validate_params, validate_runs, validate_tables};
+use super::validate::{validate_csms, validate_params, validate_runs, validate_tables};
 use super::write::write_atomic_by;
 use super::{CssmError, CssmFile, FileCoding, HEADER_LEN, RunData, SEGMENT_MAPS};
 
@@ -200,6 +200,7 @@ impl CssmChunk {
             return invalid("no depth maps (no texels)".into());
         }
         validate_tables(&self.file)?;
+        validate_csms(&self.file.csms)?;
         let slice = self.maps();
         if self.file.runs.map_count != slice.len() as u32 {
             return invalid(format!(
@@ -401,6 +402,7 @@ pub fn merge_chunks(
             (a.triangle_uvs != b.triangle_uvs, "atlas coordinates"),
             (a.sequence != b.sequence, "traversals"),
             (a.hierarchy != b.hierarchy, "hierarchies"),
+            (a.csms != b.csms, "coherent shadow maps"),
             (first.coding != chunk.coding, "file codings (--coding)"),
         ];
         if let Some(&(_, what)) = differs.iter().find(|(d, _)| *d) {

@@ -16,7 +16,8 @@
 //! | ...   | payload: zstd (level [`ZSTD_LEVEL`]) of the bincode 2 (serde, standard config) encoding of [`CssmFile`] (flags 0), or of the same fields with the run data entropy-coded as [`PackedRuns`] ([`FLAG_PACKED_RUNS`]) |
 //!
 //! The body's fields, in order: params, scene, texels, triangle_uvs, sequence, hierarchy
-//! ([`Hierarchy`], since version 2), then the run data.
+//! ([`Hierarchy`], since version 2), the run data, then the coherent shadow maps of the rigid
+//! objects ([`CssmFile::csms`], since version 3).
 //!
 //! The entropy stage ([`FileCoding::Packed`], the default since it makes files smaller) changes
 //! only the file: it decodes to exactly the same [`RunData`], the layout the GPU queries. Files
@@ -52,7 +53,7 @@ pub use framing::{
     PLAUSIBLE_NEWER_VERSIONS, RATIO_FREE_BYTES, ZSTD_LEVEL, frame_payload,
 };
 pub use runs::{PackedRuns, RunData, SEGMENT_MAPS};
-pub use validate::{validate, validate_for_scene};
+pub use validate::{validate, validate_for_scene, validate_run_layout};
 pub use write::{MAX_NAME_BYTES, destination, write_atomic, write_atomic_with, write_bytes_atomic};
 
 use framing::{compress_payload, decode_body, unframe};
@@ -147,6 +148,7 @@ struct PackedFile {
     map_count: u32,
     pixel_count: u32,
     runs: PackedRuns,
+    csms: Vec<crate::csm::CsmData>,
 }
 
 /// A whole baked CSSM.
@@ -168,6 +170,9 @@ pub struct CssmFile {
     pub hierarchy: Hierarchy,
     /// The compressed depth maps.
     pub runs: RunData,
+    /// The coherent shadow maps of the scene's rigid objects (§3.1, §3.3; [`crate::csm`]), in
+    /// object order; empty for a scene without `[[objects]]`. Since version 3.
+    pub csms: Vec<crate::csm::CsmData>,
 }
 
 /// Everything that can go wrong reading, writing or validating a `.cssm` file. Every message is
@@ -358,6 +363,7 @@ fn encode_into<W: Write>(
                 map_count: file.runs.map_count,
                 pixel_count: file.runs.pixel_count,
                 runs: PackedRuns::pack(&file.runs),
+                csms: file.csms.clone(),
             };
             compress_payload(FLAG_PACKED_RUNS, &packed, out)
         }
@@ -400,6 +406,7 @@ pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
             sequence: p.sequence,
             hierarchy: p.hierarchy,
             runs,
+            csms: p.csms,
         }
     } else {
         decode_body(&raw)?

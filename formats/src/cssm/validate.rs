@@ -33,7 +33,21 @@ pub fn validate(file: &CssmFile) -> Result<(), CssmError> {
         );
     }
     validate_tables(file)?;
-    validate_runs(&file.runs, p.cube_resolution)
+    validate_runs(&file.runs, p.cube_resolution)?;
+    validate_csms(&file.csms)
+}
+
+/// The coherent shadow maps: each valid, one per object, in object order.
+pub(super) fn validate_csms(csms: &[crate::csm::CsmData]) -> Result<(), CssmError> {
+    for (i, c) in csms.iter().enumerate() {
+        if let Err(e) = c.validate() {
+            invalid!("coherent shadow map {i} (object {}): {e}", c.object);
+        }
+        if i > 0 && c.object <= csms[i - 1].object {
+            invalid!("coherent shadow maps not in increasing object order at {i}");
+        }
+    }
+    Ok(())
 }
 
 /// The parameters' ranges.
@@ -145,13 +159,22 @@ pub(super) fn validate_tables(file: &CssmFile) -> Result<(), CssmError> {
 ///
 /// [`RunData::lookup`]: super::RunData::lookup
 pub(super) fn validate_runs(r: &super::RunData, n: u32) -> Result<(), CssmError> {
-    let maps = r.map_count as usize;
     if r.pixel_count != 6 * n * n {
         invalid!(
             "pixel_count {} != 6 * {n} * {n} = {}",
             r.pixel_count,
             6 * n * n
         );
+    }
+    validate_run_layout(r, r.pixel_count)
+}
+
+/// The run-data layout of maps of `pixels` pixels each: offsets, run starts; what
+/// [`super::RunData::lookup`] relies on (a cube map's `6 n²`, a CSM's `r²`).
+pub fn validate_run_layout(r: &super::RunData, pixels: u32) -> Result<(), CssmError> {
+    let maps = r.map_count as usize;
+    if r.pixel_count != pixels {
+        invalid!("pixel_count {} for maps of {pixels} pixels", r.pixel_count);
     }
     let segments = r.segment_count() as u64;
     let slots = segments * r.pixel_count as u64;
@@ -242,6 +265,21 @@ pub fn validate_for_scene(file: &CssmFile, scene: &crate::Scene) -> Result<(), C
             t.material,
             scene.name
         );
+    }
+    for c in &file.csms {
+        match scene.objects.get(c.object as usize) {
+            Some(o) if o.kind == crate::ObjectKind::Rigid => {}
+            Some(o) => invalid!(
+                "a coherent shadow map for object {} ('{}'), which is not a rigid object",
+                c.object,
+                o.name
+            ),
+            None => invalid!(
+                "a coherent shadow map for object {}, the scene has {}",
+                c.object,
+                scene.objects.len()
+            ),
+        }
     }
     Ok(())
 }

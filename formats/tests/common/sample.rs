@@ -53,5 +53,6 @@ pub fn sample() -> CssmFile {
             offsets,
             runs,
         },
+        csms: Vec::new(),
     }
 }
