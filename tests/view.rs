@@ -143,7 +143,14 @@ fn view_without_a_display_says_so_and_exits_2() {
     view.env_remove("DISPLAY")
         .env_remove("WAYLAND_DISPLAY")
         .env_remove("WAYLAND_SOCKET")
-        .args(["view", "--method", "direct", "--size", "64x48", "--screenshot"])
+        .args([
+            "view",
+            "--method",
+            "direct",
+            "--size",
+            "64x48",
+            "--screenshot",
+        ])
         .arg(&shot);
     let out = run(view);
     let text = stderr(&out);

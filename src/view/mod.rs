@@ -102,6 +102,8 @@ struct ViewState {
     frames: u32,
     /// The renderer must be rebuilt (method, component or option changed).
     rebuild: bool,
+    /// F12 was pressed: write a screenshot after the next frame.
+    shot_requested: bool,
     camera_moved: bool,
     light_moved: bool,
     /// The mouse: where it was, which buttons are down, the modifiers.
@@ -132,6 +134,7 @@ impl ViewState {
             frames: config.render.frames,
             scene,
             rebuild: false,
+            shot_requested: false,
             camera_moved: false,
             light_moved: false,
             cursor: None,
@@ -433,6 +436,7 @@ impl App {
         let Some(gfx) = &self.state else { return };
         let view = &self.view;
         if view.rebuild
+            || view.shot_requested
             || view.camera_moved
             || view.light_moved
             || gfx.renderer.frames_accumulated() < ACCUMULATE_FRAMES
@@ -510,14 +514,13 @@ impl App {
         }
         match &event.logical_key {
             Key::Named(NamedKey::Escape) => self.finish(event_loop, Ok(ExitCode::SUCCESS)),
-            Key::Named(NamedKey::Tab) => view.cycle_method(if shift { -1 } else { 1 }),
-            Key::Named(NamedKey::F12) if !event.repeat => {
-                if let Err(e) = self.screenshot(None) {
-                    eprintln!("{e}");
-                }
+            Key::Named(NamedKey::Tab) if !event.repeat => {
+                view.cycle_method(if shift { -1 } else { 1 })
             }
+            // After the next frame, so that the image holds every change made before F12.
+            Key::Named(NamedKey::F12) if !event.repeat => view.shot_requested = true,
             Key::Character(c) => match c.as_str() {
-                "c" | "C" => {
+                "c" | "C" if !event.repeat => {
                     let all = Component::ALL;
                     let here = all
                         .iter()
@@ -625,8 +628,14 @@ impl App {
                 passes.join(", ")
             );
         }
-        if let Some(path) = view.screenshot.clone()
-            && accumulated >= view.frames
+        if std::mem::take(&mut view.shot_requested)
+            && let Err(e) = self.screenshot(None)
+        {
+            // A failed F12 (a full disk) is no reason to close the window.
+            eprintln!("{e}");
+        }
+        if let Some(path) = self.view.screenshot.clone()
+            && accumulated >= self.view.frames
         {
             self.screenshot(Some(path))?;
             self.finish(event_loop, Ok(ExitCode::SUCCESS));
