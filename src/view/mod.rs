@@ -67,7 +67,17 @@ pub fn run_view(config: ViewConfig) -> CliResult {
     let mut app = App {
         state: None,
         outcome: None,
-        view: ViewState::new(&config, scene, cssm, settings),
+        view: ViewState {
+            screenshot: config.screenshot.clone(),
+            frames: config.render.frames,
+            ..ViewState::new(
+                scene,
+                cssm,
+                settings,
+                config.render.method,
+                config.render.values.clone(),
+            )
+        },
     };
     event_loop.run_app(&mut app).map_err(|e| no_window(&e))?;
     app.outcome.unwrap_or_else(|| {
@@ -117,21 +127,23 @@ struct ViewState {
 }
 
 impl ViewState {
+    /// An interactive view of `scene` with `method` (no `--screenshot`).
     fn new(
-        config: &ViewConfig,
         scene: Scene,
         cssm: Option<CssmFile>,
         settings: RendererSettings,
+        method: &'static MethodEntry,
+        values: OptionValues,
     ) -> Self {
         Self {
             cssm,
             settings,
-            method: config.render.method,
-            values: config.render.values.clone(),
+            method,
+            values,
             camera: scene.camera.clone(),
             light: scene.lights.first().cloned(),
-            screenshot: config.screenshot.clone(),
-            frames: config.render.frames,
+            screenshot: None,
+            frames: 1,
             scene,
             rebuild: false,
             shot_requested: false,
@@ -805,5 +817,89 @@ impl Blit {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.draw(0..3, 0..1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cornell(method: &str) -> ViewState {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box");
+        let scene = Scene::load(&dir).expect("the Cornell box loads");
+        let method = runtime::method::find(method).unwrap();
+        ViewState::new(
+            scene,
+            None,
+            RendererSettings::default(),
+            method,
+            OptionValues::default(),
+        )
+    }
+
+    #[test]
+    fn tab_cycles_the_gpu_methods_that_need_no_cssm_and_comes_back() {
+        let mut view = cornell("direct");
+        let mut seen = vec![view.method.name];
+        loop {
+            view.cycle_method(1);
+            assert!(std::mem::take(&mut view.rebuild));
+            if view.method.name == "direct" {
+                break;
+            }
+            assert!(
+                view.method.on_gpu() && !view.method.needs_cssm,
+                "{}",
+                view.method
+            );
+            seen.push(view.method.name);
+            assert!(seen.len() <= runtime::method::METHODS.len(), "{seen:?}");
+        }
+        let expected: Vec<&str> = runtime::method::METHODS
+            .iter()
+            .filter(|m| m.on_gpu() && !m.needs_cssm)
+            .map(|m| m.name)
+            .collect();
+        assert_eq!(seen, expected);
+        // Shift + Tab goes back the same way.
+        view.cycle_method(-1);
+        assert_eq!(view.method.name, *expected.last().unwrap());
+    }
+
+    #[test]
+    fn bounces_change_within_the_methods_range_and_only_where_it_exists() {
+        let mut view = cornell("vct");
+        let up = |v: OptionValue| match v {
+            OptionValue::Count(n) => Some(OptionValue::Count(n + 1)),
+            _ => None,
+        };
+        let down = |v: OptionValue| match v {
+            OptionValue::Count(n) => n.checked_sub(1).map(OptionValue::Count),
+            _ => None,
+        };
+        let default = view.method.option("bounces").unwrap().kind.default();
+        view.set_option("bounces", up);
+        assert!(std::mem::take(&mut view.rebuild));
+        assert_ne!(view.values.get("bounces"), Some(default));
+        view.set_option("bounces", down);
+        assert!(std::mem::take(&mut view.rebuild));
+        assert_eq!(view.values.get("bounces"), Some(default));
+        // Down to the table's least bounce count, and no further: refused, nothing rebuilt.
+        let runtime::method::OptionKind::Count { min, .. } =
+            view.method.option("bounces").unwrap().kind
+        else {
+            panic!("bounces is a count")
+        };
+        for _ in 0..=runtime::method::MAX_BOUNCES {
+            view.set_option("bounces", down);
+        }
+        assert_eq!(view.values.get("bounces"), Some(OptionValue::Count(min)));
+        view.rebuild = false;
+        view.set_option("bounces", down);
+        assert!(!view.rebuild);
+        assert_eq!(view.values.get("bounces"), Some(OptionValue::Count(min)));
+        let mut direct = cornell("direct");
+        direct.set_option("bounces", |_| Some(OptionValue::Count(2)));
+        assert!(!direct.rebuild && direct.values.get("bounces").is_none());
     }
 }
