@@ -16,8 +16,28 @@ fn cssm_command() -> Command {
     Command::new(env!("CARGO_BIN_EXE_cssm"))
 }
 
+/// Runs `command` to its end, or kills it after two minutes and fails (a window that never
+/// writes its screenshot would otherwise hang the test suite).
 fn run(mut command: Command) -> Output {
-    command.output().expect("run cssm")
+    use std::process::Stdio;
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run cssm");
+    let start = std::time::Instant::now();
+    while child.try_wait().expect("wait for cssm").is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(120) {
+            let _ = child.kill();
+            let out = child.wait_with_output().expect("wait for cssm");
+            panic!(
+                "{command:?} did not end within 2 minutes: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().expect("wait for cssm")
 }
 
 fn stderr(o: &Output) -> String {
@@ -51,7 +71,7 @@ fn pixels(path: &Path) -> image::RgbaImage {
 }
 
 /// `cssm view ... --screenshot` under Xvfb against `cssm render ...` with the same `args`.
-fn window_matches_render(dir: &Path, args: &[&str], frames: &str) {
+fn window_matches_render(dir: &Path, args: &[&str], frames: &str, size: (u32, u32)) {
     let shot = dir.join("view.png");
     let rendered = dir.join("render.png");
     let mut view = xvfb_run();
@@ -73,7 +93,7 @@ fn window_matches_render(dir: &Path, args: &[&str], frames: &str) {
     assert!(out.status.success(), "cssm render: {}", stderr(&out));
     let (a, b) = (pixels(&shot), pixels(&rendered));
     assert_eq!(a.dimensions(), b.dimensions());
-    assert_eq!(a.dimensions(), (64, 48));
+    assert_eq!(a.dimensions(), size);
     // An all-black pair would match without testing anything.
     assert!(
         a.pixels().any(|p| p.0[..3].iter().any(|&c| c > 16)),
@@ -102,6 +122,7 @@ fn view_screenshot_of_direct_light_is_cssm_renders_image() {
             "64x48",
         ],
         "1",
+        (64, 48),
     );
 }
 
@@ -132,6 +153,27 @@ fn view_screenshot_of_a_cssm_method_is_cssm_renders_image() {
             "64x48",
         ],
         "2",
+        (64, 48),
+    );
+}
+
+/// More frames than an interactive window accumulates before it rests (1024): the script still
+/// gets its screenshot, of exactly that many frames.
+#[test]
+fn view_screenshot_after_more_frames_than_a_window_accumulates() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell();
+    window_matches_render(
+        dir.path(),
+        &[
+            scene.to_str().unwrap(),
+            "--method",
+            "direct",
+            "--size",
+            "16x12",
+        ],
+        "1100",
+        (16, 12),
     );
 }
 

@@ -447,11 +447,16 @@ impl App {
     fn request_frame(&self) {
         let Some(gfx) = &self.state else { return };
         let view = &self.view;
+        // A script's screenshot may ask for more frames than a window accumulates.
+        let frames = match view.screenshot {
+            Some(_) => view.frames,
+            None => ACCUMULATE_FRAMES,
+        };
         if view.rebuild
             || view.shot_requested
             || view.camera_moved
             || view.light_moved
-            || gfx.renderer.frames_accumulated() < ACCUMULATE_FRAMES
+            || gfx.renderer.frames_accumulated() < frames
         {
             gfx.window.request_redraw();
         }
