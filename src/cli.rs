@@ -29,6 +29,7 @@ use runtime::{
         cssm inspect cornell.cssm\n  \
         cssm check cornell.cssm --min-agreement 0.98\n  \
         cssm render --cssm cornell.cssm --method lightcuts --out gi.png\n  \
+        cssm view --cssm cornell.cssm --method lightcuts   # a window: orbit, fly, switch methods\n  \
         cssm compare --out compare                 # every method against the path tracer\n  \
         cssm report compression --quick --out /tmp"
 )]

@@ -1,8 +1,8 @@
 //! The `cssm` command line: a thin layer over the `cssm-formats`, `cssm-bake` and
 //! `cssm-runtime` libraries. [`cli`] holds the clap definitions and turns each command's
 //! arguments into a config of library types, checked by the libraries; `bake_cmd`,
-//! `check_cmd`, `render`, `error_cmd` (`cssm report error`) and `compare_cmd` (`cssm compare`)
-//! run the commands, on what [`measure`] shares, `inspect`
+//! `check_cmd`, `render`, `view` (`cssm view`, the window), `error_cmd` (`cssm report error`)
+//! and `compare_cmd` (`cssm compare`) run the commands, on what [`measure`] shares, `inspect`
 //! and the other reports are here. What `bake`, `inspect` and `check` print, text or
 //! `--json`, is [`cssm::summary`].
 //!
