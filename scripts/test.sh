@@ -2,7 +2,7 @@
 # The project's test command (README): every test of the workspace, release build.
 # GPU tests need a Vulkan device; where none is installed this installs Mesa's lavapipe (a
 # Vulkan implementation on the CPU), so the GPU tests run instead of failing; the page test
-# needs Chromium, installed the same way.
+# needs Chromium and the window test Xvfb, installed the same way.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -17,6 +17,13 @@ if ! has_vulkan_icd; then
     echo "no Vulkan driver found: installing Mesa's lavapipe (mesa-vulkan-drivers)" >&2
     $SUDO apt-get update -qq
     $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1
+fi
+# tests/view.rs opens `cssm view`'s window on a virtual X display (Xvfb, through xvfb-run);
+# winit loads libxkbcommon-x11 for the keyboard.
+if ! command -v xvfb-run >/dev/null 2>&1; then
+    echo "no xvfb-run found: installing Xvfb (the window test, tests/view.rs)" >&2
+    $SUDO apt-get update -qq
+    $SUDO apt-get install -y -qq xvfb xauth libxkbcommon-x11-0
 fi
 # tests/compare.rs opens `cssm compare`'s page in a real browser: Debian's Chromium, headless.
 if [[ -z "${CSSM_CHROMIUM:-}" ]] && ! command -v chromium >/dev/null 2>&1; then

@@ -29,6 +29,7 @@ use runtime::{
         cssm inspect cornell.cssm\n  \
         cssm check cornell.cssm --min-agreement 0.98\n  \
         cssm render --cssm cornell.cssm --method lightcuts --out gi.png\n  \
+        cssm view --cssm cornell.cssm --method lightcuts   # a window: orbit, fly, switch methods\n  \
         cssm compare --out compare                 # every method against the path tracer\n  \
         cssm report compression --quick --out /tmp"
 )]
@@ -73,6 +74,19 @@ pub enum Command {
         after_help = render_after_help()
     )]
     Render(RenderArgs),
+    /// Open a window on a scene: the GPU renderer of `cssm render`, with a camera and light to
+    /// move and keys to switch method, component and bounces.
+    #[command(
+        long_about = "Open a window (X11 or Wayland) on a scene, rendered by the GPU renderer of \
+                      `cssm render` with the same options: the image in the window is the one \
+                      `cssm render` writes for the same camera, light, method and size. While \
+                      nothing moves, the frames accumulate (methods that jitter converge). The \
+                      window title shows the method, component, GPU milliseconds per frame and \
+                      the frames accumulated; the GPU time per pass is printed to stderr once a \
+                      second.",
+        after_help = view_after_help()
+    )]
+    View(ViewArgs),
     /// Render every method side by side against the path tracer and write a page (index.html).
     ///
     /// Every method of the table on each scene beside the reference path tracer: a page that
@@ -810,6 +824,145 @@ fn render_after_help() -> String {
     )
 }
 
+/// `cssm view --help`'s text after the options: the keys, then examples.
+fn view_after_help() -> String {
+    "Mouse and keys:\n  \
+     left drag            orbit about the point the camera looks at\n  \
+     wheel                dolly towards it and away\n  \
+     W A S D / Q E        fly forward, left, back, right / down, up\n  \
+     right drag           aim the first spot light\n  \
+     shift + right drag   move the first spot light (in the view plane)\n  \
+     Tab / shift + Tab    next / previous method of the table (`cssm render --help` lists them; \
+     those needing a .cssm are skipped when none is loaded)\n  \
+     C                    cycle the component: direct, indirect, full\n  \
+     [ / ]                one bounce fewer / more (methods with a `bounces` option)\n  \
+     - / =                halve / double the oracle threshold (methods with `threshold`)\n  \
+     F12                  write a screenshot, cssm-view-NNNN.png in the current directory\n  \
+     Esc                  quit\n\n\
+     Examples:\n  cssm view\n  \
+     cssm bake -o cornell-box.cssm && cssm view --cssm cornell-box.cssm --method lightcuts\n  \
+     cssm view scenes/cornell-glossy --method vct --size 800x600\n  \
+     xvfb-run -a cssm view --method direct --size 64x48 --screenshot shot.png --frames 1"
+        .to_string()
+}
+
+#[derive(clap::Args)]
+pub struct ViewArgs {
+    /// Scene directory or mesh file (.obj, .gltf, .glb). Default: the built-in Cornell box.
+    scene: Option<PathBuf>,
+    /// Method to start with (`cssm render --help` lists them; Tab switches in the window).
+    #[arg(long, default_value = "direct", value_parser = parse_method)]
+    method: &'static MethodEntry,
+    /// The scene's baked CSSM (`cssm bake`), for the methods that need one. Default: bake one
+    /// in memory at atlas 64, cube 32 when the first method needs it; without one, Tab skips
+    /// the methods that need it.
+    #[arg(long)]
+    cssm: Option<PathBuf>,
+    /// Image (and window) size WIDTHxHEIGHT. Default: the scene camera's resolution.
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Exposure in stops (radiance is scaled by 2^EV before tone mapping).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = stops)]
+    exposure: f32,
+    /// Shadow-map resolution in texels per side.
+    #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
+    shadow_resolution: u32,
+    /// CSSM methods: ask only the receiver's cube maps (see `cssm render --one-end`).
+    #[arg(long)]
+    one_end: bool,
+    /// Indirect bounces (the option `bounces`). Default: the method's.
+    #[arg(long)]
+    bounces: Option<u32>,
+    /// Oracle threshold (the option `threshold`). Default: the method's.
+    #[arg(long, allow_negative_numbers = true, value_parser = finite_f32)]
+    threshold: Option<f32>,
+    /// Set a method option, NAME=VALUE (`cssm render --help` lists them); repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    set: Vec<String>,
+    /// Which light the image holds: direct, indirect or full (C switches in the window).
+    #[arg(long, default_value = "full")]
+    component: Component,
+    /// For scripts: render --frames frames in the window, write this PNG (what F12 writes:
+    /// byte for byte what `cssm render` writes for the same options) and exit.
+    #[arg(long, value_name = "PATH")]
+    screenshot: Option<PathBuf>,
+    /// Frames to render before the --screenshot, 1 to 4096 (as `cssm render --frames`).
+    #[arg(long, default_value_t = 1, requires = "screenshot")]
+    frames: u32,
+}
+
+/// `cssm view`, checked: the render configuration `cssm render` would use (its `out` is the
+/// screenshot), and whether the window closes after the screenshot.
+pub struct ViewConfig {
+    /// What the window renders, as `cssm render` would.
+    pub render: RenderConfig,
+    /// `--screenshot`: write the image after `render.frames` frames and exit.
+    pub screenshot: Option<PathBuf>,
+}
+
+impl ViewArgs {
+    /// The render configuration of the first method, checked as `cssm render` checks it.
+    pub fn config(self) -> Result<ViewConfig, String> {
+        if !(1..=MAX_FRAMES).contains(&self.frames) {
+            return Err(format!(
+                "--frames {} is out of range 1..={MAX_FRAMES}",
+                self.frames
+            ));
+        }
+        // An interactive window accumulates without end: the methods that jitter do (as
+        // `cssm render --frames N` with N > 1); a screenshot takes exactly `cssm render`'s
+        // options for its frame count.
+        let jitter_frames = if self.screenshot.is_some() {
+            self.frames
+        } else {
+            MAX_FRAMES
+        };
+        let values = option_values(
+            self.method,
+            [
+                ("bounces", self.bounces.map(OptionValue::Count)),
+                ("threshold", self.threshold.map(OptionValue::Number)),
+                ("samples", None),
+            ],
+            jitter_frames,
+            &self.set,
+        )?;
+        let resolved = self.method.resolve(&values).map_err(|e| e.to_string())?;
+        if !self.method.on_gpu() {
+            return Err(format!(
+                "method '{}' runs on the CPU, not in the window; `cssm render --method {}` \
+                 runs it",
+                self.method, self.method
+            ));
+        }
+        Ok(ViewConfig {
+            render: RenderConfig {
+                scene: self.scene,
+                method: self.method,
+                values,
+                resolved,
+                out: self
+                    .screenshot
+                    .clone()
+                    .unwrap_or_else(|| PathBuf::from("cssm-view.png")),
+                exr: None,
+                size: self.size,
+                exposure: self.exposure,
+                shadow_resolution: self.shadow_resolution,
+                visibility: QueryOptions {
+                    both_ends: !self.one_end,
+                    ..QueryOptions::default()
+                },
+                timings: false,
+                cssm: self.cssm,
+                frames: self.frames,
+                component: self.component,
+            },
+            screenshot: self.screenshot,
+        })
+    }
+}
+
 #[derive(clap::Args)]
 pub struct RenderArgs {
     /// Scene directory or mesh file (.obj, .gltf, .glb). Default: the built-in Cornell box.
@@ -1002,45 +1155,59 @@ impl RenderArgs {
     /// for an option the method does not have is ignored with a warning (`--bounces` with
     /// `direct`); `--set` of an unknown option is an error, from the method table.
     fn option_values(&self) -> Result<OptionValues, String> {
-        let method = self.method;
-        let mut values = OptionValues::default();
-        let short = [
-            ("bounces", self.bounces.map(OptionValue::Count)),
-            ("threshold", self.threshold.map(OptionValue::Number)),
-            ("samples", self.samples.map(OptionValue::Count)),
-        ];
-        for (name, value) in short {
-            let Some(value) = value else { continue };
-            if method.option(name).is_some() {
-                values.set(name, value);
-            } else {
-                eprintln!("warning: --{name} has no effect on method {method}");
-            }
-        }
-        // Several frames of lightcuts jitter unless told otherwise (§4.5).
-        if self.frames > 1 && method.option("jitter").is_some() {
-            values.set("jitter", OptionValue::Switch(true));
-        }
-        for assignment in &self.set {
-            let (name, text) = assignment
-                .split_once('=')
-                .ok_or_else(|| format!("--set {assignment}: expected NAME=VALUE"))?;
-            let spec = method.option(name.trim()).ok_or_else(|| {
-                let known: Vec<&str> = method.options.iter().map(|o| o.name).collect();
-                format!(
-                    "--set {assignment}: method {method} has no option '{}' (its options: {})",
-                    name.trim(),
-                    if known.is_empty() {
-                        "none".into()
-                    } else {
-                        known.join(", ")
-                    }
-                )
-            })?;
-            values.set(spec.name, spec.parse(text)?);
-        }
-        Ok(values)
+        option_values(
+            self.method,
+            [
+                ("bounces", self.bounces.map(OptionValue::Count)),
+                ("threshold", self.threshold.map(OptionValue::Number)),
+                ("samples", self.samples.map(OptionValue::Count)),
+            ],
+            self.frames,
+            &self.set,
+        )
     }
+}
+
+/// The method options the user gave (`cssm render` and `cssm view`): the short flags, then
+/// `--set` in order; see [`RenderArgs::option_values`].
+fn option_values(
+    method: &'static MethodEntry,
+    short: [(&str, Option<OptionValue>); 3],
+    frames: u32,
+    set: &[String],
+) -> Result<OptionValues, String> {
+    let mut values = OptionValues::default();
+    for (name, value) in short {
+        let Some(value) = value else { continue };
+        if method.option(name).is_some() {
+            values.set(name, value);
+        } else {
+            eprintln!("warning: --{name} has no effect on method {method}");
+        }
+    }
+    // Several frames of lightcuts jitter unless told otherwise (§4.5).
+    if frames > 1 && method.option("jitter").is_some() {
+        values.set("jitter", OptionValue::Switch(true));
+    }
+    for assignment in set {
+        let (name, text) = assignment
+            .split_once('=')
+            .ok_or_else(|| format!("--set {assignment}: expected NAME=VALUE"))?;
+        let spec = method.option(name.trim()).ok_or_else(|| {
+            let known: Vec<&str> = method.options.iter().map(|o| o.name).collect();
+            format!(
+                "--set {assignment}: method {method} has no option '{}' (its options: {})",
+                name.trim(),
+                if known.is_empty() {
+                    "none".into()
+                } else {
+                    known.join(", ")
+                }
+            )
+        })?;
+        values.set(spec.name, spec.parse(text)?);
+    }
+    Ok(values)
 }
 
 #[cfg(test)]

@@ -1,8 +1,8 @@
 //! The `cssm` command line: a thin layer over the `cssm-formats`, `cssm-bake` and
 //! `cssm-runtime` libraries. [`cli`] holds the clap definitions and turns each command's
 //! arguments into a config of library types, checked by the libraries; `bake_cmd`,
-//! `check_cmd`, `render`, `error_cmd` (`cssm report error`) and `compare_cmd` (`cssm compare`)
-//! run the commands, on what [`measure`] shares, `inspect`
+//! `check_cmd`, `render`, `view` (`cssm view`, the window), `error_cmd` (`cssm report error`)
+//! and `compare_cmd` (`cssm compare`) run the commands, on what [`measure`] shares, `inspect`
 //! and the other reports are here. What `bake`, `inspect` and `check` print, text or
 //! `--json`, is [`cssm::summary`].
 //!
@@ -20,6 +20,7 @@ mod compare_cmd;
 mod error_cmd;
 mod measure;
 mod render;
+mod view;
 
 use clap::Parser;
 use cli::{ChurchArgs, Command, HeadsArgs, InspectArgs, ReportCommand};
@@ -41,7 +42,10 @@ fn main() -> ExitCode {
     // The private directory, if one was made, is removed when `main` returns.
     let _wsi_dir = matches!(
         command,
-        Command::Render(_) | Command::Compare(_) | Command::Report(ReportCommand::Error(_))
+        Command::Render(_)
+            | Command::View(_)
+            | Command::Compare(_)
+            | Command::Report(ReportCommand::Error(_))
     )
     .then(quiet_mesa_wsi)
     .flatten();
@@ -51,6 +55,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => run_inspect(args),
         Command::Check(args) => check_cmd::run_check(args.config()),
         Command::Render(args) => args.config().and_then(render::run_render),
+        Command::View(args) => args.config().and_then(view::run_view),
         Command::Report(ReportCommand::Compression(args)) => run_report(args),
         Command::Report(ReportCommand::Heads(args)) => run_heads(args),
         Command::Report(ReportCommand::Church(args)) => run_church(args),

@@ -36,24 +36,8 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             ));
         }
     }
-    let (width, height) = config
-        .size
-        .unwrap_or((scene.camera.resolution[0], scene.camera.resolution[1]));
-    let settings = RendererSettings {
-        frame: FrameSettings {
-            width,
-            height,
-            exposure: config.exposure.exp2(),
-            shadow_resolution: config.shadow_resolution,
-            visibility: config.visibility,
-        },
-        component: config.component,
-        ..Default::default()
-    };
-    settings
-        .frame
-        .check()
-        .map_err(|e| format!("{}: {e}", dir.display()))?;
+    let settings = renderer_settings(&config, &scene, &dir)?;
+    let (width, height) = (settings.frame.width, settings.frame.height);
     let image = match method.backend {
         Backend::Cpu(run) => render_on_cpu(&config, &scene, &settings, run)?,
         Backend::Gpu(_) => {
@@ -145,6 +129,34 @@ fn print_timings(device: &str, image: &readback::Image) {
     );
 }
 
+/// The renderer settings of `config` for `scene` (whose camera gives the default size),
+/// checked: what `cssm render` and `cssm view` render with.
+pub(crate) fn renderer_settings(
+    config: &RenderConfig,
+    scene: &Scene,
+    dir: &Path,
+) -> Result<RendererSettings, String> {
+    let (width, height) = config
+        .size
+        .unwrap_or((scene.camera.resolution[0], scene.camera.resolution[1]));
+    let settings = RendererSettings {
+        frame: FrameSettings {
+            width,
+            height,
+            exposure: config.exposure.exp2(),
+            shadow_resolution: config.shadow_resolution,
+            visibility: config.visibility,
+        },
+        component: config.component,
+        ..Default::default()
+    };
+    settings
+        .frame
+        .check()
+        .map_err(|e| format!("{}: {e}", dir.display()))?;
+    Ok(settings)
+}
+
 /// A CPU method (the reference path tracer), with a progress bar; tone-mapped on the CPU with
 /// the GPU's curve.
 fn render_on_cpu(
@@ -191,7 +203,7 @@ fn render_on_cpu(
 
 /// The CSSM `cssm render` uses: `--cssm`, checked against the scene, else a small one baked in
 /// memory.
-fn render_cssm(config: &RenderConfig, scene: &Scene) -> Result<CssmFile, String> {
+pub(crate) fn render_cssm(config: &RenderConfig, scene: &Scene) -> Result<CssmFile, String> {
     if let Some(path) = &config.cssm {
         return runtime::load::read_cssm(path, scene).map_err(|e| e.to_string());
     }

@@ -66,10 +66,23 @@ impl Gpu {
         let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
         descriptor.backends = wgpu::Backends::PRIMARY;
         let instance = wgpu::Instance::new(descriptor.with_env());
+        Self::for_surface(&instance, None)
+    }
+
+    /// As [`Gpu::new_headless`] (the same adapter choice, features and limits, so a window
+    /// renders what an offscreen render does, byte for byte), on `instance`, with an adapter
+    /// that can present to `surface` when one is given (a window's: `cssm view`).
+    ///
+    /// # Errors
+    /// As [`Gpu::new_headless`]; no adapter when none can present to `surface`.
+    pub fn for_surface(
+        instance: &wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<Self, RuntimeError> {
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
-            compatible_surface: None,
+            compatible_surface: surface,
             apply_limit_buckets: false,
         }))
         .map_err(|e| RuntimeError::NoAdapter(e.to_string()))?;

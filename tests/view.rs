@@ -1,0 +1,224 @@
+//! `cssm view` end to end: a real window under Xvfb (Mesa's lavapipe presenting to it), whose
+//! `--screenshot` must be pixel for pixel what `cssm render` writes for the same scene,
+//! camera, light, method, size and frame count (the window renders into the same offscreen
+//! image and reads it back: there is no reason for any difference, so none is tolerated); and
+//! the clear error without a display.
+//!
+//! The window tests need `xvfb-run` (`apt-get install xvfb xauth`; `.ci/run` installs them)
+//! and fail without it rather than pass without testing anything.
+
+use std::{
+    path::{Path, PathBuf},
+    process::{Command, Output},
+};
+
+fn cssm_command() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_cssm"))
+}
+
+/// Runs `command` to its end, or kills it after two minutes and fails (a window that never
+/// writes its screenshot would otherwise hang the test suite).
+fn run(mut command: Command) -> Output {
+    use std::process::Stdio;
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run cssm");
+    let start = std::time::Instant::now();
+    while child.try_wait().expect("wait for cssm").is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(120) {
+            let _ = child.kill();
+            let out = child.wait_with_output().expect("wait for cssm");
+            panic!(
+                "{command:?} did not end within 2 minutes: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().expect("wait for cssm")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn cornell() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box")
+}
+
+/// `xvfb-run` on PATH, or a failure that says how to install it.
+fn xvfb_run() -> Command {
+    let found = std::env::var_os("PATH")
+        .map(|paths| std::env::split_paths(&paths).any(|dir| dir.join("xvfb-run").is_file()))
+        .unwrap_or(false);
+    assert!(
+        found,
+        "the cssm view tests need xvfb-run (a virtual X display): apt-get install xvfb xauth"
+    );
+    let mut command = Command::new("xvfb-run");
+    // -a: a free display number, so that tests running at once do not collide.
+    command.arg("-a").arg(env!("CARGO_BIN_EXE_cssm"));
+    command
+}
+
+/// The decoded RGBA pixels of a PNG.
+fn pixels(path: &Path) -> image::RgbaImage {
+    image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgba8()
+}
+
+/// `cssm view ... --screenshot` under Xvfb against `cssm render ...` with the same `args`.
+fn window_matches_render(dir: &Path, args: &[&str], frames: &str, size: (u32, u32)) {
+    let shot = dir.join("view.png");
+    let rendered = dir.join("render.png");
+    let mut view = xvfb_run();
+    view.arg("view")
+        .args(args)
+        .args(["--frames", frames, "--screenshot"])
+        .arg(&shot);
+    let out = run(view);
+    assert!(out.status.success(), "cssm view: {}", stderr(&out));
+    // The image came from the window's loop, not from an offscreen fallback.
+    assert!(stderr(&out).contains("viewing "), "{}", stderr(&out));
+    let mut render = cssm_command();
+    render
+        .arg("render")
+        .args(args)
+        .args(["--frames", frames, "--out"])
+        .arg(&rendered);
+    let out = run(render);
+    assert!(out.status.success(), "cssm render: {}", stderr(&out));
+    let (a, b) = (pixels(&shot), pixels(&rendered));
+    assert_eq!(a.dimensions(), b.dimensions());
+    assert_eq!(a.dimensions(), size);
+    // An all-black pair would match without testing anything.
+    assert!(
+        a.pixels().any(|p| p.0[..3].iter().any(|&c| c > 16)),
+        "the screenshot is black"
+    );
+    let differ = a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count();
+    assert_eq!(
+        differ,
+        0,
+        "{differ} of {} pixels differ between cssm view's screenshot and cssm render ({args:?})",
+        a.len() / 4
+    );
+}
+
+#[test]
+fn view_screenshot_of_direct_light_is_cssm_renders_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell();
+    window_matches_render(
+        dir.path(),
+        &[
+            scene.to_str().unwrap(),
+            "--method",
+            "direct",
+            "--size",
+            "64x48",
+        ],
+        "1",
+        (64, 48),
+    );
+}
+
+#[test]
+fn view_screenshot_of_a_cssm_method_is_cssm_renders_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell();
+    let cssm = dir.path().join("cornell.cssm");
+    let mut bake = cssm_command();
+    bake.arg("bake")
+        .arg(&scene)
+        .arg("-o")
+        .arg(&cssm)
+        .args(["--atlas", "32", "--cube", "8"]);
+    let out = run(bake);
+    assert!(out.status.success(), "cssm bake: {}", stderr(&out));
+    window_matches_render(
+        dir.path(),
+        &[
+            scene.to_str().unwrap(),
+            "--cssm",
+            cssm.to_str().unwrap(),
+            "--method",
+            "lightmap",
+            "--bounces",
+            "2",
+            "--size",
+            "64x48",
+        ],
+        "2",
+        (64, 48),
+    );
+}
+
+/// More frames than an interactive window accumulates before it rests (1024): the script still
+/// gets its screenshot, of exactly that many frames.
+#[test]
+fn view_screenshot_after_more_frames_than_a_window_accumulates() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell();
+    window_matches_render(
+        dir.path(),
+        &[
+            scene.to_str().unwrap(),
+            "--method",
+            "direct",
+            "--size",
+            "16x12",
+        ],
+        "1100",
+        (16, 12),
+    );
+}
+
+#[test]
+fn view_without_a_display_says_so_and_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let shot = dir.path().join("never.png");
+    let mut view = cssm_command();
+    view.env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("WAYLAND_SOCKET")
+        .args([
+            "view",
+            "--method",
+            "direct",
+            "--size",
+            "64x48",
+            "--screenshot",
+        ])
+        .arg(&shot);
+    let out = run(view);
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains("cssm view: cannot open a window") && text.contains("Xvfb"),
+        "{text}"
+    );
+    assert!(!text.contains("panicked"), "{text}");
+    assert!(!shot.exists());
+}
+
+#[test]
+fn view_refuses_a_cpu_method_and_frames_without_a_screenshot() {
+    let out = run({
+        let mut c = cssm_command();
+        c.args(["view", "--method", "reference"]);
+        c
+    });
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("cssm render --method reference"));
+    let out = run({
+        let mut c = cssm_command();
+        c.args(["view", "--frames", "4"]);
+        c
+    });
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--screenshot"), "{}", stderr(&out));
+}
