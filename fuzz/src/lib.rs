@@ -836,6 +836,7 @@ pub fn packed_fields(
     u32,
     u32,
     PackedRuns,
+    &Vec<cssm_formats::csm::CsmData>,
 ) {
     (
         &file.params,
@@ -847,6 +848,7 @@ pub fn packed_fields(
         file.runs.map_count,
         file.runs.pixel_count,
         PackedRuns::pack(&file.runs),
+        &file.csms,
     )
 }
 
