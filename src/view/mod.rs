@@ -349,7 +349,7 @@ impl App {
         };
         surface.configure(&gpu.device, &config);
         let renderer = self.view.build(&gpu)?;
-        let image = image_target(&gpu.device, width, height);
+        let image = readback::offscreen_target(&gpu.device, width, height);
         let blit = Blit::new(&gpu.device, format, &image);
         eprintln!(
             "viewing {} on {} (Esc quits; `cssm view --help` lists the keys)",
@@ -367,27 +367,6 @@ impl App {
             shots: 0,
         })
     }
-}
-
-/// The renderer's `Rgba8Unorm` target: drawn into, sampled by the blit, read back for
-/// screenshots.
-fn image_target(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("view image"),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8Unorm,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-            | wgpu::TextureUsages::TEXTURE_BINDING
-            | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    })
 }
 
 impl ApplicationHandler for App {
@@ -479,7 +458,7 @@ impl App {
             Ok(()) => {
                 self.view.settings.frame.width = size.width;
                 self.view.settings.frame.height = size.height;
-                gfx.image = image_target(&gfx.gpu.device, size.width, size.height);
+                gfx.image = readback::offscreen_target(&gfx.gpu.device, size.width, size.height);
                 gfx.blit.bind(&gfx.gpu.device, &gfx.image);
             }
             Err(e) => eprintln!("cannot render at {}x{}: {e}", size.width, size.height),

@@ -134,8 +134,8 @@ impl Image {
     }
 }
 
-/// An `Rgba8Unorm` target of `width` x `height` to render into and read back (the default
-/// target format of [`crate::RendererSettings`]).
+/// An `Rgba8Unorm` target of `width` x `height` to render into, read back and sample (the
+/// default target format of [`crate::RendererSettings`]; `cssm view` blits it to its window).
 pub fn offscreen_target(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some("offscreen target"),
@@ -148,7 +148,9 @@ pub fn offscreen_target(device: &wgpu::Device, width: u32, height: u32) -> wgpu:
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format: wgpu::TextureFormat::Rgba8Unorm,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
         view_formats: &[],
     })
 }
