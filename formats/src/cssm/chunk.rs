@@ -422,17 +422,14 @@ pub fn merge_chunks(
     // Join the slices in order, each chunk's runs moved out and dropped as it is appended, so
     // the peak is about one copy of the run data.
     let coding = first.coding();
-    let mut by_index: Vec<Option<CssmChunk>> = vec![None; count as usize];
-    let order: Vec<usize> = slots.into_iter().map(|s| s.expect("checked")).collect();
-    let mut chunks: Vec<Option<CssmChunk>> = chunks.into_iter().map(|(_, c)| Some(c)).collect();
-    for (index, position) in order.into_iter().enumerate() {
-        by_index[index] = chunks[position].take();
-    }
+    // Every index is there once: sorting by it puts the slices in traversal order.
+    let mut chunks = chunks;
+    chunks.sort_unstable_by_key(|(_, c)| c.spec.index);
     let mut file: Option<CssmFile> = None;
     let mut offsets: Vec<u32> = vec![0];
     let mut runs: Vec<u32> = Vec::new();
     let mut pixel_count = 0;
-    for chunk in by_index.into_iter().map(|c| c.expect("every index filled")) {
+    for (_, chunk) in chunks {
         let mut part = chunk.file;
         let base = runs.len() as u64;
         let part_runs = std::mem::take(&mut part.runs);

@@ -276,13 +276,8 @@ pub fn jitter_in_disk(
 /// Two unit tangents completing the unit `n` to an orthonormal frame, without a branch on a
 /// near-zero axis (Duff et al. 2017). `transfer.wgsl`: `tangent_frame`.
 pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
-    let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
+    // The same construction as a coherent shadow map's image plane.
+    cssm_formats::csm::image_frame(n)
 }
 
 #[cfg(test)]
