@@ -116,7 +116,7 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
             b"# not a cssm file\nv 0 0 0\n".to_vec(),
         ),
         ("cssm-foreign/empty.cssm", Vec::new()),
-        ("cssm-newer/version-4.cssm", with(&|b| b[8] = 4)),
+        ("cssm-newer/version-5.cssm", with(&|b| b[8] = 5)),
         ("cssm-oversized/bomb.cssm", bomb),
         (
             "cssm-oversized/declared-9gib.cssm",
@@ -155,6 +155,14 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
             framed_unchecked(&{
                 let mut f = good.clone();
                 f.texels[1].material = 99;
+                f
+            }),
+        ),
+        (
+            "cssm-semantic/texel-object.cssm",
+            framed_unchecked(&{
+                let mut f = good.clone();
+                f.texels[1].object = 7;
                 f
             }),
         ),

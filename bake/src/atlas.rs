@@ -355,6 +355,7 @@ fn rasterise(scene: &Scene, resolution: u32, uvs: &[[[f32; 2]; 3]], charts: &[u3
                 }
                 *c
             },
+            object: scene.object_of(t) as u32,
             x: (cell % r) as u16,
             y: (cell / r) as u16,
         });

@@ -217,7 +217,9 @@ pub fn measure(
     measure_with_progress(scene, file, pairs, seed, options, &mut |_, _| {})
 }
 
-/// [`measure`], calling `progress(done, pairs)` after every block of 65,536 pairs.
+/// [`measure`], calling `progress(done, pairs)` after every block of 65,536 pairs. A scene with
+/// rigid objects is measured with them where it placed them, through the moving-objects query
+/// ([`measure_posed`]).
 pub fn measure_with_progress(
     scene: &Scene,
     file: &CssmFile,
@@ -226,10 +228,121 @@ pub fn measure_with_progress(
     options: QueryOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Measurement {
-    let sampler = SurfaceSampler::new(scene);
-    let mut rng = SplitMix64(seed);
+    if scene
+        .objects
+        .iter()
+        .any(|o| o.kind == cssm_formats::ObjectKind::Rigid)
+    {
+        let poses: Vec<_> = scene.objects.iter().map(|o| o.transform).collect();
+        if let Ok(m) =
+            measure_posed_with_progress(scene, file, &poses, pairs, seed, options, progress)
+        {
+            return m.measurement;
+        }
+    }
     let bvh = SceneBvh::new(scene);
     let query = VisibilityQuery::new(file, options);
+    let eps = 1e-4 * scene.diameter();
+    tally(
+        scene,
+        &bvh,
+        pairs,
+        seed,
+        progress,
+        &|p_j, p_i| {
+            query.visibility_between_surfaces(
+                (p_j.triangle, p_j.bary),
+                p_j.position,
+                p_j.normal,
+                (p_i.triangle, p_i.bary),
+                p_i.position,
+                p_i.normal,
+            )
+        },
+        &|p_j, p_i, truth, causes| classify(&bvh, &query, p_j, p_i, truth, eps, causes),
+    )
+}
+
+/// What [`measure_posed`] found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PosedMeasurement {
+    /// The agreement, as [`measure`]'s (no causes: they are the static query's).
+    pub measurement: Measurement,
+    /// Where the objects' convex hulls overlap at the poses (§3.3's limit).
+    pub overlaps: cssm_formats::hull::HullOverlaps,
+}
+
+/// Measures the moving-objects query (§3.3, [`cssm_formats::moving::MovingQuery`]) against
+/// exact ray casts with `scene`'s objects at `poses` (object-to-world, one per object): the
+/// pairs are drawn on the posed surfaces and the ray casts see the posed scene. `Err` when the
+/// poses do not fit the scene or the file lacks a rigid object's CSM.
+pub fn measure_posed(
+    scene: &Scene,
+    file: &CssmFile,
+    poses: &[glam::Affine3A],
+    pairs: u64,
+    seed: u64,
+    options: QueryOptions,
+) -> Result<PosedMeasurement, String> {
+    measure_posed_with_progress(scene, file, poses, pairs, seed, options, &mut |_, _| {})
+}
+
+/// [`measure_posed`] with progress as [`measure_with_progress`]'s.
+pub fn measure_posed_with_progress(
+    scene: &Scene,
+    file: &CssmFile,
+    poses: &[glam::Affine3A],
+    pairs: u64,
+    seed: u64,
+    options: QueryOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<PosedMeasurement, String> {
+    let posed = scene.posed(poses)?;
+    let mut query = cssm_formats::moving::MovingQuery::new(file, scene, options)?;
+    query.set_poses(poses)?;
+    let bvh = SceneBvh::new(&posed);
+    let cssm = query.cssm();
+    let measurement = tally(
+        &posed,
+        &bvh,
+        pairs,
+        seed,
+        progress,
+        &|p_j, p_i| {
+            let (senders_j, senders_i) = (
+                cssm.sender_texels(p_j.triangle, p_j.bary),
+                cssm.sender_texels(p_i.triangle, p_i.bary),
+            );
+            let end = |p: &SurfacePoint, senders| cssm_formats::moving::ObjectPoint {
+                senders,
+                position: p.position,
+                normal: p.normal,
+                object: posed.object_of(p.triangle) as u32,
+            };
+            query.visibility_between(&end(p_j, &senders_j), &end(p_i, &senders_i))
+        },
+        &|_, _, _, _| {},
+    );
+    Ok(PosedMeasurement {
+        measurement,
+        overlaps: cssm_formats::hull::overlaps(scene, poses, 1e-3),
+    })
+}
+
+/// Draws `pairs` pairs of points on `scene` (seeded), asks `answer` and the ray casts of `bvh`
+/// for each, and tallies them; `explain` classifies the exchanging pairs they disagree on.
+#[allow(clippy::too_many_arguments)]
+fn tally(
+    scene: &Scene,
+    bvh: &SceneBvh,
+    pairs: u64,
+    seed: u64,
+    progress: &mut dyn FnMut(u64, u64),
+    answer: &(dyn Fn(&SurfacePoint, &SurfacePoint) -> Option<f32> + Sync),
+    explain: &(dyn Fn(&SurfacePoint, &SurfacePoint, bool, &mut Causes) + Sync),
+) -> Measurement {
+    let sampler = SurfaceSampler::new(scene);
+    let mut rng = SplitMix64(seed);
     let eps = 1e-4 * scene.diameter();
     // Pairs are drawn in blocks from one sequential generator (the same pairs for a seed, however
     // many threads), so memory stays bounded whatever `--pairs` asks for.
@@ -253,27 +366,20 @@ pub fn measure_with_progress(
                 let mut m = Measurement::default();
                 for (p_j, p_i) in chunk {
                     let exchanging = exchanges_light(p_j, p_i, eps);
-                    let Some(fraction) = query.visibility_between_surfaces(
-                        (p_j.triangle, p_j.bary),
-                        p_j.position,
-                        p_j.normal,
-                        (p_i.triangle, p_i.bary),
-                        p_i.position,
-                        p_i.normal,
-                    ) else {
+                    let Some(fraction) = answer(p_j, p_i) else {
                         m.all.unmapped += 1;
                         if exchanging {
                             m.exchanging.unmapped += 1;
                         }
                         continue;
                     };
-                    let truth = exact_visible(&bvh, p_j, p_i, eps);
+                    let truth = exact_visible(bvh, p_j, p_i, eps);
                     let cssm = fraction >= 0.5;
                     m.all.count(truth, cssm);
                     if exchanging {
                         m.exchanging.count(truth, cssm);
                         if truth != cssm {
-                            classify(&bvh, &query, p_j, p_i, truth, eps, &mut m.causes);
+                            explain(p_j, p_i, truth, &mut m.causes);
                         }
                     }
                 }

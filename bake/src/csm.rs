@@ -164,16 +164,7 @@ pub fn bake_objects(
     let total = per_object * rigid.len() as u64;
     let mut csms = Vec::with_capacity(rigid.len());
     for (n, (index, object)) in rigid.into_iter().enumerate() {
-        let to_object = object.transform.inverse();
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        for t in object.triangles.clone() {
-            let corners = scene.triangle(t as usize);
-            let base = positions.len() as u32;
-            positions.extend(corners.map(|p| to_object.transform_point3(p)));
-            triangles.push([base, base + 1, base + 2]);
-        }
-        let local = Scene::from_triangles(positions, triangles);
+        let local = scene.object_mesh(index, object.transform.inverse());
         let before = per_object * n as u64;
         csms.push(bake_csm(&local, index as u32, options, &mut |done| {
             progress(before + done, total)

@@ -198,6 +198,7 @@ mod tests {
             area: 1.0,
             material: 0,
             chart: 0,
+            object: 0,
             x: 0,
             y: 0,
         };

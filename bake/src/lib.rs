@@ -382,7 +382,7 @@ fn bake_slice(
     }
 
     let t0 = Instant::now();
-    let bvh = raycast::SceneBvh::new(scene);
+    let bvh = TexelGeometry::new(scene);
     let quantizer = DepthQuantizer::new(near, far);
     let bvh_time = t0.elapsed();
 
@@ -516,11 +516,70 @@ fn bake_slice(
     Ok((file, stats))
 }
 
+/// The geometry each texel's depth cube map sees (§3.3): in a scene without rigid objects, the
+/// whole scene; with them, a texel on the static part sees the static part alone and a texel on
+/// a rigid object sees that object alone (its CSSM tests self-occlusion; every other object is
+/// tested with its coherent shadow map, wherever the objects have moved).
+struct TexelGeometry {
+    bvhs: Vec<raycast::SceneBvh>,
+    /// Index into `bvhs` of every object's geometry.
+    bvh_of_object: Vec<usize>,
+}
+
+impl TexelGeometry {
+    fn new(scene: &Scene) -> Self {
+        let rigid = |o: &cssm_formats::SceneObject| o.kind == cssm_formats::ObjectKind::Rigid;
+        if !scene.objects.iter().any(rigid) {
+            return Self {
+                bvhs: vec![raycast::SceneBvh::new(scene)],
+                bvh_of_object: vec![0; scene.objects.len()],
+            };
+        }
+        // The static objects (all but the rigid ones) stand together: they never move apart.
+        let mut fixed = Scene::from_triangles(Vec::new(), Vec::new());
+        let mut bvhs = Vec::new();
+        let mut bvh_of_object = Vec::with_capacity(scene.objects.len());
+        for (i, o) in scene.objects.iter().enumerate() {
+            let mesh = scene.object_mesh(i, glam::Affine3A::IDENTITY);
+            if rigid(o) {
+                bvh_of_object.push(bvhs.len());
+                bvhs.push(raycast::SceneBvh::new(&mesh));
+            } else {
+                bvh_of_object.push(usize::MAX);
+                let base = fixed.positions.len() as u32;
+                fixed.positions.extend(mesh.positions);
+                fixed
+                    .triangles
+                    .extend(mesh.triangles.iter().map(|t| t.map(|v| v + base)));
+            }
+        }
+        if !fixed.triangles.is_empty() {
+            fixed.triangle_materials = vec![0; fixed.triangles.len()];
+            fixed.objects = vec![cssm_formats::SceneObject::whole_static(
+                fixed.triangles.len(),
+            )];
+            for b in bvh_of_object.iter_mut().filter(|b| **b == usize::MAX) {
+                *b = bvhs.len();
+            }
+            bvhs.push(raycast::SceneBvh::new(&fixed));
+        }
+        Self {
+            bvhs,
+            bvh_of_object,
+        }
+    }
+
+    /// What the cube map of `texel` sees.
+    fn seen_from(&self, texel: &cssm_formats::Texel) -> &raycast::SceneBvh {
+        &self.bvhs[self.bvh_of_object[texel.object as usize]]
+    }
+}
+
 /// Renders the cube maps of texels `ids` into `slots` (`6 * n * n` intervals each), in parallel;
 /// returns the rays cast.
 #[allow(clippy::too_many_arguments)]
 fn render_maps(
-    bvh: &raycast::SceneBvh,
+    geometry: &TexelGeometry,
     texels: &[cssm_formats::Texel],
     ids: &[u32],
     n: u32,
@@ -534,6 +593,7 @@ fn render_maps(
         .zip(ids.par_iter())
         .map(|(out, &texel)| {
             let texel = &texels[texel as usize];
+            let bvh = geometry.seen_from(texel);
             cubemap::render(bvh, texel, n, near, quantizer, second_layer, out)
         })
         .sum()
@@ -546,7 +606,7 @@ fn render_maps(
 /// once and its maps reused for every order; a larger one is rendered again for each order,
 /// batch by batch, so memory stays bounded however large the chart.
 fn fewest_runs(
-    bvh: &raycast::SceneBvh,
+    bvh: &TexelGeometry,
     texels: &[cssm_formats::Texel],
     orders: &[&[u32]],
     near: f32,
@@ -639,7 +699,7 @@ pub(crate) mod tests {
             ],
             vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]],
         );
-        let bvh = super::raycast::SceneBvh::new(&scene);
+        let bvh = super::TexelGeometry::new(&scene);
         let texels: Vec<cssm_formats::Texel> = (0..40u16)
             .map(|i| cssm_formats::Texel {
                 position: [-1.5 + 0.075 * f32::from(i), 0.0, 0.0],
@@ -647,6 +707,7 @@ pub(crate) mod tests {
                 area: 1.0,
                 material: 0,
                 chart: 0,
+                object: 0,
                 x: i,
                 y: 0,
             })

@@ -103,6 +103,7 @@ fn random_atlas(
                     area: 1.0,
                     material: 0,
                     chart,
+                    object: 0,
                     x: x as u16,
                     y: y as u16,
                 });
@@ -358,6 +359,7 @@ fn hilbert_on_a_full_square_steps_to_neighbours() {
             area: 1.0,
             material: 0,
             chart: 0,
+            object: 0,
             x,
             y,
         })
@@ -565,6 +567,7 @@ fn big_atlas(cw: usize, ch: usize, rows: u16) -> Vec<Texel> {
                         area: 1e-4,
                         material: 0,
                         chart,
+                        object: 0,
                         x: x as u16,
                         y: y as u16,
                     });

@@ -398,6 +398,7 @@ impl Hierarchy {
     ///         area: 1.0,
     ///         material: 0,
     ///         chart: 0,
+    ///         object: 0,
     ///         x,
     ///         y: 0,
     ///     })
@@ -579,6 +580,7 @@ mod tests {
                     area,
                     material: 0,
                     chart: 0,
+                    object: 0,
                     x: (i % 1024) as u16,
                     y: (i / 1024) as u16,
                 }
@@ -749,6 +751,7 @@ mod tests {
                 area: 1.0,
                 material: 0,
                 chart: 0,
+                object: 0,
                 x: i as u16,
                 y: 0,
             })

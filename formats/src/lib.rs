@@ -18,6 +18,8 @@ pub mod cssm;
 pub mod cube;
 pub mod files;
 pub mod hierarchy;
+pub mod hull;
+pub mod moving;
 pub mod scene;
 pub mod texel;
 pub mod visibility;

@@ -16,6 +16,11 @@ pub struct Texel {
     pub material: u32,
     /// Atlas chart the texel belongs to (dense ids `0..chart_count`).
     pub chart: u32,
+    /// Index into `Scene::objects` of the object the texel lies on. Its depth cube map sees
+    /// that object's geometry only (§3.3: each object's CSSM tests self-occlusion; the other
+    /// objects are tested with their coherent shadow maps), so it holds wherever the objects
+    /// move. In a scene without rigid objects, 0 (the static part) everywhere.
+    pub object: u32,
     /// Atlas column of the texel, `0..atlas_resolution`.
     pub x: u16,
     /// Atlas row of the texel, `0..atlas_resolution`.

@@ -148,26 +148,31 @@ fn foreign_files_are_refused() {
 
 #[test]
 fn versions_and_flags() {
-    assert_eq!(FORMAT_VERSION, 3);
+    assert_eq!(FORMAT_VERSION, 4);
     let bytes = cssm::encode(&sample()).unwrap();
-    assert_eq!(bytes[8..12], 3u32.to_le_bytes());
+    assert_eq!(bytes[8..12], 4u32.to_le_bytes());
     let mut newer = bytes.clone();
-    newer[8..12].copy_from_slice(&4u32.to_le_bytes());
+    newer[8..12].copy_from_slice(&5u32.to_le_bytes());
     let err = cssm::decode(&newer).unwrap_err();
-    assert!(matches!(err, CssmError::NewerVersion { version: 4 }));
+    assert!(matches!(err, CssmError::NewerVersion { version: 5 }));
     assert!(
         err.to_string()
-            .contains("file version 4 is newer than this build's version 3; upgrade cssm"),
+            .contains("file version 5 is newer than this build's version 4; upgrade cssm"),
         "{err}"
     );
-    // Version 2 (before the coherent shadow maps of rigid objects): re-bake.
-    let mut v2 = bytes.clone();
-    v2[8..12].copy_from_slice(&2u32.to_le_bytes());
-    let err = cssm::decode(&v2).unwrap_err();
-    assert_eq!(
-        err.to_string(),
-        "file version 2 is not supported (this build reads version 3); re-bake it"
-    );
+    // Versions 2 (before the coherent shadow maps of rigid objects) and 3 (before the texels'
+    // objects): re-bake.
+    for version in [2u32, 3] {
+        let mut old = bytes.clone();
+        old[8..12].copy_from_slice(&version.to_le_bytes());
+        let err = cssm::decode(&old).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "file version {version} is not supported (this build reads version 4); re-bake it"
+            )
+        );
+    }
     let mut older = bytes.clone();
     older[8..12].copy_from_slice(&1u32.to_le_bytes());
     assert!(matches!(
@@ -211,7 +216,7 @@ fn versions_and_flags() {
     );
     assert_eq!(
         err.to_string(),
-        "file version 1 is not supported (this build reads version 3); re-bake it"
+        "file version 1 is not supported (this build reads version 4); re-bake it"
     );
     // Bit 1 is a chunk of a chunked bake (FLAG_CHUNK), bit 2 nothing yet.
     let mut flags = bytes.clone();

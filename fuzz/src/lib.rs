@@ -769,6 +769,7 @@ pub fn tiny_file(scene: &Scene) -> CssmFile {
             area: 4.0,
             material: u32::from(i) % scene.materials.len() as u32,
             chart: u32::from(i / 3),
+            object: 0,
             x: 3 * i,
             y: i,
         })

@@ -188,6 +188,7 @@ mod tests {
             area: 1.0,
             material: 0,
             chart,
+            object: 0,
             x,
             y,
         }

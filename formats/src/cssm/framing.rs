@@ -11,10 +11,11 @@ use super::CssmError;
 pub const MAGIC: [u8; 8] = *b"CSSM\x00\r\n\x1a";
 /// Version written by this build; files with a larger version are refused as "newer", files with
 /// a smaller one as unsupported (version 2 added the texel [`Hierarchy`], version 3 the rigid
-/// objects' coherent shadow maps; re-bake older files).
+/// objects' coherent shadow maps, version 4 the texels' objects, whose depth maps see their
+/// own object only; re-bake older files).
 ///
 /// [`Hierarchy`]: crate::hierarchy::Hierarchy
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
 /// Largest uncompressed payload a file may declare (8 GiB); larger ones are refused before any
 /// allocation.
 pub const MAX_UNCOMPRESSED_BYTES: u64 = 8 << 30;

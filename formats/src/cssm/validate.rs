@@ -266,6 +266,19 @@ pub fn validate_for_scene(file: &CssmFile, scene: &crate::Scene) -> Result<(), C
             scene.name
         );
     }
+    let objects = scene.objects.len();
+    if let Some((i, t)) = file
+        .texels
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.object as usize >= objects)
+    {
+        invalid!(
+            "texel {i} lies on object {}, the scene '{}' has {objects}",
+            t.object,
+            scene.name
+        );
+    }
     for c in &file.csms {
         match scene.objects.get(c.object as usize) {
             Some(o) if o.kind == crate::ObjectKind::Rigid => {}

@@ -78,6 +78,71 @@ impl Scene {
         }
     }
 
+    /// Object `object`'s triangles alone as a scene of their own, every corner mapped by
+    /// `transform` (the identity: as placed in the scene; `objects[object].transform.inverse()`:
+    /// in the object's own space). Materials and texture coordinates are not kept.
+    ///
+    /// # Panics
+    /// If `object` is not an index into [`Scene::objects`].
+    pub fn object_mesh(&self, object: usize, transform: Affine3A) -> Scene {
+        let o = &self.objects[object];
+        let mut positions = Vec::with_capacity(3 * o.triangles.len());
+        let mut triangles = Vec::with_capacity(o.triangles.len());
+        for t in o.triangles.clone() {
+            let base = positions.len() as u32;
+            positions.extend(
+                self.triangle(t as usize)
+                    .map(|p| transform.transform_point3(p)),
+            );
+            triangles.push([base, base + 1, base + 2]);
+        }
+        Scene::from_triangles(positions, triangles)
+    }
+
+    /// The scene with every object moved to `poses[o]` (object space to world space, one per
+    /// object, as [`SceneObject::transform`]): each object's vertices taken back through its
+    /// loaded transform and out through its pose, the objects' transforms replaced by the poses.
+    /// Triangle indices, materials and texture coordinates stay, so a surface point
+    /// (`triangle`, `bary`) names the same point of the same object in both scenes.
+    ///
+    /// `Err` when `poses` has not one transform per object, or a vertex is shared by two
+    /// objects that move apart.
+    pub fn posed(&self, poses: &[Affine3A]) -> Result<Scene, String> {
+        if poses.len() != self.objects.len() {
+            return Err(format!(
+                "{} poses for the {} objects of '{}'",
+                poses.len(),
+                self.objects.len(),
+                self.name
+            ));
+        }
+        let mut posed = self.clone();
+        let mut owner = vec![u32::MAX; self.positions.len()];
+        for (i, (o, pose)) in self.objects.iter().zip(poses).enumerate() {
+            let motion = *pose * o.transform.inverse();
+            for t in o.triangles.clone() {
+                for v in self.triangles[t as usize] {
+                    let v = v as usize;
+                    match owner[v] {
+                        u32::MAX => {
+                            owner[v] = i as u32;
+                            posed.positions[v] = motion.transform_point3(self.positions[v]);
+                        }
+                        j if j as usize == i => {}
+                        j => {
+                            return Err(format!(
+                                "vertex {v} is shared by objects '{}' and '{}'",
+                                self.objects[j as usize].name, o.name
+                            ));
+                        }
+                    }
+                }
+            }
+            posed.objects[i].transform = *pose;
+        }
+        Ok(posed)
+    }
+
     /// Checks the invariants of [`Scene::objects`]: at least one object; ranges non-empty,
     /// contiguous and in order, starting at 0 and ending at `triangles.len()`. `Err` says which
     /// object breaks them.

@@ -25,6 +25,7 @@ pub fn sample() -> CssmFile {
         area: 0.25,
         material: 0,
         chart: 0,
+        object: 0,
         x,
         y,
     };

@@ -1,0 +1,219 @@
+//! Visibility among moving rigid objects (§3.3), the CPU reference of the runtime's query.
+//!
+//! A scene with rigid `[[objects]]` is baked so that every texel's depth cube map sees its own
+//! object only (the static part counts as one object, however many static objects it was
+//! loaded from), and every rigid object has a coherent shadow map in its own space
+//! ([`crate::csm`]). Between a point `p_a` on object `A` and `p_b` on object `B`, with the
+//! objects wherever they are now:
+//!
+//! 1. **Self-occlusion** with the CSSMs, each in the frame the object was baked in: when `A`
+//!    and `B` are the same object, the one query of [`VisibilityQuery::visibility_between`]
+//!    (both ends where the options say so); otherwise `A`'s texels test `p_b` against `A`'s
+//!    geometry and `B`'s test `p_a` against `B`'s, and the segment is clear only where both are
+//!    (§3.3: "there is an occlusion ... if one of the two depth tests reports a
+//!    self-occlusion"), so the fractions multiply.
+//! 2. **Every other rigid object** `C` tests the segment with its CSM, in `C`'s own space under
+//!    its current pose; the fractions multiply.
+//!
+//! Limits, as the paper's: the CSM of `C` is right only for segments whose ends lie outside
+//! `C`'s convex hull, so objects' hulls must not overlap ([`crate::hull`] finds where they do);
+//! and the static part has no CSM (it encloses the others), so a segment between two points that
+//! are both on rigid objects is not tested against the static part.
+
+use glam::{Affine3A, Vec3};
+
+use crate::{
+    CssmFile, ObjectKind,
+    csm::CsmData,
+    visibility::{QueryOptions, VisibilityQuery},
+};
+
+/// One end of a query: a surface point where the objects stand now.
+#[derive(Clone, Copy, Debug)]
+pub struct ObjectPoint<'s> {
+    /// Its texels with weights ([`VisibilityQuery::sender_texels_at`], found in the atlas, which
+    /// moves with the object); empty when no texel stands for it.
+    pub senders: &'s [(u32, f32)],
+    /// Position in world space, the objects posed.
+    pub position: Vec3,
+    /// Unit surface normal in world space, the objects posed.
+    pub normal: Vec3,
+    /// Index into the scene's objects of the object the point lies on.
+    pub object: u32,
+}
+
+/// Where one object stands now, as the query needs it.
+#[derive(Clone, Copy, Debug)]
+struct Placement {
+    /// World space now to the world space the object was baked in.
+    to_baked: Affine3A,
+    /// World space now to the object's own space (its CSM's).
+    to_object: Affine3A,
+    /// The group whose CSSM maps see this object: 0 for the static part, `1 + i` for rigid
+    /// object `i`.
+    group: u32,
+}
+
+/// Answers visibility queries between surface points of a scene whose rigid objects move
+/// (§3.3): each object's CSSM for self-occlusion, the other objects' CSMs for the rest.
+///
+/// ```
+/// # fn demo(file: &cssm_formats::CssmFile, scene: &cssm_formats::Scene) -> Result<(), String> {
+/// use cssm_formats::moving::MovingQuery;
+/// let mut query = MovingQuery::new(file, scene, Default::default())?;
+/// // Lift the first rigid object by one unit.
+/// let mut poses: Vec<_> = scene.objects.iter().map(|o| o.transform).collect();
+/// if let Some(o) = poses.get_mut(1) {
+///     *o = glam::Affine3A::from_translation(glam::Vec3::Y) * *o;
+/// }
+/// query.set_poses(&poses)?;
+/// # Ok(()) }
+/// ```
+pub struct MovingQuery<'a> {
+    query: VisibilityQuery<'a>,
+    /// Each object's transform as baked (object space to world space).
+    baked: Vec<Affine3A>,
+    /// Each object's current placement.
+    placements: Vec<Placement>,
+    /// The CSM of every rigid object that has one.
+    csms: Vec<&'a CsmData>,
+}
+
+impl<'a> MovingQuery<'a> {
+    /// Prepares queries over `file` (validated, and [`crate::cssm::validate_for_scene`] against
+    /// `scene`), the objects where `scene` placed them. `Err` when a rigid object of `scene` has
+    /// no CSM in the file, or a texel lies on no object of `scene`.
+    pub fn new(
+        file: &'a CssmFile,
+        scene: &crate::Scene,
+        options: QueryOptions,
+    ) -> Result<Self, String> {
+        let objects = scene.objects.len();
+        if let Some((i, t)) = file
+            .texels
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.object as usize >= objects)
+        {
+            return Err(format!(
+                "texel {i} lies on object {}, the scene has {objects}",
+                t.object
+            ));
+        }
+        let mut csms = Vec::new();
+        let mut rigid = 0;
+        let mut placements = Vec::with_capacity(objects);
+        for (i, o) in scene.objects.iter().enumerate() {
+            let group = match o.kind {
+                ObjectKind::Static => 0,
+                ObjectKind::Rigid => {
+                    rigid += 1;
+                    let csm = file
+                        .csms
+                        .iter()
+                        .find(|c| c.object as usize == i)
+                        .ok_or_else(|| {
+                            format!(
+                                "rigid object {i} ('{}') has no coherent shadow map in the file",
+                                o.name
+                            )
+                        })?;
+                    csms.push(csm);
+                    rigid
+                }
+            };
+            placements.push(Placement {
+                to_baked: Affine3A::IDENTITY,
+                to_object: o.transform.inverse(),
+                group,
+            });
+        }
+        Ok(Self {
+            query: VisibilityQuery::new(file, options),
+            baked: scene.objects.iter().map(|o| o.transform).collect(),
+            placements,
+            csms,
+        })
+    }
+
+    /// The CSSM query underneath.
+    pub fn cssm(&self) -> &VisibilityQuery<'a> {
+        &self.query
+    }
+
+    /// Places every object: `poses[o]` is object `o`'s object-to-world transform now (a static
+    /// object's should stay as loaded). `Err` unless there is one pose per object, each
+    /// invertible.
+    pub fn set_poses(&mut self, poses: &[Affine3A]) -> Result<(), String> {
+        if poses.len() != self.placements.len() {
+            return Err(format!(
+                "{} poses for {} objects",
+                poses.len(),
+                self.placements.len()
+            ));
+        }
+        for (o, pose) in poses.iter().enumerate() {
+            let det = pose.matrix3.determinant();
+            if !(det.is_finite() && det.abs() > 1e-12 && pose.translation.is_finite()) {
+                return Err(format!("pose of object {o} is not invertible"));
+            }
+        }
+        for ((placement, pose), baked) in self.placements.iter_mut().zip(poses).zip(&self.baked) {
+            placement.to_object = pose.inverse();
+            placement.to_baked = *baked * placement.to_object;
+        }
+        Ok(())
+    }
+
+    /// `p` and its normal `n` (world space now) in the frame object `object` was baked in.
+    fn to_baked(&self, object: u32, p: Vec3, n: Vec3) -> (Vec3, Vec3) {
+        let t = &self.placements[object as usize].to_baked;
+        // Normals go through the inverse transpose; poses are rigid in practice, where it is
+        // the rotation itself.
+        let normal = t.matrix3.inverse().transpose() * glam::Vec3A::from(n);
+        (t.transform_point3(p), Vec3::from(normal).normalize_or(n))
+    }
+
+    /// Fraction of the segment between `a` and `b` that is clear (see the module docs); `None`
+    /// when neither end has texels.
+    pub fn visibility_between(&self, a: &ObjectPoint, b: &ObjectPoint) -> Option<f32> {
+        let (group_a, group_b) = (
+            self.placements[a.object as usize].group,
+            self.placements[b.object as usize].group,
+        );
+        // 1. Self-occlusion, in the frames the objects were baked in.
+        let own = if group_a == group_b {
+            let (p_a, n_a) = self.to_baked(a.object, a.position, a.normal);
+            let (p_b, n_b) = self.to_baked(a.object, b.position, b.normal);
+            self.query
+                .visibility_between(a.senders, p_a, n_a, b.senders, p_b, n_b)
+        } else {
+            let (p_b, n_b) = self.to_baked(a.object, b.position, b.normal);
+            let forward = self
+                .query
+                .visibility_from_senders(a.senders, p_b, Some(n_b));
+            let (p_a, n_a) = self.to_baked(b.object, a.position, a.normal);
+            let backward = self
+                .query
+                .visibility_from_senders(b.senders, p_a, Some(n_a));
+            match (forward, backward) {
+                (Some(f), Some(r)) => Some(f * r),
+                (f, r) => f.or(r),
+            }
+        }?;
+        // 2. Every other rigid object, with its CSM where it stands now.
+        let mut clear = own;
+        for csm in &self.csms {
+            let placement = &self.placements[csm.object as usize];
+            if placement.group == group_a || placement.group == group_b || clear <= 0.0 {
+                continue;
+            }
+            let to_object = &placement.to_object;
+            clear *= csm.visibility(
+                to_object.transform_point3(a.position),
+                to_object.transform_point3(b.position),
+            );
+        }
+        Some(clear)
+    }
+}
