@@ -10,6 +10,8 @@ mod emissive;
 mod filters;
 #[path = "gpu/methods.rs"]
 mod methods;
+#[path = "gpu/moving.rs"]
+mod moving;
 #[path = "gpu/normal_maps.rs"]
 mod normal_maps;
 #[path = "gpu/octree.rs"]

@@ -42,16 +42,29 @@ pub struct ObjectPoint<'s> {
     pub object: u32,
 }
 
-/// Where one object stands now, as the query needs it.
-#[derive(Clone, Copy, Debug)]
-struct Placement {
+/// Where one object stands now, as the query needs it (the GPU query uploads the same).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
     /// World space now to the world space the object was baked in.
-    to_baked: Affine3A,
+    pub to_baked: Affine3A,
     /// World space now to the object's own space (its CSM's).
-    to_object: Affine3A,
-    /// The group whose CSSM maps see this object: 0 for the static part, `1 + i` for rigid
-    /// object `i`.
-    group: u32,
+    pub to_object: Affine3A,
+    /// The group whose CSSM maps see this object: 0 for the static part, `1 + i` for the
+    /// `i`-th rigid object (counting from 0).
+    pub group: u32,
+}
+
+impl Placement {
+    /// Normal matrix of [`Placement::to_baked`] (its inverse transpose; the rotation itself for
+    /// rigid poses).
+    pub fn normal_to_baked(&self) -> glam::Mat3A {
+        self.to_baked.matrix3.inverse().transpose()
+    }
+
+    /// `n` (world space now) as a unit normal in the baked frame; `n` itself if it degenerates.
+    pub fn normal(&self, n: Vec3) -> Vec3 {
+        Vec3::from(self.normal_to_baked() * glam::Vec3A::from(n)).normalize_or(n)
+    }
 }
 
 /// Answers visibility queries between surface points of a scene whose rigid objects move
@@ -165,13 +178,20 @@ impl<'a> MovingQuery<'a> {
         Ok(())
     }
 
+    /// Every object's placement now, in object order.
+    pub fn placements(&self) -> &[Placement] {
+        &self.placements
+    }
+
+    /// The coherent shadow maps the query tests, in object order (one per rigid object).
+    pub fn csms(&self) -> &[&'a CsmData] {
+        &self.csms
+    }
+
     /// `p` and its normal `n` (world space now) in the frame object `object` was baked in.
     fn to_baked(&self, object: u32, p: Vec3, n: Vec3) -> (Vec3, Vec3) {
-        let t = &self.placements[object as usize].to_baked;
-        // Normals go through the inverse transpose; poses are rigid in practice, where it is
-        // the rotation itself.
-        let normal = t.matrix3.inverse().transpose() * glam::Vec3A::from(n);
-        (t.transform_point3(p), Vec3::from(normal).normalize_or(n))
+        let placement = &self.placements[object as usize];
+        (placement.to_baked.transform_point3(p), placement.normal(n))
     }
 
     /// Fraction of the segment between `a` and `b` that is clear (see the module docs); `None`

@@ -32,10 +32,11 @@ pub const WORKGROUP_2D: u32 = 8;
 
 /// The libraries the modules import (`#import cssm::...`), each defining its import path:
 /// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
-/// the shadow lookup, the light model, the CSSM visibility query, the light transfer, the
+/// the shadow lookup, the light model, the CSSM visibility query, the moving objects' query
+/// (§3.3), the light transfer, the
 /// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads,
 /// the joint bilateral weight, the point proxy and its voxel grid, the sample patterns' hash.
-const LIBRARIES: [(&str, &str); 12] = [
+const LIBRARIES: [(&str, &str); 13] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -52,6 +53,10 @@ const LIBRARIES: [(&str, &str); 12] = [
     (
         "runtime/src/visibility/cssm.wgsl",
         include_str!("visibility/cssm.wgsl"),
+    ),
+    (
+        "runtime/src/visibility/moving.wgsl",
+        include_str!("visibility/moving.wgsl"),
     ),
     (
         "runtime/src/radiosity/transfer.wgsl",
@@ -80,6 +85,9 @@ const LIBRARIES: [(&str, &str); 12] = [
 /// Bind group of the CSSM library in the runtime's own modules (group 0 is each pass's own).
 pub const CSSM_GROUP: u32 = 1;
 
+/// Bind group of the moving objects' library (`cssm::moving`) in the modules that import it.
+pub const MOVING_GROUP: u32 = 2;
+
 /// Bind group of the sparse voxel octree library (`cssm::svo`) in the modules that read it.
 pub const SVO_GROUP: u32 = 1;
 
@@ -97,6 +105,7 @@ fn shader_defs(cssm_group: u32, run_bindings: u32) -> HashMap<String, ShaderDefV
             ShaderDefValue::UInt(run_bindings),
         ),
         ("SVO_GROUP".into(), ShaderDefValue::UInt(SVO_GROUP)),
+        ("MOVING_GROUP".into(), ShaderDefValue::UInt(MOVING_GROUP)),
     ])
 }
 
@@ -166,6 +175,9 @@ pub enum Shader {
     Query,
     /// `visibility/gather.wgsl`, the gather benchmark kernel, with the CSSM library.
     Gather,
+    /// `visibility/moving_query.wgsl`, the batch query between posed surface points, with the
+    /// CSSM library and `visibility/moving.wgsl` (§3.3).
+    MovingQuery,
     /// `visibility/bvh.wgsl`, the exact ray-cast baseline.
     Bvh,
     /// `rsm/sample.wgsl`, the RSM gather with the micro linear buffer.
@@ -212,7 +224,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 30] = [
+    pub const ALL: [Shader; 31] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -226,6 +238,7 @@ impl Shader {
         Shader::Filters,
         Shader::Query,
         Shader::Gather,
+        Shader::MovingQuery,
         Shader::Bvh,
         Shader::RsmSampling,
         Shader::Resolve,
@@ -261,6 +274,7 @@ impl Shader {
             Shader::Filters => "edge-aware filters",
             Shader::Query => "visibility query",
             Shader::Gather => "visibility gather",
+            Shader::MovingQuery => "moving objects' query",
             Shader::Bvh => "bvh segments",
             Shader::RsmSampling => "rsm sampling",
             Shader::Resolve => "resolve",
@@ -335,6 +349,10 @@ impl Shader {
             Shader::Gather => (
                 "runtime/src/visibility/gather.wgsl",
                 include_str!("visibility/gather.wgsl"),
+            ),
+            Shader::MovingQuery => (
+                "runtime/src/visibility/moving_query.wgsl",
+                include_str!("visibility/moving_query.wgsl"),
             ),
             Shader::Bvh => (
                 "runtime/src/visibility/bvh.wgsl",

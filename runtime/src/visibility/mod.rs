@@ -10,6 +10,7 @@
 
 pub mod bvh;
 pub mod gather;
+pub mod moving;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -284,6 +285,68 @@ mod tests {
     }
 
     #[test]
+    fn moving_layouts_match_wgsl() {
+        use super::moving::{GpuCsm, GpuPlacement, MovingEnd, MovingPair};
+        let module = crate::shaders::tests::module(Shader::MovingQuery);
+        // The library's own structs, which the composed module names by their module: its
+        // struct declarations alone.
+        let source = include_str!("moving.wgsl");
+        let structs: String = source
+            .split("\nstruct ")
+            .skip(1)
+            .map(|s| format!("struct {}}}\n", &s[..s.find('}').expect("struct ends")]))
+            .collect();
+        let library = naga::front::wgsl::parse_str(&structs).expect("the structs parse");
+        check_struct(
+            &module,
+            "MovingEnd",
+            size_of::<MovingEnd>(),
+            &[
+                ("bary", offset_of!(MovingEnd, bary)),
+                ("triangle", offset_of!(MovingEnd, triangle)),
+                ("position", offset_of!(MovingEnd, position)),
+                ("object", offset_of!(MovingEnd, object)),
+                ("normal", offset_of!(MovingEnd, normal)),
+            ],
+        );
+        check_struct(
+            &module,
+            "MovingPair",
+            size_of::<MovingPair>(),
+            &[
+                ("a", offset_of!(MovingPair, a)),
+                ("b", offset_of!(MovingPair, b)),
+            ],
+        );
+        check_struct(
+            &library,
+            "ObjectPlacement",
+            size_of::<GpuPlacement>(),
+            &[
+                ("to_baked_x", offset_of!(GpuPlacement, to_baked)),
+                ("normal_x", offset_of!(GpuPlacement, normal)),
+                ("to_object_x", offset_of!(GpuPlacement, to_object)),
+                ("group", offset_of!(GpuPlacement, group)),
+            ],
+        );
+        check_struct(
+            &library,
+            "Csm",
+            size_of::<GpuCsm>(),
+            &[
+                ("center", offset_of!(GpuCsm, center)),
+                ("radius", offset_of!(GpuCsm, radius)),
+                ("directions", offset_of!(GpuCsm, directions)),
+                ("resolution", offset_of!(GpuCsm, resolution)),
+                ("object", offset_of!(GpuCsm, object)),
+                ("cells_base", offset_of!(GpuCsm, cells_base)),
+                ("offsets_base", offset_of!(GpuCsm, offsets_base)),
+                ("runs_base", offset_of!(GpuCsm, runs_base)),
+            ],
+        );
+    }
+
+    #[test]
     fn gather_layouts_match_wgsl() {
         use super::gather::{GatherParams, Receiver};
         let module = crate::shaders::tests::module(Shader::Gather);
@@ -352,6 +415,7 @@ mod tests {
         for shader in [
             Shader::Query,
             Shader::Gather,
+            Shader::MovingQuery,
             Shader::RadiosityGather,
             Shader::AtlasLookup,
             Shader::FinalGather,
