@@ -832,7 +832,8 @@ fn view_after_help() -> String {
     "Mouse and keys:\n  \
      left drag            orbit about the point the camera looks at\n  \
      wheel                dolly towards it and away\n  \
-     W A S D / Q E        fly forward, left, back, right / down, up\n  \
+     W A S D / Q E        fly forward, left, back, right / down, up (a press steps; held, the \
+     camera flies on every frame)\n  \
      right drag           aim the first spot light\n  \
      shift + right drag   move the first spot light (in the view plane)\n  \
      Tab / shift + Tab    next / previous method of the table (`cssm render --help` lists them; \
@@ -845,15 +846,16 @@ fn view_after_help() -> String {
      H                    show / hide the overlay: settings, camera, light, GPU time per pass, \
      frame time; menus for method, component and bounces (never in a screenshot)\n  \
      Esc                  quit\n\n\
-     Script (--script FILE): one step a line, run one per frame; # starts a comment. Pixels \
-     are mouse motion, as a drag of the mouse; keys go through the window's key handling.\n  \
+     Script (--script FILE): one step a line, one step per frame, # starts a comment; each \
+     step goes through the window's own mouse and key handling (DX, DY are pixels of mouse \
+     motion).\n  \
      orbit DX DY          left drag by DX, DY pixels\n  \
      drag-light DX DY     right drag (aim the light)\n  \
      move-light DX DY     shift + right drag (move the light)\n  \
      dolly LINES          turn the wheel LINES lines (negative: away)\n  \
      key KEY              press and release KEY: a character (c, [, ], -, =, h, w, ...), or \
      Tab, F12, Escape; shift+KEY holds shift\n  \
-     wait N               let N frames render\n  \
+     wait N               let N frames render before the next step (they accumulate)\n  \
      screenshot PATH      write the last frame: PNG, or with .exr the linear radiance; print \
      the `cssm render` flags of the same image\n  \
      quit                 close the window (at the end of the file it stays open)\n\n\
@@ -1315,6 +1317,28 @@ mod tests {
     #[test]
     fn the_definitions_are_consistent() {
         Cli::command().debug_assert();
+    }
+
+    /// What `cssm view` prints for `--camera`/`--light` parses back to the same floats, bit
+    /// for bit: the render of the printed flags is the window's image.
+    #[test]
+    fn a_printed_pose_parses_back_to_the_same_floats() {
+        let pose = super::Pose {
+            position: glam::Vec3::new(0.1 + 0.2, -1.0e-7, 436.736_8),
+            aim: glam::Vec3::new(-0.0, f32::MIN_POSITIVE, 1.0 / 3.0),
+        };
+        let parsed = super::parse_pose(&pose.to_string()).unwrap();
+        assert_eq!(
+            parsed.position.to_array().map(f32::to_bits),
+            pose.position.to_array().map(f32::to_bits)
+        );
+        assert_eq!(
+            parsed.aim.to_array().map(f32::to_bits),
+            pose.aim.to_array().map(f32::to_bits)
+        );
+        assert!(super::parse_pose("1,2,3,4,5").is_err());
+        assert!(super::parse_pose("1,2,3,4,5,inf").is_err());
+        assert!(super::parse_pose("1,2,3,4,5,6,7").is_err());
     }
 
     fn bake_config(args: &[&str]) -> Result<super::BakeConfig, String> {

@@ -282,6 +282,7 @@ fn view_script_steps_give_screenshots_that_cssm_render_reproduces() {
              key h\n\
              key h\n\
              screenshot {light}\n\
+             key F12\n\
              key Tab\n\
              wait 2\n\
              screenshot {method}\n\
@@ -297,8 +298,17 @@ fn view_script_steps_give_screenshots_that_cssm_render_reproduces() {
     let mut view = xvfb_run();
     view.arg("view")
         .arg(&scene)
-        .args(["--method", "direct", "--size", "64x48", "--script"])
-        .arg(&script);
+        .args([
+            "--method",
+            "direct",
+            "--size",
+            "64x48",
+            "--shot-exr",
+            "--script",
+        ])
+        .arg(&script)
+        // F12 writes into the current directory.
+        .current_dir(d);
     let out = run(view);
     let text = stderr(&out);
     assert!(out.status.success(), "cssm view: {text}");
@@ -340,20 +350,39 @@ fn view_script_steps_give_screenshots_that_cssm_render_reproduces() {
         assert!(changed > 0, "{name}: the step before it changed nothing");
         previous = a;
     }
-    // The EXR screenshot: the linear radiance `cssm render --exr` writes.
-    let shot = d.join("method.exr");
-    let flags = printed_render_flags(&text, &shot);
-    let rendered = render_with(&scene, &flags, d, "render-method.exr", true);
-    let (a, b) = (
-        image::open(&shot).unwrap().to_rgba32f(),
-        image::open(&rendered).unwrap().to_rgba32f(),
+    // The EXR screenshots (the script's, and F12's with --shot-exr): the linear radiance
+    // `cssm render --exr` writes.
+    for (printed, shot) in [
+        (d.join("method.exr"), d.join("method.exr")),
+        (
+            PathBuf::from("cssm-view-0000.exr"),
+            d.join("cssm-view-0000.exr"),
+        ),
+    ] {
+        let flags = printed_render_flags(&text, &printed);
+        let rendered = render_with(&scene, &flags, d, "render.exr", true);
+        let (a, b) = (
+            image::open(&shot).unwrap().to_rgba32f(),
+            image::open(&rendered).unwrap().to_rgba32f(),
+        );
+        assert_eq!(a.dimensions(), (64, 48));
+        assert!(a.pixels().any(|p| p.0[0] > 0.0), "{printed:?} is black");
+        assert!(
+            a.pixels().zip(b.pixels()).all(|(p, q)| p == q),
+            "{printed:?} differs from cssm render --exr {flags:?}"
+        );
+    }
+    // F12's PNG, of the light step's camera and light.
+    let flags = printed_render_flags(&text, Path::new("cssm-view-0000.png"));
+    assert!(flags.join(" ").contains("--method direct "), "{flags:?}");
+    let rendered = render_with(&scene, &flags, d, "render-f12.png", false);
+    let f12 = pixels(&d.join("cssm-view-0000.png"));
+    assert_eq!(
+        differing_pixels(&f12, &pixels(&rendered)),
+        0,
+        "F12: {flags:?}"
     );
-    assert_eq!(a.dimensions(), (64, 48));
-    assert!(a.pixels().any(|p| p.0[0] > 0.0), "the EXR is black");
-    assert!(
-        a.pixels().zip(b.pixels()).all(|(p, q)| p == q),
-        "the EXR screenshot differs from cssm render --exr {flags:?}"
-    );
+    assert_eq!(differing_pixels(&f12, &pixels(&d.join("light.png"))), 0);
 }
 
 /// A bad script is refused before a window opens (no display needed): the file, the line and

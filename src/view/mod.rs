@@ -641,6 +641,11 @@ impl ApplicationHandler for App {
                 }
                 None
             }
+            // A key released while another window had the focus never comes: nothing flies on.
+            WindowEvent::Focused(false) => {
+                self.view.held.clear();
+                None
+            }
             WindowEvent::ModifiersChanged(m) => Some(Input::Modifiers(m.state())),
             WindowEvent::KeyboardInput { event, .. } if !keys_taken => Some(Input::Key(KeyPress {
                 physical: event.physical_key,
@@ -1319,6 +1324,89 @@ mod tests {
         // Shift + Tab goes back the same way.
         view.cycle_method(-1);
         assert_eq!(view.method.name, *expected.last().unwrap());
+    }
+
+    #[test]
+    fn the_overlays_actions_change_what_the_keys_change() {
+        let mut view = cornell("direct");
+        let rsm = runtime::method::find("rsm").unwrap();
+        view.apply(overlay::Action::Method(rsm));
+        assert_eq!(view.method.name, "rsm");
+        assert!(std::mem::take(&mut view.rebuild));
+        // A method needing a .cssm is refused without one, as Tab skips it.
+        view.apply(overlay::Action::Method(
+            runtime::method::find("lightmap").unwrap(),
+        ));
+        assert_eq!(view.method.name, "rsm");
+        assert!(!view.rebuild);
+        view.apply(overlay::Action::Component(Component::Indirect));
+        assert_eq!(view.settings.component, Component::Indirect);
+        assert!(std::mem::take(&mut view.rebuild));
+        let mut vct = cornell("vct");
+        vct.apply(overlay::Action::Bounces(2));
+        assert_eq!(vct.values.get("bounces"), Some(OptionValue::Count(2)));
+        // Out of the table's range: refused, as `]` past the maximum.
+        vct.rebuild = false;
+        vct.apply(overlay::Action::Bounces(runtime::method::MAX_BOUNCES + 1));
+        assert_eq!(vct.values.get("bounces"), Some(OptionValue::Count(2)));
+        assert!(!vct.rebuild);
+    }
+
+    #[test]
+    fn held_fly_keys_move_by_the_frame_time() {
+        let mut view = cornell("direct");
+        let start = view.camera.clone();
+        view.fly_held(0.1);
+        assert_eq!(view.camera, start, "nothing held, nothing moves");
+        assert!(!view.camera_moved);
+        view.held.insert(KeyCode::KeyW);
+        view.fly_held(0.1);
+        let (lo, hi) = view.scene.bounds();
+        let moved = (view.camera.position - start.position).length();
+        let expected = FLY_SPEED * 0.1 * (hi - lo).length();
+        assert!(
+            (moved - expected).abs() < expected * 1e-3,
+            "{moved} vs {expected}"
+        );
+        // Forward: towards the target, which moves along.
+        let forward = (start.target - start.position).normalize();
+        assert!(
+            (view.camera.position - start.position)
+                .normalize()
+                .dot(forward)
+                > 0.999
+        );
+        assert_eq!(
+            view.camera.target - view.camera.position,
+            start.target - start.position
+        );
+        assert!(view.camera_moved);
+        // W and S together cancel.
+        view.held.insert(KeyCode::KeyS);
+        let here = view.camera.clone();
+        view.fly_held(0.1);
+        assert_eq!(view.camera, here);
+    }
+
+    #[test]
+    fn render_flags_hold_every_option_the_camera_and_the_light() {
+        let mut view = cornell("vct");
+        view.camera = controls::orbit(&view.camera, 37.0, -11.0);
+        let flags = view.render_flags(5);
+        assert!(flags.starts_with("--method vct --set "), "{flags}");
+        for (name, value) in view.method.resolve(&view.values).unwrap().iter() {
+            assert!(flags.contains(&format!("--set {name}={value}")), "{flags}");
+        }
+        assert!(flags.contains("--frames 5"), "{flags}");
+        let camera = flags
+            .split_whitespace()
+            .find_map(|f| f.strip_prefix("--camera="))
+            .unwrap();
+        let numbers: Vec<f32> = camera.split(',').map(|v| v.parse().unwrap()).collect();
+        // The exact floats, not a rounding of them.
+        assert_eq!(numbers[..3], view.camera.position.to_array());
+        assert_eq!(numbers[3..], view.camera.target.to_array());
+        assert!(flags.contains("--light="), "{flags}");
     }
 
     #[test]

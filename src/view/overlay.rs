@@ -108,6 +108,9 @@ impl Overlay {
             egui::Window::new("cssm view")
                 .default_pos([8.0, 8.0])
                 .resizable(false)
+                // A small window scrolls the overlay rather than cut it off; its title bar
+                // folds it away.
+                .vscroll(true)
                 .show(ctx, |ui| panel(ui, view, stats, &mut actions));
         });
         let output = {
@@ -298,4 +301,87 @@ fn panel(ui: &mut egui::Ui, view: &ViewState, stats: &Stats, actions: &mut Vec<A
         });
     }
     ui.weak("H hides this; `cssm view --help` lists the keys");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every text the overlay laid out (no GPU: egui's shapes before tessellation).
+    fn texts(view: &ViewState, stats: &Stats) -> String {
+        let ctx = egui::Context::default();
+        let mut actions = Vec::new();
+        let mut out = String::new();
+        // egui measures the first pass and draws on the second.
+        for _ in 0..2 {
+            let output = ctx.run_pass(egui::RawInput::default(), |ctx| {
+                egui::Window::new("cssm view").show(ctx, |ui| panel(ui, view, stats, &mut actions));
+            });
+            out.clear();
+            let mut shapes: Vec<egui::Shape> = output.shapes.into_iter().map(|s| s.shape).collect();
+            while let Some(shape) = shapes.pop() {
+                match shape {
+                    egui::Shape::Text(text) => {
+                        out.push_str(text.galley.text());
+                        out.push('\n');
+                    }
+                    egui::Shape::Vec(inner) => shapes.extend(inner),
+                    _ => {}
+                }
+            }
+        }
+        assert!(actions.is_empty(), "nothing was clicked");
+        out
+    }
+
+    #[test]
+    fn the_overlay_shows_the_settings_and_the_gpu_time_or_why_not() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box");
+        let scene = cssm::formats::Scene::load(&dir).unwrap();
+        let view = ViewState::new(
+            scene,
+            None,
+            Default::default(),
+            runtime::method::find("vct").unwrap(),
+            Default::default(),
+        );
+        let timings = [("gbuffer", 1.25), ("cone tracing", 3.5)];
+        let shown = texts(
+            &view,
+            &Stats {
+                timings: &timings,
+                timestamps: true,
+                frame_ms: 16.5,
+                accumulated: 7,
+                gpu: "test adapter",
+            },
+        );
+        for expected in [
+            "vct",
+            "full",
+            "bounces",
+            "gbuffer",
+            "3.500 ms",
+            "4.750 ms",
+            "16.50 ms (CPU wall), 7 frames",
+            "camera ",
+            "light ",
+        ] {
+            assert!(shown.contains(expected), "'{expected}' not in:\n{shown}");
+        }
+        let shown = texts(
+            &view,
+            &Stats {
+                timings: &[],
+                timestamps: false,
+                frame_ms: 1.0,
+                accumulated: 1,
+                gpu: "test adapter",
+            },
+        );
+        assert!(
+            shown.contains("no timestamp queries on this adapter"),
+            "{shown}"
+        );
+    }
 }
