@@ -855,6 +855,7 @@ fn view_after_help() -> String {
      dolly LINES          turn the wheel LINES lines (negative: away)\n  \
      key KEY              press and release KEY: a character (c, [, ], -, =, h, w, ...), or \
      Tab, F12, Escape; shift+KEY holds shift\n  \
+     hold KEY N           press KEY, let N frames render, release it (W A S D Q E fly)\n  \
      wait N               let N frames render before the next step (they accumulate)\n  \
      screenshot PATH      write the last frame: PNG, or with .exr the linear radiance; print \
      the `cssm render` flags of the same image\n  \

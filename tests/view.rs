@@ -260,8 +260,8 @@ fn differing_pixels(a: &image::RgbaImage, b: &image::RgbaImage) -> usize {
     a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count()
 }
 
-/// A script drives the window as a person would (an orbit, a light drag and a light move, the
-/// overlay hidden and shown, Tab to the next method), and every screenshot it takes is what
+/// A script drives the window as a person would (an orbit, a held fly key, a light drag and a
+/// light move, the overlay hidden and shown, F12, Tab to the next method), and every screenshot it takes is what
 /// `cssm render` writes with the flags the window printed for it: the camera, light, method
 /// and frames it ended with. Each step must also have changed the image, or the comparison
 /// would prove nothing about the step.
@@ -277,6 +277,8 @@ fn view_script_steps_give_screenshots_that_cssm_render_reproduces() {
             "# the camera, then the light, then the method\n\
              orbit 60 -15\n\
              screenshot {orbit}\n\
+             hold w 3   # a step, then flies by the frames' time\n\
+             screenshot {fly}\n\
              drag-light 30 10\n\
              move-light 20 0   # shift + right drag\n\
              key h\n\
@@ -289,6 +291,7 @@ fn view_script_steps_give_screenshots_that_cssm_render_reproduces() {
              screenshot {exr}\n\
              quit\n",
             orbit = d.join("orbit.png").display(),
+            fly = d.join("fly.png").display(),
             light = d.join("light.png").display(),
             method = d.join("method.png").display(),
             exr = d.join("method.exr").display(),
@@ -325,6 +328,7 @@ fn view_script_steps_give_screenshots_that_cssm_render_reproduces() {
     let mut previous = pixels(&unmoved);
     for (name, method) in [
         ("orbit.png", "direct"),
+        ("fly.png", "direct"),
         ("light.png", "direct"),
         ("method.png", "rsm"),
     ] {

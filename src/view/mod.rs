@@ -88,6 +88,7 @@ pub fn run_view(config: ViewConfig) -> CliResult {
                 path: path.clone(),
                 steps: lines.into(),
                 waiting: 0,
+                held: None,
             })
         }
         None => None,
@@ -473,8 +474,10 @@ struct KeyPress {
 struct ScriptRun {
     path: PathBuf,
     steps: VecDeque<script::Line>,
-    /// Frames still to render before the next step (`wait`).
+    /// Frames still to render before the next step (`wait`, `hold`).
     waiting: u32,
+    /// The key a `hold` holds, released when its frames are done.
+    held: Option<KeyPress>,
 }
 
 /// The window and what draws into it, created once the event loop resumes.
@@ -999,6 +1002,12 @@ impl App {
                 return Ok(());
             }
         }
+        // A `hold` ends with its key's release, at this frame boundary; the next step at the
+        // next one.
+        if let Some(key) = script.held.take() {
+            self.input(event_loop, Input::Key(key));
+            return Ok(());
+        }
         let Some(line) = script.steps.pop_front() else {
             // The end of the file: the window is the user's from here.
             eprintln!("{}: done; the window stays open", script.path.display());
@@ -1052,6 +1061,24 @@ impl App {
                     with_shift(key.shift),
                     press(true),
                     press(false),
+                    Input::Modifiers(modifiers),
+                ]
+            }
+            script::Step::Hold(key, frames) => {
+                let press = KeyPress {
+                    physical: key.physical,
+                    logical: key.logical.clone(),
+                    down: true,
+                    repeat: false,
+                };
+                script.held = Some(KeyPress {
+                    down: false,
+                    ..press.clone()
+                });
+                script.waiting = frames;
+                vec![
+                    with_shift(key.shift),
+                    Input::Key(press),
                     Input::Modifiers(modifiers),
                 ]
             }

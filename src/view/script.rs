@@ -10,6 +10,7 @@
 //! move-light DX DY     shift + right drag (move it in the view plane)
 //! dolly LINES          the wheel, LINES lines
 //! key KEY              press and release KEY (c, [, Tab, F12, shift+Tab, ...)
+//! hold KEY N           press KEY, let N frames render, release it (a held fly key)
 //! wait N               let N frames render
 //! screenshot PATH      write the last frame (PNG, or .exr: linear radiance)
 //! quit                 close the window
@@ -54,6 +55,8 @@ pub enum Step {
     Dolly(f32),
     /// A key pressed and released.
     Key(ScriptKey),
+    /// A key pressed, held for this many frames, and released.
+    Hold(ScriptKey, u32),
     /// This many frames before the next step.
     Wait(u32),
     /// The last frame written here.
@@ -135,15 +138,13 @@ fn parse_step(line: &str) -> Result<Step, String> {
             count(1)?;
             parse_key(args[0]).map(Step::Key)
         }
+        "hold" => {
+            count(2)?;
+            Ok(Step::Hold(parse_key(args[0])?, frames(command, args[1])?))
+        }
         "wait" => {
             count(1)?;
-            match args[0].parse::<u32>() {
-                Ok(n) if (1..=MAX_WAIT).contains(&n) => Ok(Step::Wait(n)),
-                _ => Err(format!(
-                    "wait takes a whole number of frames from 1 to {MAX_WAIT}, not '{}'",
-                    args[0]
-                )),
-            }
+            Ok(Step::Wait(frames(command, args[0])?))
         }
         "screenshot" => {
             // The rest of the line: a path may hold spaces.
@@ -159,7 +160,17 @@ fn parse_step(line: &str) -> Result<Step, String> {
         }
         other => Err(format!(
             "unknown step '{other}' (the steps: orbit, drag-light, move-light, dolly, key, \
-             wait, screenshot, quit; `cssm view --help` describes them)"
+             hold, wait, screenshot, quit; `cssm view --help` describes them)"
+        )),
+    }
+}
+
+/// A frame count of `wait` or `hold`: 1 to [`MAX_WAIT`].
+fn frames(command: &str, text: &str) -> Result<u32, String> {
+    match text.parse::<u32>() {
+        Ok(n) if (1..=MAX_WAIT).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "{command} takes a whole number of frames from 1 to {MAX_WAIT}, not '{text}'"
         )),
     }
 }
@@ -234,10 +245,11 @@ mod tests {
     #[test]
     fn a_script_parses_to_its_steps_with_line_numbers() {
         let text = "# a tour\norbit 40 -10\n\n  drag-light 5 0 # aim\nmove-light 1.5 2\n\
-                    dolly -1\nkey shift+Tab\nkey =\nkey shift+=\nwait 3\nscreenshot a b.png\nquit\n";
+                    dolly -1\nkey shift+Tab\nkey =\nkey shift+=\nwait 3\nscreenshot a b.png\nquit\n\
+                    hold w 5\n";
         let lines = parse(text).unwrap();
         let numbers: Vec<usize> = lines.iter().map(|l| l.number).collect();
-        assert_eq!(numbers, [2, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
+        assert_eq!(numbers, [2, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13]);
         assert_eq!(
             lines[0].step,
             Step::Drag {
@@ -268,6 +280,10 @@ mod tests {
         assert_eq!(lines[7].step, Step::Wait(3));
         assert_eq!(lines[8].step, Step::Screenshot(PathBuf::from("a b.png")));
         assert_eq!(lines[9].step, Step::Quit);
+        let Step::Hold(w, 5) = &lines[10].step else {
+            panic!("{:?}", lines[10])
+        };
+        assert_eq!(w.physical, PhysicalKey::Code(KeyCode::KeyW));
     }
 
     #[test]
@@ -281,6 +297,8 @@ mod tests {
             ("fly 1\n", 1, "unknown step 'fly'"),
             ("screenshot\n", 1, "screenshot takes a path"),
             ("quit now\n", 1, "'quit' takes 0 arguments"),
+            ("hold w\n", 1, "'hold' takes 2 arguments"),
+            ("hold w 0\n", 1, "hold takes a whole number of frames"),
             ("dolly inf\n", 1, "'inf' is not a finite number"),
         ] {
             let (n, message) = parse(text).unwrap_err();
