@@ -822,7 +822,8 @@ fn render_after_help() -> String {
          cssm render --method rsm --component indirect --set visibility=none --out rsm-no-visibility.png\n  \
          cssm render scenes/cornell-glossy --method vct --set resolution=64 --out vct.png\n  \
          cssm render --method ssil --frames 16 --set visibility=none --out ssil.png\n  \
-         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings",
+         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings\n  \
+         cssm render --camera=400,300,-700,278,273,0 --light=278,540,279.5,0.2,-1,0 --out moved.png   # cssm view prints these",
         runtime::method::describe_methods()
     )
 }

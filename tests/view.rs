@@ -157,6 +157,33 @@ fn view_screenshot_of_a_cssm_method_is_cssm_renders_image() {
     );
 }
 
+/// `--camera` and `--light` place the window's camera and light as they place `cssm render`'s.
+#[test]
+fn view_with_a_camera_and_light_given_is_cssm_renders_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell();
+    let args = [
+        scene.to_str().unwrap(),
+        "--method",
+        "direct",
+        "--size",
+        "64x48",
+        "--camera=400,300,-700,278,273,0",
+        "--light=278,540,279.5,0.2,-1,0",
+    ];
+    window_matches_render(dir.path(), &args, "1", (64, 48));
+    // And they did place them: the scene's own camera and light render another image.
+    let moved = pixels(&dir.path().join("view.png"));
+    let unmoved = render_with(
+        &scene,
+        &["--method", "direct", "--size", "64x48"].map(String::from),
+        dir.path(),
+        "unmoved.png",
+        false,
+    );
+    assert!(differing_pixels(&moved, &pixels(&unmoved)) > 0);
+}
+
 /// More frames than an interactive window accumulates before it rests (1024): the script still
 /// gets its screenshot, of exactly that many frames.
 #[test]
