@@ -81,9 +81,12 @@ pub enum Command {
                       `cssm render` with the same options: the image in the window is the one \
                       `cssm render` writes for the same camera, light, method and size. While \
                       nothing moves, the frames accumulate (methods that jitter converge). The \
-                      window title shows the method, component, GPU milliseconds per frame and \
-                      the frames accumulated; the GPU time per pass is printed to stderr once a \
-                      second.",
+                      overlay (H) shows the settings, camera, light, GPU milliseconds per pass \
+                      and the frame time, with menus to switch method, component and bounces; \
+                      the window title shows the method, component, GPU milliseconds per frame \
+                      and the frames accumulated (stderr the GPU time per pass once a second). \
+                      --script feeds the window scripted input, for \
+                      tests and demonstrations.",
         after_help = view_after_help()
     )]
     View(ViewArgs),
@@ -819,7 +822,8 @@ fn render_after_help() -> String {
          cssm render --method rsm --component indirect --set visibility=none --out rsm-no-visibility.png\n  \
          cssm render scenes/cornell-glossy --method vct --set resolution=64 --out vct.png\n  \
          cssm render --method ssil --frames 16 --set visibility=none --out ssil.png\n  \
-         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings",
+         cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings\n  \
+         cssm render --camera=400,300,-700,278,273,0 --light=278,540,279.5,0.2,-1,0 --out moved.png   # cssm view prints these",
         runtime::method::describe_methods()
     )
 }
@@ -829,7 +833,8 @@ fn view_after_help() -> String {
     "Mouse and keys:\n  \
      left drag            orbit about the point the camera looks at\n  \
      wheel                dolly towards it and away\n  \
-     W A S D / Q E        fly forward, left, back, right / down, up\n  \
+     W A S D / Q E        fly forward, left, back, right / down, up (a press steps; held, the \
+     camera flies on every frame)\n  \
      right drag           aim the first spot light\n  \
      shift + right drag   move the first spot light (in the view plane)\n  \
      Tab / shift + Tab    next / previous method of the table (`cssm render --help` lists them; \
@@ -837,12 +842,30 @@ fn view_after_help() -> String {
      C                    cycle the component: direct, indirect, full\n  \
      [ / ]                one bounce fewer / more (methods with a `bounces` option)\n  \
      - / =                halve / double the oracle threshold (methods with `threshold`)\n  \
-     F12                  write a screenshot, cssm-view-NNNN.png in the current directory\n  \
+     F12                  write a screenshot, cssm-view-NNNN.png in the current directory \
+     (and .exr with --shot-exr), and print the `cssm render` flags of the same image\n  \
+     H                    show / hide the overlay: settings, camera, light, GPU time per pass, \
+     frame time; menus for method, component and bounces (never in a screenshot)\n  \
      Esc                  quit\n\n\
+     Script (--script FILE): one step a line, one step per frame, # starts a comment; each \
+     step goes through the window's own mouse and key handling (DX, DY are pixels of mouse \
+     motion).\n  \
+     orbit DX DY          left drag by DX, DY pixels\n  \
+     drag-light DX DY     right drag (aim the light)\n  \
+     move-light DX DY     shift + right drag (move the light)\n  \
+     dolly LINES          turn the wheel LINES lines (negative: away)\n  \
+     key KEY              press and release KEY: a character (c, [, ], -, =, h, w, ...), or \
+     Tab, F12, Escape; shift+KEY holds shift\n  \
+     hold KEY N           press KEY, let N frames render, release it (W A S D Q E fly)\n  \
+     wait N               let N frames render before the next step (they accumulate)\n  \
+     screenshot PATH      write the last frame: PNG, or with .exr the linear radiance; print \
+     the `cssm render` flags of the same image\n  \
+     quit                 close the window (at the end of the file it stays open)\n\n\
      Examples:\n  cssm view\n  \
      cssm bake -o cornell-box.cssm && cssm view --cssm cornell-box.cssm --method lightcuts\n  \
      cssm view scenes/cornell-glossy --method vct --size 800x600\n  \
-     xvfb-run -a cssm view --method direct --size 64x48 --screenshot shot.png --frames 1"
+     xvfb-run -a cssm view --method direct --size 64x48 --screenshot shot.png --frames 1\n  \
+     printf 'orbit 40 0\\nkey Tab\\nwait 2\\nscreenshot a.png\\nquit\\n' > s.txt && xvfb-run -a cssm view --size 64x48 --script s.txt"
         .to_string()
 }
 
@@ -882,13 +905,28 @@ pub struct ViewArgs {
     /// Which light the image holds: direct, indirect or full (C switches in the window).
     #[arg(long, default_value = "full")]
     component: Component,
-    /// For scripts: render --frames frames in the window, write this PNG (what F12 writes:
-    /// byte for byte what `cssm render` writes for the same options) and exit.
+    /// For scripts: render --frames frames in the window, write this image and exit: a PNG
+    /// (what F12 writes: byte for byte what `cssm render --out` writes for the same options),
+    /// or with the extension .exr the linear radiance (what `cssm render --exr` writes).
     #[arg(long, value_name = "PATH")]
     screenshot: Option<PathBuf>,
     /// Frames to render before the --screenshot, 1 to 4096 (as `cssm render --frames`).
     #[arg(long, default_value_t = 1, requires = "screenshot")]
     frames: u32,
+    /// Feed the window the input steps of this file, one per frame (the format is below);
+    /// its screenshots print the `cssm render` flags of the same image.
+    #[arg(long, value_name = "FILE", conflicts_with = "screenshot")]
+    script: Option<PathBuf>,
+    /// F12 also writes the linear radiance, cssm-view-NNNN.exr (what `cssm render --exr`
+    /// writes).
+    #[arg(long)]
+    shot_exr: bool,
+    /// Start with this camera eye and target, EX,EY,EZ,TX,TY,TZ (as `cssm render --camera`).
+    #[arg(long, value_name = "EYE,TARGET", allow_hyphen_values = true, value_parser = parse_pose)]
+    camera: Option<Pose>,
+    /// Start with this first spot light, PX,PY,PZ,DX,DY,DZ (as `cssm render --light`).
+    #[arg(long, value_name = "POSITION,DIRECTION", allow_hyphen_values = true, value_parser = parse_pose)]
+    light: Option<Pose>,
 }
 
 /// `cssm view`, checked: the render configuration `cssm render` would use (its `out` is the
@@ -898,6 +936,10 @@ pub struct ViewConfig {
     pub render: RenderConfig,
     /// `--screenshot`: write the image after `render.frames` frames and exit.
     pub screenshot: Option<PathBuf>,
+    /// `--script`: input steps to feed the window.
+    pub script: Option<PathBuf>,
+    /// `--shot-exr`: F12 also writes the radiance as OpenEXR.
+    pub shot_exr: bool,
 }
 
 impl ViewArgs {
@@ -957,8 +999,12 @@ impl ViewArgs {
                 cssm: self.cssm,
                 frames: self.frames,
                 component: self.component,
+                camera: self.camera,
+                light: self.light,
             },
             screenshot: self.screenshot,
+            script: self.script,
+            shot_exr: self.shot_exr,
         })
     }
 }
@@ -1019,6 +1065,14 @@ pub struct RenderArgs {
     /// Which light the image holds: direct, indirect or full.
     #[arg(long, default_value = "full")]
     component: Component,
+    /// The camera's eye and target, EX,EY,EZ,TX,TY,TZ, instead of the scene's (its up and
+    /// field of view stay); `cssm view` prints the camera it ends with in this form.
+    #[arg(long, value_name = "EYE,TARGET", allow_hyphen_values = true, value_parser = parse_pose)]
+    camera: Option<Pose>,
+    /// The first spot light's position and direction, PX,PY,PZ,DX,DY,DZ, instead of the
+    /// scene's (its cone and intensity stay); `cssm view` prints the light it ends with.
+    #[arg(long, value_name = "POSITION,DIRECTION", allow_hyphen_values = true, value_parser = parse_pose)]
+    light: Option<Pose>,
 }
 
 fn parse_method(s: &str) -> Result<&'static MethodEntry, String> {
@@ -1081,6 +1135,44 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((parse(w)?, parse(h)?))
 }
 
+/// A placement given on the command line: `--camera EYE,TARGET` or `--light POSITION,DIRECTION`,
+/// six numbers. `cssm view` prints the ones it ends with (`Pose`'s `Display`, the shortest
+/// text that parses back to the same `f32`s), so that `cssm render` reproduces its image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pose {
+    /// The camera's eye, or the light's position.
+    pub position: glam::Vec3,
+    /// The camera's target (the point looked at), or the light's direction.
+    pub aim: glam::Vec3,
+}
+
+impl std::fmt::Display for Pose {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [a, b, c] = self.position.to_array();
+        let [d, e, g] = self.aim.to_array();
+        write!(f, "{a},{b},{c},{d},{e},{g}")
+    }
+}
+
+/// `X,Y,Z,X,Y,Z`: six finite numbers.
+fn parse_pose(s: &str) -> Result<Pose, String> {
+    let numbers: Vec<f32> = s
+        .split(',')
+        .map(finite_f32)
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("'{s}': {e}"))?;
+    let [a, b, c, d, e, f] = numbers[..] else {
+        return Err(format!(
+            "'{s}' is not six numbers X,Y,Z,X,Y,Z (it has {})",
+            numbers.len()
+        ));
+    };
+    Ok(Pose {
+        position: glam::Vec3::new(a, b, c),
+        aim: glam::Vec3::new(d, e, f),
+    })
+}
+
 /// Most frames `--frames` takes.
 const MAX_FRAMES: u32 = 4096;
 
@@ -1116,6 +1208,12 @@ pub struct RenderConfig {
     pub frames: u32,
     /// Which light the image holds.
     pub component: Component,
+    /// `--camera EYE,TARGET`: the camera's eye and target instead of the scene's (its up and
+    /// field of view stay).
+    pub camera: Option<Pose>,
+    /// `--light POSITION,DIRECTION`: the first spot light's instead of the scene's (its cone
+    /// and intensity stay).
+    pub light: Option<Pose>,
 }
 
 impl RenderArgs {
@@ -1148,6 +1246,8 @@ impl RenderArgs {
             cssm: self.cssm,
             frames: self.frames,
             component: self.component,
+            camera: self.camera,
+            light: self.light,
         })
     }
 
@@ -1219,6 +1319,28 @@ mod tests {
     #[test]
     fn the_definitions_are_consistent() {
         Cli::command().debug_assert();
+    }
+
+    /// What `cssm view` prints for `--camera`/`--light` parses back to the same floats, bit
+    /// for bit: the render of the printed flags is the window's image.
+    #[test]
+    fn a_printed_pose_parses_back_to_the_same_floats() {
+        let pose = super::Pose {
+            position: glam::Vec3::new(0.1 + 0.2, -1.0e-7, 436.736_8),
+            aim: glam::Vec3::new(-0.0, f32::MIN_POSITIVE, 1.0 / 3.0),
+        };
+        let parsed = super::parse_pose(&pose.to_string()).unwrap();
+        assert_eq!(
+            parsed.position.to_array().map(f32::to_bits),
+            pose.position.to_array().map(f32::to_bits)
+        );
+        assert_eq!(
+            parsed.aim.to_array().map(f32::to_bits),
+            pose.aim.to_array().map(f32::to_bits)
+        );
+        assert!(super::parse_pose("1,2,3,4,5").is_err());
+        assert!(super::parse_pose("1,2,3,4,5,inf").is_err());
+        assert!(super::parse_pose("1,2,3,4,5,6,7").is_err());
     }
 
     fn bake_config(args: &[&str]) -> Result<super::BakeConfig, String> {

@@ -38,8 +38,17 @@ pub fn run_render(config: RenderConfig) -> CliResult {
     }
     let settings = renderer_settings(&config, &scene, &dir)?;
     let (width, height) = (settings.frame.width, settings.frame.height);
+    let (camera, light) = posed(&config, &scene)?;
     let image = match method.backend {
-        Backend::Cpu(run) => render_on_cpu(&config, &scene, &settings, run)?,
+        Backend::Cpu(run) => {
+            // The path tracer reads the camera and lights from the scene.
+            let mut posed_scene = scene.clone();
+            posed_scene.camera = camera;
+            if let Some(light) = light {
+                posed_scene.lights[0] = light;
+            }
+            render_on_cpu(&config, &posed_scene, &settings, run)?
+        }
         Backend::Gpu(_) => {
             let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
             let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
@@ -63,6 +72,16 @@ pub fn run_render(config: RenderConfig) -> CliResult {
                 &settings,
             )
             .map_err(gpu_error)?;
+            // Set after construction, as `cssm view` sets what its controls moved, so that the
+            // two render the same bytes; nothing is set where nothing was given.
+            if camera != scene.camera {
+                renderer.set_camera(&camera).map_err(gpu_error)?;
+            }
+            if let Some(light) = &light
+                && Some(light) != scene.lights.first()
+            {
+                renderer.set_light(0, light).map_err(gpu_error)?;
+            }
             let frames = config.frames + u32::from(config.timings);
             // The GPU works in one go (a lightmap's radiosity takes minutes on lavapipe): a
             // spinner with the time so far, on a terminal.
@@ -127,6 +146,45 @@ fn print_timings(device: &str, image: &readback::Image) {
         &format!("GPU time per pass, last frame ({device}):"),
         &image.timings,
     );
+}
+
+/// The camera and first spot light `config` renders `scene` with: the scene's, with the eye and
+/// target of `--camera` and the position and direction of `--light` where given, checked.
+pub(crate) fn posed(
+    config: &RenderConfig,
+    scene: &Scene,
+) -> Result<(formats::Camera, Option<formats::scene::SpotLight>), String> {
+    let mut camera = scene.camera.clone();
+    if let Some(pose) = config.camera {
+        if pose.position == pose.aim {
+            return Err(format!(
+                "--camera {pose}: the eye and the target are the same point"
+            ));
+        }
+        camera.position = pose.position;
+        camera.target = pose.aim;
+    }
+    let mut light = scene.lights.first().cloned();
+    if let Some(pose) = config.light {
+        let Some(first) = &mut light else {
+            return Err(format!(
+                "--light {pose}: {} has no spot light to place",
+                scene.name
+            ));
+        };
+        if pose.aim.length() < 1e-6 {
+            return Err(format!("--light {pose}: the direction is zero"));
+        }
+        first.position = pose.position;
+        // A unit direction, as the scene's are; one that is unit already (what `cssm view`
+        // prints) is kept bit for bit, so that the image is the window's.
+        first.direction = if (pose.aim.length() - 1.0).abs() < 1e-5 {
+            pose.aim
+        } else {
+            pose.aim.normalize()
+        };
+    }
+    Ok((camera, light))
 }
 
 /// The renderer settings of `config` for `scene` (whose camera gives the default size),
@@ -260,8 +318,19 @@ pub(crate) fn save_rgba_png(
 
 /// The linear radiance as OpenEXR (32-bit float RGBA).
 pub(crate) fn save_exr(path: &Path, image: &readback::Image) -> Result<(), String> {
-    let data: Vec<f32> = image.radiance.iter().flatten().copied().collect();
-    let img = ::image::Rgba32FImage::from_raw(image.width, image.height, data)
+    save_radiance_exr(path, image.width, image.height, &image.radiance)
+}
+
+/// Linear RGBA radiance of `width` x `height` as OpenEXR (32-bit float RGBA): what
+/// `cssm render --exr` and `cssm view`'s EXR screenshots write.
+pub(crate) fn save_radiance_exr(
+    path: &Path,
+    width: u32,
+    height: u32,
+    radiance: &[[f32; 4]],
+) -> Result<(), String> {
+    let data: Vec<f32> = radiance.iter().flatten().copied().collect();
+    let img = ::image::Rgba32FImage::from_raw(width, height, data)
         .ok_or_else(|| format!("{}: the radiance image has the wrong size", path.display()))?;
     save_image(path, img.into(), ::image::ImageFormat::OpenExr)
 }

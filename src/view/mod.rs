@@ -1,17 +1,24 @@
 //! `cssm view`: a window over the runtime's persistent [`Renderer`]. Every frame is rendered
 //! exactly as `cssm render` renders it, into an offscreen `Rgba8Unorm` image (the same
 //! settings, [`crate::render::renderer_settings`]), then copied onto the window's surface by a
-//! fullscreen triangle (`blit.wgsl`). A screenshot (F12, `--screenshot`) is that image read
-//! back, so it is byte for byte what `cssm render` writes for the same camera, light, method,
-//! size and frame count: `tests/view.rs` checks it under Xvfb.
+//! fullscreen triangle (`blit.wgsl`), and the [`overlay`] (egui; H toggles it) is drawn over
+//! that copy only. A screenshot (F12, `--screenshot`, a script's `screenshot`) is that image
+//! read back, so it is byte for byte what `cssm render` writes for the same camera, light,
+//! method, size and frame count, which the screenshot prints as `cssm render` flags:
+//! `tests/view.rs` checks it under Xvfb.
 //!
 //! The camera and light controls are [`controls`]; accumulation restarts whenever the renderer
-//! is given a new camera or light (`Renderer::set_camera`, `Renderer::set_light`).
+//! is given a new camera or light (`Renderer::set_camera`, `Renderer::set_light`). Window
+//! events and the steps of a `--script` ([`script`]) become the same [`Input`]s, handled by
+//! one [`App::input`].
 
 mod controls;
+mod overlay;
+mod script;
 
 use std::{
-    path::PathBuf,
+    collections::{HashSet, VecDeque},
+    path::{Path, PathBuf},
     process::ExitCode,
     sync::Arc,
     time::{Duration, Instant},
@@ -27,7 +34,7 @@ use runtime::{
 use winit::{
     application::ApplicationHandler,
     dpi::{PhysicalPosition, PhysicalSize},
-    event::{ElementState, KeyEvent, MouseButton, MouseScrollDelta, WindowEvent},
+    event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent},
     event_loop::{ActiveEventLoop, EventLoop},
     keyboard::{Key, KeyCode, ModifiersState, NamedKey, PhysicalKey},
     window::{Window, WindowId},
@@ -35,9 +42,9 @@ use winit::{
 
 use crate::{
     CliResult, check_writable,
-    cli::ViewConfig,
+    cli::{Pose, ViewConfig},
     load_scene,
-    render::{render_cssm, renderer_settings, save_rgba_png},
+    render::{posed, render_cssm, renderer_settings, save_radiance_exr, save_rgba_png},
     scene_dir,
 };
 
@@ -45,7 +52,11 @@ use crate::{
 /// that jitter have converged long before, and the others draw the same image every frame.
 const ACCUMULATE_FRAMES: u32 = 1024;
 
-/// Runs `cssm view`: the window until Esc or close, or until the `--screenshot` is written.
+/// Scene diagonals per second a held fly key moves the camera.
+const FLY_SPEED: f32 = 0.25;
+
+/// Runs `cssm view`: the window until Esc or close, or until the `--screenshot` is written or
+/// the `--script` quits.
 pub fn run_view(config: ViewConfig) -> CliResult {
     let dir = scene_dir(config.render.scene.clone())?;
     let scene = load_scene(&dir)?;
@@ -54,7 +65,36 @@ pub fn run_view(config: ViewConfig) -> CliResult {
     if let Some(shot) = &config.screenshot {
         check_writable(shot, &inputs)?;
     }
+    // The whole script is read and checked before a window opens: a typo on its last line
+    // should not cost a bake and a tour.
+    let script = match &config.script {
+        Some(path) => {
+            let lines = script::load(path)?;
+            inputs.push(path.clone());
+            for line in &lines {
+                let at = |problem: String| format!("{}:{}: {problem}", path.display(), line.number);
+                match &line.step {
+                    script::Step::Screenshot(shot) => check_writable(shot, &inputs).map_err(at)?,
+                    script::Step::Drag {
+                        button: MouseButton::Right,
+                        ..
+                    } if scene.lights.is_empty() => {
+                        return Err(at(format!("{} has no spot light to drag", scene.name)));
+                    }
+                    _ => {}
+                }
+            }
+            Some(ScriptRun {
+                path: path.clone(),
+                steps: lines.into(),
+                waiting: 0,
+                held: None,
+            })
+        }
+        None => None,
+    };
     let settings = renderer_settings(&config.render, &scene, &dir)?;
+    let (camera, light) = posed(&config.render, &scene)?;
     // The display first: without one nothing else (a bake) is worth doing.
     let event_loop = EventLoop::new().map_err(|e| no_window(&e))?;
     // The .cssm given, else one baked when the first method needs it; without one, Tab skips
@@ -67,9 +107,15 @@ pub fn run_view(config: ViewConfig) -> CliResult {
     let mut app = App {
         state: None,
         outcome: None,
+        script,
         view: ViewState {
             screenshot: config.screenshot.clone(),
             frames: config.render.frames,
+            scripted: config.screenshot.is_some() || config.script.is_some(),
+            shot_exr: config.shot_exr,
+            fixed_flags: fixed_flags(&config),
+            camera,
+            light,
             ..ViewState::new(
                 scene,
                 cssm,
@@ -83,6 +129,26 @@ pub fn run_view(config: ViewConfig) -> CliResult {
     app.outcome.unwrap_or_else(|| {
         Err("cssm view: the window system closed the event loop before a window opened".into())
     })
+}
+
+/// The `cssm render` flags of what the window cannot change: the `.cssm`, exposure, shadow
+/// resolution, visibility query.
+fn fixed_flags(config: &ViewConfig) -> Vec<String> {
+    let render = &config.render;
+    let mut flags = Vec::new();
+    if let Some(cssm) = &render.cssm {
+        flags.push(format!("--cssm {}", cssm.display()));
+    }
+    if render.exposure != 0.0 {
+        flags.push(format!("--exposure {}", render.exposure));
+    }
+    if render.shadow_resolution != runtime::common::shadow_map::DEFAULT_RESOLUTION {
+        flags.push(format!("--shadow-resolution {}", render.shadow_resolution));
+    }
+    if !render.visibility.both_ends {
+        flags.push("--one-end".into());
+    }
+    flags
 }
 
 /// The error of a missing or refusing display.
@@ -110,6 +176,13 @@ struct ViewState {
     light: Option<SpotLight>,
     screenshot: Option<PathBuf>,
     frames: u32,
+    /// Driven by `--screenshot` or `--script`: the image keeps its size and no frame waits
+    /// for a vertical blank.
+    scripted: bool,
+    /// F12 also writes the radiance as OpenEXR.
+    shot_exr: bool,
+    /// The `cssm render` flags of the settings the window does not change.
+    fixed_flags: Vec<String>,
     /// The renderer must be rebuilt (method, component or option changed).
     rebuild: bool,
     /// F12 was pressed: write a screenshot after the next frame.
@@ -121,9 +194,16 @@ struct ViewState {
     left: bool,
     right: bool,
     modifiers: ModifiersState,
-    /// GPU time of the last frame (sum of its passes) and when the passes were last printed.
+    /// The fly keys held down (W A S D Q E), which move the camera every frame.
+    held: HashSet<KeyCode>,
+    /// GPU milliseconds per pass of the last rendered frame, their sum, and when the passes
+    /// were last printed.
+    timings: Vec<(&'static str, f64)>,
     frame_ms: f64,
     last_print: Instant,
+    /// When the last frame started, and the CPU wall milliseconds between the last two.
+    last_frame: Option<Instant>,
+    cpu_ms: f64,
 }
 
 impl ViewState {
@@ -144,6 +224,9 @@ impl ViewState {
             light: scene.lights.first().cloned(),
             screenshot: None,
             frames: 1,
+            scripted: false,
+            shot_exr: false,
+            fixed_flags: Vec::new(),
             scene,
             rebuild: false,
             shot_requested: false,
@@ -153,8 +236,12 @@ impl ViewState {
             left: false,
             right: false,
             modifiers: ModifiersState::empty(),
+            held: HashSet::new(),
+            timings: Vec::new(),
             frame_ms: 0.0,
             last_print: Instant::now(),
+            last_frame: None,
+            cpu_ms: 0.0,
         }
     }
 
@@ -205,6 +292,41 @@ impl ViewState {
         )
     }
 
+    /// The flags after `cssm render SCENE` that render the image of `frames` accumulated
+    /// frames as the window holds it now: every option of the method as the table resolves
+    /// it, the size, and the camera and light as they are (their shortest exact decimals).
+    fn render_flags(&self, frames: u32) -> String {
+        let mut flags = self.fixed_flags.clone();
+        flags.push(format!("--method {}", self.method.name));
+        if let Ok(resolved) = self.method.resolve(&self.values) {
+            flags.extend(resolved.iter().map(|(k, v)| format!("--set {k}={v}")));
+        }
+        flags.push(format!(
+            "--component {} --size {}x{} --frames {frames}",
+            self.settings.component.name(),
+            self.settings.frame.width,
+            self.settings.frame.height
+        ));
+        // `=`: a value starting with a minus sign is not taken for a flag.
+        flags.push(format!(
+            "--camera={}",
+            Pose {
+                position: self.camera.position,
+                aim: self.camera.target,
+            }
+        ));
+        if let Some(light) = &self.light {
+            flags.push(format!(
+                "--light={}",
+                Pose {
+                    position: light.position,
+                    aim: light.direction,
+                }
+            ));
+        }
+        flags.join(" ")
+    }
+
     /// The next (`step` 1) or previous (-1) GPU method of the table the window can build: one
     /// needing a `.cssm` only when one is loaded.
     fn cycle_method(&mut self, step: isize) {
@@ -226,15 +348,32 @@ impl ViewState {
                 );
                 continue;
             }
-            self.method = candidate;
-            // Each method starts from its defaults; the window accumulates, so the methods
-            // that jitter do (as `cssm render --frames N`).
-            self.values = OptionValues::default();
-            if candidate.option("jitter").is_some() {
-                self.values.set("jitter", OptionValue::Switch(true));
-            }
-            self.rebuild = true;
+            self.select_method(candidate);
             return;
+        }
+    }
+
+    /// Switches to `method` (Tab, the overlay's menu), from its defaults.
+    fn select_method(&mut self, method: &'static MethodEntry) {
+        if !method.on_gpu() || (method.needs_cssm && self.cssm.is_none()) {
+            eprintln!("cannot switch to {method}: it runs on the CPU or needs a .cssm");
+            return;
+        }
+        self.method = method;
+        // Each method starts from its defaults; the window accumulates, so the methods that
+        // jitter do (as `cssm render --frames N`).
+        self.values = OptionValues::default();
+        if method.option("jitter").is_some() {
+            self.values.set("jitter", OptionValue::Switch(true));
+        }
+        self.rebuild = true;
+    }
+
+    /// The next component (C, the overlay's menu).
+    fn set_component(&mut self, component: Component) {
+        if component != self.settings.component {
+            self.settings.component = component;
+            self.rebuild = true;
         }
     }
 
@@ -255,6 +394,90 @@ impl ViewState {
             Err(e) => eprintln!("{name}: {e}"),
         }
     }
+
+    /// Applies what one of the overlay's controls asked for.
+    fn apply(&mut self, action: overlay::Action) {
+        match action {
+            overlay::Action::Method(method) => self.select_method(method),
+            overlay::Action::Component(component) => self.set_component(component),
+            overlay::Action::Bounces(n) => {
+                self.set_option("bounces", |_| Some(OptionValue::Count(n)))
+            }
+            overlay::Action::ScaleThreshold(f) => self.set_option("threshold", |v| match v {
+                OptionValue::Number(x) => Some(OptionValue::Number(x * f)),
+                _ => None,
+            }),
+        }
+    }
+
+    /// Moves the camera for the fly keys held, `seconds` after the last frame.
+    fn fly_held(&mut self, seconds: f32) {
+        let (mut forward, mut right, mut up) = (0.0, 0.0, 0.0);
+        for code in &self.held {
+            if let Some((f, r, u)) = fly_direction(*code) {
+                forward += f;
+                right += r;
+                up += u;
+            }
+        }
+        if (forward, right, up) == (0.0, 0.0, 0.0) {
+            return;
+        }
+        // `fly`'s step is 2% of the scene's diagonal; FLY_SPEED diagonals a second.
+        let steps = FLY_SPEED / 0.02 * seconds;
+        self.camera = controls::fly(
+            &self.camera,
+            forward * steps,
+            right * steps,
+            up * steps,
+            &self.scene,
+        );
+        self.camera_moved = true;
+    }
+}
+
+/// The fly direction of a fly key (by its place on the keyboard: WASD on any layout):
+/// forward, right, up.
+fn fly_direction(code: KeyCode) -> Option<(f32, f32, f32)> {
+    match code {
+        KeyCode::KeyW => Some((1.0, 0.0, 0.0)),
+        KeyCode::KeyS => Some((-1.0, 0.0, 0.0)),
+        KeyCode::KeyD => Some((0.0, 1.0, 0.0)),
+        KeyCode::KeyA => Some((0.0, -1.0, 0.0)),
+        KeyCode::KeyE => Some((0.0, 0.0, 1.0)),
+        KeyCode::KeyQ => Some((0.0, 0.0, -1.0)),
+        _ => None,
+    }
+}
+
+/// One input, from the window system or a script step: what the controls act on.
+#[derive(Clone, Debug, PartialEq)]
+enum Input {
+    Modifiers(ModifiersState),
+    Button { button: MouseButton, down: bool },
+    Cursor(PhysicalPosition<f64>),
+    Wheel(f32),
+    Key(KeyPress),
+}
+
+/// A key going down or up (winit's `KeyEvent`, which only winit can make, reduced to what the
+/// controls read).
+#[derive(Clone, Debug, PartialEq)]
+struct KeyPress {
+    physical: PhysicalKey,
+    logical: Key,
+    down: bool,
+    repeat: bool,
+}
+
+/// A `--script` being run.
+struct ScriptRun {
+    path: PathBuf,
+    steps: VecDeque<script::Line>,
+    /// Frames still to render before the next step (`wait`, `hold`).
+    waiting: u32,
+    /// The key a `hold` holds, released when its frames are done.
+    held: Option<KeyPress>,
 }
 
 /// The window and what draws into it, created once the event loop resumes.
@@ -267,6 +490,11 @@ struct Gfx {
     /// The renderer's target: what a screenshot reads back.
     image: wgpu::Texture,
     blit: Blit,
+    overlay: overlay::Overlay,
+    /// The device has timestamp queries (the overlay says so where not).
+    timestamps: bool,
+    /// The adapter, described.
+    gpu_name: String,
     /// The next F12 screenshot's number.
     shots: u32,
 }
@@ -275,6 +503,7 @@ struct App {
     state: Option<Gfx>,
     outcome: Option<CliResult>,
     view: ViewState,
+    script: Option<ScriptRun>,
 }
 
 impl App {
@@ -335,7 +564,7 @@ impl App {
             height: size.height.max(1),
             desired_maximum_frame_latency: 2,
             // A script's screenshot waits for no vertical blank.
-            present_mode: if self.view.screenshot.is_some() {
+            present_mode: if self.view.scripted {
                 wgpu::PresentMode::AutoNoVsync
             } else {
                 wgpu::PresentMode::AutoVsync
@@ -351,8 +580,10 @@ impl App {
         let renderer = self.view.build(&gpu)?;
         let image = readback::offscreen_target(&gpu.device, width, height);
         let blit = Blit::new(&gpu.device, format, &image);
+        let overlay = overlay::Overlay::new(&window, &gpu.device, format);
         eprintln!(
-            "viewing {} on {} (Esc quits; `cssm view --help` lists the keys)",
+            "viewing {} on {} (Esc quits, H hides the overlay; `cssm view --help` lists the \
+             keys)",
             self.view.describe(),
             gpu.describe()
         );
@@ -360,10 +591,16 @@ impl App {
             window,
             surface,
             config,
+            timestamps: gpu
+                .device
+                .features()
+                .contains(wgpu::Features::TIMESTAMP_QUERY),
+            gpu_name: gpu.describe(),
             gpu,
             renderer,
             image,
             blit,
+            overlay,
             shots: 0,
         })
     }
@@ -384,61 +621,106 @@ impl ApplicationHandler for App {
     }
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
-        if self.state.is_none() {
+        let Some(gfx) = &mut self.state else {
             return;
-        }
-        match event {
-            WindowEvent::CloseRequested => self.finish(event_loop, Ok(ExitCode::SUCCESS)),
-            WindowEvent::Resized(size) => self.resize(size),
-            WindowEvent::ModifiersChanged(m) => self.view.modifiers = m.state(),
-            WindowEvent::KeyboardInput { event, .. } => self.key(event_loop, &event),
-            WindowEvent::MouseInput { state, button, .. } => {
-                let down = state == ElementState::Pressed;
-                match button {
-                    MouseButton::Left => self.view.left = down,
-                    MouseButton::Right => self.view.right = down,
-                    _ => {}
-                }
+        };
+        // The overlay sees every event first; a click or drag on it is its own. A release
+        // still reaches the controls (a drag that ends over the overlay ends), and so do the
+        // keys, unless the overlay has a text field in focus (egui takes Tab for itself).
+        let taken = gfx.overlay.on_event(&gfx.window, &event);
+        let keys_taken = gfx.overlay.wants_keyboard();
+        let input = match event {
+            WindowEvent::CloseRequested => {
+                self.finish(event_loop, Ok(ExitCode::SUCCESS));
+                None
             }
-            WindowEvent::CursorMoved { position, .. } => self.mouse_moved(position),
-            WindowEvent::MouseWheel { delta, .. } => {
-                let lines = match delta {
-                    MouseScrollDelta::LineDelta(_, y) => y,
-                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
-                };
-                self.view.camera = controls::dolly(&self.view.camera, lines, &self.view.scene);
-                self.view.camera_moved = true;
+            WindowEvent::Resized(size) => {
+                self.resize(size);
+                None
             }
             WindowEvent::RedrawRequested => {
                 if let Err(e) = self.redraw(event_loop) {
                     self.finish(event_loop, Err(e));
                 }
+                None
             }
-            _ => {}
+            // A key released while another window had the focus never comes: nothing flies on.
+            WindowEvent::Focused(false) => {
+                self.view.held.clear();
+                None
+            }
+            WindowEvent::ModifiersChanged(m) => Some(Input::Modifiers(m.state())),
+            WindowEvent::KeyboardInput { event, .. } if !keys_taken => Some(Input::Key(KeyPress {
+                physical: event.physical_key,
+                logical: event.logical_key.clone(),
+                down: event.state == ElementState::Pressed,
+                repeat: event.repeat,
+            })),
+            WindowEvent::MouseInput { state, button, .. }
+                if !taken || state == ElementState::Released =>
+            {
+                Some(Input::Button {
+                    button,
+                    down: state == ElementState::Pressed,
+                })
+            }
+            // The cursor's place is always followed, so that a drag starting off the overlay
+            // does not jump; the motion turns nothing while egui drags one of its own.
+            WindowEvent::CursorMoved { position, .. } => {
+                if taken {
+                    self.view.cursor = Some(position);
+                    None
+                } else {
+                    Some(Input::Cursor(position))
+                }
+            }
+            WindowEvent::MouseWheel { delta, .. } if !taken => Some(Input::Wheel(match delta {
+                MouseScrollDelta::LineDelta(_, y) => y,
+                MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+            })),
+            _ => None,
+        };
+        if let Some(input) = input {
+            self.input(event_loop, input);
         }
         self.request_frame();
     }
 }
 
 impl App {
-    /// Asks for the next frame while there is anything to draw: a change, or accumulation not
-    /// yet done.
+    /// Asks for the next frame while there is anything to draw: a change, accumulation not
+    /// yet done, a script step, a key held, the overlay's own.
     fn request_frame(&self) {
         let Some(gfx) = &self.state else { return };
         let view = &self.view;
-        // A script's screenshot may ask for more frames than a window accumulates.
+        if self.script.is_some()
+            || gfx.overlay.wants_frame
+            || !view.held.is_empty()
+            || self.scene_frame_needed()
+        {
+            gfx.window.request_redraw();
+        }
+    }
+
+    /// Whether the next frame renders the scene: something changed, or accumulation is not
+    /// done. A frame for the overlay alone, or a screenshot, shows the last image again.
+    fn scene_frame_needed(&self) -> bool {
+        let Some(gfx) = &self.state else {
+            return false;
+        };
+        let view = &self.view;
+        // A script's screenshot may ask for more frames than a window accumulates; a script
+        // renders every frame, as `cssm render --frames N` does.
         let frames = match view.screenshot {
             Some(_) => view.frames,
             None => ACCUMULATE_FRAMES,
         };
-        if view.rebuild
-            || view.shot_requested
+        self.script.is_some()
+            || view.rebuild
             || view.camera_moved
             || view.light_moved
+            || !view.held.is_empty()
             || gfx.renderer.frames_accumulated() < frames
-        {
-            gfx.window.request_redraw();
-        }
     }
 
     fn resize(&mut self, size: PhysicalSize<u32>) {
@@ -451,7 +733,7 @@ impl App {
         gfx.surface.configure(&gfx.gpu.device, &gfx.config);
         // A script's image keeps the size it asked for (the window manager may not grant it);
         // an interactive window renders at the window's size.
-        if self.view.screenshot.is_some() {
+        if self.view.scripted {
             return;
         }
         match gfx.renderer.resize(size.width, size.height) {
@@ -462,6 +744,25 @@ impl App {
                 gfx.blit.bind(&gfx.gpu.device, &gfx.image);
             }
             Err(e) => eprintln!("cannot render at {}x{}: {e}", size.width, size.height),
+        }
+    }
+
+    /// Handles one input, from the window system or a script.
+    fn input(&mut self, event_loop: &ActiveEventLoop, input: Input) {
+        let view = &mut self.view;
+        match input {
+            Input::Modifiers(m) => view.modifiers = m,
+            Input::Button { button, down } => match button {
+                MouseButton::Left => view.left = down,
+                MouseButton::Right => view.right = down,
+                _ => {}
+            },
+            Input::Wheel(lines) => {
+                view.camera = controls::dolly(&view.camera, lines, &view.scene);
+                view.camera_moved = true;
+            }
+            Input::Cursor(position) => self.mouse_moved(position),
+            Input::Key(key) => self.key(event_loop, &key),
         }
     }
 
@@ -485,30 +786,28 @@ impl App {
         }
     }
 
-    fn key(&mut self, event_loop: &ActiveEventLoop, event: &KeyEvent) {
-        if event.state != ElementState::Pressed {
-            return;
-        }
+    fn key(&mut self, event_loop: &ActiveEventLoop, event: &KeyPress) {
         let view = &mut self.view;
-        let shift = view.modifiers.shift_key();
-        // The fly keys by their place on the keyboard (WASD on any layout); key repeat flies on.
-        if let PhysicalKey::Code(code) = event.physical_key {
-            let step = match code {
-                KeyCode::KeyW => Some((1.0, 0.0, 0.0)),
-                KeyCode::KeyS => Some((-1.0, 0.0, 0.0)),
-                KeyCode::KeyD => Some((0.0, 1.0, 0.0)),
-                KeyCode::KeyA => Some((0.0, -1.0, 0.0)),
-                KeyCode::KeyE => Some((0.0, 0.0, 1.0)),
-                KeyCode::KeyQ => Some((0.0, 0.0, -1.0)),
-                _ => None,
-            };
-            if let Some((forward, right, up)) = step {
+        // The fly keys by their place on the keyboard (WASD on any layout): a press moves one
+        // step, and while held the camera flies on every frame, scaled by the frame time (key
+        // repeat, which comes at the keyboard's rate, is ignored).
+        if let PhysicalKey::Code(code) = event.physical
+            && let Some((forward, right, up)) = fly_direction(code)
+        {
+            if !event.down {
+                view.held.remove(&code);
+            } else if !event.repeat {
+                view.held.insert(code);
                 view.camera = controls::fly(&view.camera, forward, right, up, &view.scene);
                 view.camera_moved = true;
-                return;
             }
+            return;
         }
-        match &event.logical_key {
+        if !event.down {
+            return;
+        }
+        let shift = view.modifiers.shift_key();
+        match &event.logical {
             Key::Named(NamedKey::Escape) => self.finish(event_loop, Ok(ExitCode::SUCCESS)),
             Key::Named(NamedKey::Tab) if !event.repeat => {
                 view.cycle_method(if shift { -1 } else { 1 })
@@ -522,8 +821,13 @@ impl App {
                         .iter()
                         .position(|c| *c == view.settings.component)
                         .unwrap_or(0);
-                    view.settings.component = all[(here + 1) % all.len()];
-                    view.rebuild = true;
+                    view.set_component(all[(here + 1) % all.len()]);
+                }
+                "h" | "H" if !event.repeat => {
+                    if let Some(gfx) = &mut self.state {
+                        gfx.overlay.visible = !gfx.overlay.visible;
+                        gfx.overlay.wants_frame = true;
+                    }
                 }
                 "[" => view.set_option("bounces", |v| match v {
                     OptionValue::Count(n) => n.checked_sub(1).map(OptionValue::Count),
@@ -547,13 +851,43 @@ impl App {
         }
     }
 
-    /// Applies what changed, renders a frame into the image, copies it onto the surface, and
-    /// writes the `--screenshot` once its frames are done.
+    /// Lays out the overlay and applies its controls, applies what changed, renders a frame
+    /// into the image when anything changed or accumulation goes on, copies the image onto
+    /// the surface with the overlay over it, writes the screenshots due, and runs the next
+    /// script step.
     fn redraw(&mut self, event_loop: &ActiveEventLoop) -> Result<(), String> {
+        let now = Instant::now();
+        let since_last = self
+            .view
+            .last_frame
+            .replace(now)
+            .map(|t| now.duration_since(t));
+        if let Some(elapsed) = since_last {
+            self.view.cpu_ms = elapsed.as_secs_f64() * 1e3;
+            // A long pause (a window at rest) is no flight time: at most a tenth of a second.
+            self.view
+                .fly_held(elapsed.min(Duration::from_millis(100)).as_secs_f32());
+        }
+        let render_scene = self.scene_frame_needed();
         let view = &mut self.view;
         let Some(gfx) = &mut self.state else {
             return Ok(());
         };
+        let actions = gfx.overlay.run(
+            &gfx.window,
+            view,
+            &overlay::Stats {
+                timings: &view.timings,
+                timestamps: gfx.timestamps,
+                frame_ms: view.cpu_ms,
+                accumulated: gfx.renderer.frames_accumulated(),
+                gpu: &gfx.gpu_name,
+            },
+        );
+        for action in actions {
+            view.apply(action);
+        }
+        let render_scene = render_scene || view.rebuild;
         let fail = |e: runtime::RuntimeError| format!("{}: {e}", view.scene.path.display());
         if view.rebuild {
             view.rebuild = false;
@@ -578,9 +912,11 @@ impl App {
             eprintln!("{e}");
         }
         let device = gfx.gpu.device.clone();
-        let image_view = gfx.image.create_view(&Default::default());
         let mut encoder = device.create_command_encoder(&Default::default());
-        gfx.renderer.render(&mut encoder, &image_view);
+        if render_scene {
+            let image_view = gfx.image.create_view(&Default::default());
+            gfx.renderer.render(&mut encoder, &image_view);
+        }
         let surface_texture = match gfx.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => Some(t),
@@ -595,6 +931,14 @@ impl App {
         if let Some(texture) = &surface_texture {
             let target = texture.texture.create_view(&Default::default());
             gfx.blit.run(&mut encoder, &target);
+            // Over the surface only: the image (what screenshots read) never holds it.
+            gfx.overlay.draw(
+                &device,
+                &gfx.gpu.queue,
+                &mut encoder,
+                &target,
+                [gfx.config.width, gfx.config.height],
+            );
         }
         gfx.gpu.queue.submit([encoder.finish()]);
         if let Some(texture) = surface_texture {
@@ -603,18 +947,24 @@ impl App {
         }
         // Timings read back as `cssm render` reads them, every frame (this waits for the GPU,
         // which also keeps the window from queueing frames ahead of the input).
-        let timings = gfx.renderer.read_timings().map_err(fail)?;
+        if render_scene {
+            view.timings = gfx.renderer.read_timings().map_err(fail)?;
+            view.frame_ms = view.timings.iter().map(|(_, ms)| ms).sum();
+        }
         gfx.gpu.wait().map_err(fail)?;
-        view.frame_ms = timings.iter().map(|(_, ms)| ms).sum();
         let accumulated = gfx.renderer.frames_accumulated();
         gfx.window.set_title(&format!(
             "cssm view - {} - {:.2} ms - {accumulated} frames",
             view.describe(),
             view.frame_ms
         ));
-        if view.last_print.elapsed() >= Duration::from_secs(1) && !timings.is_empty() {
+        if render_scene
+            && view.last_print.elapsed() >= Duration::from_secs(1)
+            && !view.timings.is_empty()
+        {
             view.last_print = Instant::now();
-            let passes: Vec<String> = timings
+            let passes: Vec<String> = view
+                .timings
                 .iter()
                 .map(|(pass, ms)| format!("{pass} {ms:.3}"))
                 .collect();
@@ -625,7 +975,7 @@ impl App {
             );
         }
         if std::mem::take(&mut view.shot_requested)
-            && let Err(e) = self.screenshot(None)
+            && let Err(e) = self.f12()
         {
             // A failed F12 (a full disk) is no reason to close the window.
             eprintln!("{e}");
@@ -633,37 +983,190 @@ impl App {
         if let Some(path) = self.view.screenshot.clone()
             && accumulated >= self.view.frames
         {
-            self.screenshot(Some(path))?;
+            self.screenshot(&path)?;
             self.finish(event_loop, Ok(ExitCode::SUCCESS));
+            return Ok(());
+        }
+        self.script_step(event_loop)
+    }
+
+    /// At a frame's end: the next step of the `--script`, unless a `wait` still runs. Each
+    /// step becomes the inputs a person's hand would make, handled as the window's own.
+    fn script_step(&mut self, event_loop: &ActiveEventLoop) -> Result<(), String> {
+        let Some(script) = &mut self.script else {
+            return Ok(());
+        };
+        if script.waiting > 0 {
+            script.waiting -= 1;
+            if script.waiting > 0 {
+                return Ok(());
+            }
+        }
+        // A `hold` ends with its key's release, at this frame boundary; the next step at the
+        // next one.
+        if let Some(key) = script.held.take() {
+            self.input(event_loop, Input::Key(key));
+            return Ok(());
+        }
+        let Some(line) = script.steps.pop_front() else {
+            // The end of the file: the window is the user's from here.
+            eprintln!("{}: done; the window stays open", script.path.display());
+            self.script = None;
+            return Ok(());
+        };
+        let at = format!("{}:{}", script.path.display(), line.number);
+        let modifiers = self.view.modifiers;
+        let with_shift = |shift: bool| {
+            Input::Modifiers(if shift {
+                ModifiersState::SHIFT
+            } else {
+                ModifiersState::empty()
+            })
+        };
+        let inputs = match line.step {
+            script::Step::Drag {
+                button,
+                shift,
+                dx,
+                dy,
+            } => {
+                // From where the cursor is (the middle of the window before it ever moved).
+                let from = self.view.cursor.unwrap_or(PhysicalPosition::new(
+                    self.view.settings.frame.width as f64 / 2.0,
+                    self.view.settings.frame.height as f64 / 2.0,
+                ));
+                vec![
+                    with_shift(shift),
+                    Input::Cursor(from),
+                    Input::Button { button, down: true },
+                    Input::Cursor(PhysicalPosition::new(from.x + dx, from.y + dy)),
+                    Input::Button {
+                        button,
+                        down: false,
+                    },
+                    Input::Modifiers(modifiers),
+                ]
+            }
+            script::Step::Dolly(lines) => vec![Input::Wheel(lines)],
+            script::Step::Key(key) => {
+                let press = |down| {
+                    Input::Key(KeyPress {
+                        physical: key.physical,
+                        logical: key.logical.clone(),
+                        down,
+                        repeat: false,
+                    })
+                };
+                vec![
+                    with_shift(key.shift),
+                    press(true),
+                    press(false),
+                    Input::Modifiers(modifiers),
+                ]
+            }
+            script::Step::Hold(key, frames) => {
+                let press = KeyPress {
+                    physical: key.physical,
+                    logical: key.logical.clone(),
+                    down: true,
+                    repeat: false,
+                };
+                script.held = Some(KeyPress {
+                    down: false,
+                    ..press.clone()
+                });
+                script.waiting = frames;
+                vec![
+                    with_shift(key.shift),
+                    Input::Key(press),
+                    Input::Modifiers(modifiers),
+                ]
+            }
+            script::Step::Wait(n) => {
+                script.waiting = n;
+                Vec::new()
+            }
+            script::Step::Screenshot(path) => {
+                self.screenshot(&path).map_err(|e| format!("{at}: {e}"))?;
+                Vec::new()
+            }
+            script::Step::Quit => {
+                self.finish(event_loop, Ok(ExitCode::SUCCESS));
+                Vec::new()
+            }
+        };
+        for input in inputs {
+            self.input(event_loop, input);
         }
         Ok(())
     }
 
-    /// Writes the last frame's image: to `path`, or (F12) to the first free
-    /// `cssm-view-NNNN.png` in the current directory.
-    fn screenshot(&mut self, path: Option<PathBuf>) -> Result<(), String> {
+    /// F12: the first free `cssm-view-NNNN.png` in the current directory (and `.exr` with
+    /// `--shot-exr`).
+    fn f12(&mut self) -> Result<(), String> {
         let Some(gfx) = &mut self.state else {
             return Ok(());
         };
-        let path = match path {
-            Some(path) => path,
-            None => loop {
-                let candidate = PathBuf::from(format!("cssm-view-{:04}.png", gfx.shots));
-                gfx.shots += 1;
-                if !candidate.exists() {
-                    break candidate;
-                }
-            },
+        let (png, exr) = loop {
+            let stem = format!("cssm-view-{:04}", gfx.shots);
+            gfx.shots += 1;
+            let (png, exr) = (
+                PathBuf::from(format!("{stem}.png")),
+                PathBuf::from(format!("{stem}.exr")),
+            );
+            if !png.exists() && !exr.exists() {
+                break (png, exr);
+            }
+        };
+        self.screenshot(&png)?;
+        if self.view.shot_exr {
+            self.screenshot(&exr)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the last frame's image to `path`: the tone-mapped PNG, or with the extension
+    /// `.exr` the linear radiance as `cssm render --exr` writes it; then prints the flags with
+    /// which `cssm render` writes the same file.
+    fn screenshot(&mut self, path: &Path) -> Result<(), String> {
+        let Some(gfx) = &mut self.state else {
+            return Ok(());
         };
         let (w, h) = (gfx.image.width(), gfx.image.height());
-        let rgba = readback::read_texture(&gfx.gpu.device, &gfx.gpu.queue, &gfx.image, 4)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        save_rgba_png(&path, w, h, rgba)?;
+        let fail = |e: runtime::RuntimeError| format!("{}: {e}", path.display());
+        let exr = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if exr {
+            let bytes = readback::read_texture(
+                &gfx.gpu.device,
+                &gfx.gpu.queue,
+                gfx.renderer.radiance(),
+                16,
+            )
+            .map_err(fail)?;
+            let radiance: Vec<[f32; 4]> = readback::vec4s(&bytes)
+                .iter()
+                .map(|v| v.to_array())
+                .collect();
+            save_radiance_exr(path, w, h, &radiance)?;
+        } else {
+            let rgba = readback::read_texture(&gfx.gpu.device, &gfx.gpu.queue, &gfx.image, 4)
+                .map_err(fail)?;
+            save_rgba_png(path, w, h, rgba)?;
+        }
+        let frames = gfx.renderer.frames_accumulated();
         eprintln!(
-            "wrote {} ({}, {} frames)",
+            "wrote {} ({}, {frames} frames)",
             path.display(),
             self.view.describe(),
-            gfx.renderer.frames_accumulated()
+        );
+        eprintln!(
+            "render flags for {}: {} --{} {}",
+            path.display(),
+            self.view.render_flags(frames),
+            if exr { "exr" } else { "out" },
+            path.display()
         );
         Ok(())
     }
@@ -848,6 +1351,89 @@ mod tests {
         // Shift + Tab goes back the same way.
         view.cycle_method(-1);
         assert_eq!(view.method.name, *expected.last().unwrap());
+    }
+
+    #[test]
+    fn the_overlays_actions_change_what_the_keys_change() {
+        let mut view = cornell("direct");
+        let rsm = runtime::method::find("rsm").unwrap();
+        view.apply(overlay::Action::Method(rsm));
+        assert_eq!(view.method.name, "rsm");
+        assert!(std::mem::take(&mut view.rebuild));
+        // A method needing a .cssm is refused without one, as Tab skips it.
+        view.apply(overlay::Action::Method(
+            runtime::method::find("lightmap").unwrap(),
+        ));
+        assert_eq!(view.method.name, "rsm");
+        assert!(!view.rebuild);
+        view.apply(overlay::Action::Component(Component::Indirect));
+        assert_eq!(view.settings.component, Component::Indirect);
+        assert!(std::mem::take(&mut view.rebuild));
+        let mut vct = cornell("vct");
+        vct.apply(overlay::Action::Bounces(2));
+        assert_eq!(vct.values.get("bounces"), Some(OptionValue::Count(2)));
+        // Out of the table's range: refused, as `]` past the maximum.
+        vct.rebuild = false;
+        vct.apply(overlay::Action::Bounces(runtime::method::MAX_BOUNCES + 1));
+        assert_eq!(vct.values.get("bounces"), Some(OptionValue::Count(2)));
+        assert!(!vct.rebuild);
+    }
+
+    #[test]
+    fn held_fly_keys_move_by_the_frame_time() {
+        let mut view = cornell("direct");
+        let start = view.camera.clone();
+        view.fly_held(0.1);
+        assert_eq!(view.camera, start, "nothing held, nothing moves");
+        assert!(!view.camera_moved);
+        view.held.insert(KeyCode::KeyW);
+        view.fly_held(0.1);
+        let (lo, hi) = view.scene.bounds();
+        let moved = (view.camera.position - start.position).length();
+        let expected = FLY_SPEED * 0.1 * (hi - lo).length();
+        assert!(
+            (moved - expected).abs() < expected * 1e-3,
+            "{moved} vs {expected}"
+        );
+        // Forward: towards the target, which moves along.
+        let forward = (start.target - start.position).normalize();
+        assert!(
+            (view.camera.position - start.position)
+                .normalize()
+                .dot(forward)
+                > 0.999
+        );
+        assert_eq!(
+            view.camera.target - view.camera.position,
+            start.target - start.position
+        );
+        assert!(view.camera_moved);
+        // W and S together cancel.
+        view.held.insert(KeyCode::KeyS);
+        let here = view.camera.clone();
+        view.fly_held(0.1);
+        assert_eq!(view.camera, here);
+    }
+
+    #[test]
+    fn render_flags_hold_every_option_the_camera_and_the_light() {
+        let mut view = cornell("vct");
+        view.camera = controls::orbit(&view.camera, 37.0, -11.0);
+        let flags = view.render_flags(5);
+        assert!(flags.starts_with("--method vct --set "), "{flags}");
+        for (name, value) in view.method.resolve(&view.values).unwrap().iter() {
+            assert!(flags.contains(&format!("--set {name}={value}")), "{flags}");
+        }
+        assert!(flags.contains("--frames 5"), "{flags}");
+        let camera = flags
+            .split_whitespace()
+            .find_map(|f| f.strip_prefix("--camera="))
+            .unwrap();
+        let numbers: Vec<f32> = camera.split(',').map(|v| v.parse().unwrap()).collect();
+        // The exact floats, not a rounding of them.
+        assert_eq!(numbers[..3], view.camera.position.to_array());
+        assert_eq!(numbers[3..], view.camera.target.to_array());
+        assert!(flags.contains("--light="), "{flags}");
     }
 
     #[test]
