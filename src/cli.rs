@@ -223,6 +223,13 @@ pub struct BakeArgs {
     /// visibility an image uses, in a much smaller file; reports/compression.md, best variant).
     #[arg(long, default_value = "exchange")]
     second_layer: bake::cubemap::SecondLayer,
+    /// Which renderer draws the depth cube maps: raster (triangle by triangle, the watertight
+    /// ray/triangle test on the pixels each triangle covers; fastest for scenes of few
+    /// triangles), bvh (one BVH traversal per pixel), or auto (raster up to 512 triangles, bvh
+    /// above; the default). The file is byte-identical either way; only the time differs
+    /// (reports/bake.md).
+    #[arg(long, default_value = "auto")]
+    cube_renderer: bake::cubemap::CubeRenderer,
     /// How the file stores the runs: packed (run lengths and depth differences as varints before
     /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).
     #[arg(long, default_value = "packed")]
@@ -272,6 +279,7 @@ impl BakeArgs {
             run_value: self.run_value,
             merge_short_runs: self.merge_short_runs,
             second_layer: self.second_layer,
+            cube_renderer: self.cube_renderer,
         };
         options.check().map_err(|e| cssm::flag_error(&e))?;
         Ok(BakeConfig {

@@ -11,7 +11,8 @@ use cssm_formats::{
     cube::{self, DEPTH_MAX, DepthQuantizer},
 };
 
-use crate::raycast::SceneBvh;
+use crate::raster::RasterScene;
+use crate::raycast::{FrontHit, SceneBvh};
 
 /// Acceptable code range `[lo, hi]` of one pixel; `[0, DEPTH_MAX]` means "don't care".
 pub type Interval = (u16, u16);
@@ -75,12 +76,125 @@ impl std::str::FromStr for SecondLayer {
     }
 }
 
+/// Which renderer draws the cube maps: both write byte-identical maps, only their speed
+/// differs with the scene's size (reports/bake.md, "CPU rasteriser").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CubeRenderer {
+    /// The rasteriser up to [`RASTER_MAX_TRIANGLES`] triangles, the BVH above.
+    #[default]
+    Auto,
+    /// Triangle by triangle ([`crate::raster`]): fastest for scenes of few triangles.
+    Raster,
+    /// One BVH traversal per pixel ([`render`]).
+    Bvh,
+}
+
+/// Largest scene [`CubeRenderer::Auto`] rasterises: where the two renderers' measured speeds
+/// cross (reports/bake.md, "CPU rasteriser").
+pub const RASTER_MAX_TRIANGLES: usize = 512;
+
+impl CubeRenderer {
+    /// Every choice, default first.
+    pub const ALL: [CubeRenderer; 3] =
+        [CubeRenderer::Auto, CubeRenderer::Raster, CubeRenderer::Bvh];
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            CubeRenderer::Auto => "auto",
+            CubeRenderer::Raster => "raster",
+            CubeRenderer::Bvh => "bvh",
+        }
+    }
+
+    /// The renderer used for a scene of `triangles` triangles: [`CubeRenderer::Raster`] or
+    /// [`CubeRenderer::Bvh`].
+    ///
+    /// ```
+    /// use cssm_bake::cubemap::{CubeRenderer, RASTER_MAX_TRIANGLES};
+    /// assert_eq!(CubeRenderer::Auto.resolve(36), CubeRenderer::Raster);
+    /// assert_eq!(CubeRenderer::Auto.resolve(RASTER_MAX_TRIANGLES + 1), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Bvh.resolve(36), CubeRenderer::Bvh);
+    /// ```
+    pub fn resolve(self, triangles: usize) -> CubeRenderer {
+        match self {
+            CubeRenderer::Auto if triangles <= RASTER_MAX_TRIANGLES => CubeRenderer::Raster,
+            CubeRenderer::Auto => CubeRenderer::Bvh,
+            other => other,
+        }
+    }
+}
+
+impl std::fmt::Display for CubeRenderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for CubeRenderer {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "auto" => Ok(CubeRenderer::Auto),
+            "raster" => Ok(CubeRenderer::Raster),
+            "bvh" => Ok(CubeRenderer::Bvh),
+            other => Err(format!(
+                "unknown cube renderer '{other}': expected auto, raster or bvh"
+            )),
+        }
+    }
+}
+
+/// A scene ready to render cube maps with, by the renderer [`CubeRenderer::resolve`] picks.
+pub struct Renderer<'a> {
+    bvh: &'a SceneBvh,
+    raster: Option<RasterScene>,
+}
+
+impl<'a> Renderer<'a> {
+    /// The renderer `choice` resolves to for `bvh`'s scene.
+    pub fn new(bvh: &'a SceneBvh, choice: CubeRenderer) -> Self {
+        let (triangles, _) = bvh.triangles_by_scene_index();
+        let raster = (choice.resolve(triangles.len()) == CubeRenderer::Raster)
+            .then(|| RasterScene::new(bvh));
+        Self { bvh, raster }
+    }
+
+    /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`].
+    pub fn kind(&self) -> CubeRenderer {
+        if self.raster.is_some() {
+            CubeRenderer::Raster
+        } else {
+            CubeRenderer::Bvh
+        }
+    }
+
+    /// Renders one texel's cube map into `out`, as [`render`] does (byte for byte), returning the
+    /// rays cast.
+    pub fn render(
+        &self,
+        texel: &Texel,
+        n: u32,
+        near: f32,
+        quantizer: &DepthQuantizer,
+        second_layer: SecondLayer,
+        out: &mut [Interval],
+    ) -> u64 {
+        match &self.raster {
+            Some(scene) => {
+                crate::raster::render(scene, texel, n, near, quantizer, second_layer, out)
+            }
+            None => render(self.bvh, texel, n, near, quantizer, second_layer, out),
+        }
+    }
+}
+
 /// The don't-care interval.
 pub const DONT_CARE: Interval = (0, DEPTH_MAX);
 
 /// What a pixel's ray saw, for [`SecondLayer::Exchange`]'s second pass.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Seen {
+pub(crate) enum Seen {
     /// Wholly behind the tangent plane (or cast along it with no depth): don't care.
     Behind,
     /// No surface facing the texel along the ray.
@@ -89,8 +203,9 @@ enum Seen {
     FacingSurface,
 }
 
-/// Renders one texel's cube map into `out` (`6 * n * n` intervals). Returns the number of rays
-/// cast (pixels that were not don't-care).
+/// Renders one texel's cube map into `out` (`6 * n * n` intervals) by one BVH traversal per
+/// pixel. Returns the number of rays cast (pixels that were not don't-care).
+/// [`crate::raster::render`] writes the same intervals triangle by triangle.
 pub fn render(
     bvh: &SceneBvh,
     texel: &Texel,
@@ -102,8 +217,8 @@ pub fn render(
 ) -> u64 {
     let normal = texel.nrm();
     let centre = texel.pos() + normal * near;
-    // Hits closer together than a tenth of a depth code are the same surface.
-    let separation = 0.1 * quantizer.far() / DEPTH_MAX as f32;
+    let separation = separation(quantizer);
+    let min_hit = min_hit(near, bvh.magnitude());
     let exchange = second_layer == SecondLayer::Exchange;
     let mut seen = if exchange {
         vec![Seen::Behind; out.len()]
@@ -123,45 +238,87 @@ pub fn render(
         if depth_scale < 1e-3 {
             continue;
         }
-        let (first, second) = match second_layer {
+        let hit = match second_layer {
             SecondLayer::Any => {
-                let hit = bvh.dual_hit(centre, dir, separation);
-                (hit.first, hit.second)
-            }
-            SecondLayer::Facing => {
-                let hit = bvh.front_dual_hit(centre, dir, separation);
-                (hit.first, hit.second)
-            }
-            SecondLayer::Exchange => {
-                let hit = bvh.front_dual_hit(centre, dir, separation);
-                let second = hit.second * depth_scale;
-                seen[pixel] = if hit.first_faces || second.is_finite() {
-                    Seen::FacingSurface
-                } else {
-                    Seen::NoFacingSurface
-                };
-                if !hit.first_faces && second.is_finite() {
-                    // Nothing to keep visible: every code below the first facing surface.
-                    *slot = (0, quantizer.last_code_before(second));
-                    continue;
+                let hit = bvh.dual_hit_beyond(centre, dir, min_hit, separation);
+                FrontHit {
+                    first: hit.first,
+                    first_faces: true,
+                    second: hit.second,
                 }
-                (hit.first, hit.second)
+            }
+            SecondLayer::Facing | SecondLayer::Exchange => {
+                bvh.front_dual_hit_beyond(centre, dir, min_hit, separation)
             }
         };
-        *slot = quantizer.interval(first * depth_scale, second * depth_scale);
-    }
-    if exchange {
-        for (pixel, slot) in out.iter_mut().enumerate() {
-            if seen[pixel] == Seen::NoFacingSurface
-                && cube::neighbours(n, pixel as u32)
-                    .iter()
-                    .all(|&q| seen[q as usize] != Seen::FacingSurface)
-            {
-                *slot = DONT_CARE;
-            }
+        let (interval, pixel_seen) = finish_pixel(second_layer, hit, depth_scale, quantizer);
+        *slot = interval;
+        if exchange {
+            seen[pixel] = pixel_seen;
         }
     }
+    if exchange {
+        exchange_pass(n, &seen, out);
+    }
     rays
+}
+
+/// Hits closer together than a tenth of a depth code are the same surface.
+pub(crate) fn separation(quantizer: &DepthQuantizer) -> f32 {
+    0.1 * quantizer.far() / DEPTH_MAX as f32
+}
+
+/// Hits nearer the cube's centre than this are not seen. The centre sits the near distance off
+/// its own surface; a surface through the centre itself (a texel in a corner, pushed along its
+/// normal into the plane of the adjacent wall) meets the ray at `t = 0` give or take the
+/// watertight test's rounding, which scales with the coordinates' magnitude, and whether the
+/// BVH's box tests let such a hit through is a matter of rounding too. Ignoring every hit within
+/// a hundredth of the near distance, and well beyond that rounding, makes the answer the same
+/// for every renderer: such a hit would only say "code 0" for a surface the texel lies on.
+pub(crate) fn min_hit(near: f32, magnitude: f32) -> f32 {
+    (0.01 * near).max(256.0 * f32::EPSILON * magnitude)
+}
+
+/// A cast pixel's interval from its ray's hits (`hit.first_faces` unused for
+/// [`SecondLayer::Any`], whose second hit is taken whichever way it faces), and what its ray saw.
+#[inline]
+pub(crate) fn finish_pixel(
+    second_layer: SecondLayer,
+    hit: FrontHit,
+    depth_scale: f32,
+    quantizer: &DepthQuantizer,
+) -> (Interval, Seen) {
+    let mut seen = Seen::Behind;
+    if second_layer == SecondLayer::Exchange {
+        let second = hit.second * depth_scale;
+        seen = if hit.first_faces || second.is_finite() {
+            Seen::FacingSurface
+        } else {
+            Seen::NoFacingSurface
+        };
+        if !hit.first_faces && second.is_finite() {
+            // Nothing to keep visible: every code below the first facing surface.
+            return ((0, quantizer.last_code_before(second)), seen);
+        }
+    }
+    (
+        quantizer.interval(hit.first * depth_scale, hit.second * depth_scale),
+        seen,
+    )
+}
+
+/// [`SecondLayer::Exchange`]'s second pass: a pixel that met no facing surface, nor did any of
+/// its eight neighbours, is don't care.
+pub(crate) fn exchange_pass(n: u32, seen: &[Seen], out: &mut [Interval]) {
+    for (pixel, slot) in out.iter_mut().enumerate() {
+        if seen[pixel] == Seen::NoFacingSurface
+            && cube::neighbours(n, pixel as u32)
+                .iter()
+                .all(|&q| seen[q as usize] != Seen::FacingSurface)
+        {
+            *slot = DONT_CARE;
+        }
+    }
 }
 
 #[cfg(test)]

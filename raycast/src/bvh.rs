@@ -21,6 +21,8 @@ pub struct SceneBvh {
     /// Geometric normal (not normalised; its winding side is the front) of every triangle, by
     /// scene index.
     normals: Vec<Vec3>,
+    /// Largest absolute coordinate of any corner.
+    magnitude: f32,
 }
 
 /// First and second intersection along a ray (dual depth layers, §3.2 after Weiskopf and Ertl).
@@ -355,10 +357,16 @@ impl SceneBvh {
                 (b - a).cross(c - a)
             })
             .collect();
+        let magnitude = scene
+            .positions
+            .iter()
+            .map(|p| p.abs().max_element())
+            .fold(0.0, f32::max);
         Self {
             bvh,
             triangles,
             normals,
+            magnitude,
         }
     }
 
@@ -424,7 +432,12 @@ impl SceneBvh {
     /// and the second is the nearest hit more than `separation` beyond the first
     /// ([`reduce_hits`] with every hit facing). One traversal, pruned beyond the second.
     pub fn dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> DualHit {
-        let hit = self.reduce(origin, dir, separation, |_| true);
+        self.dual_hit_beyond(origin, dir, 0.0, separation)
+    }
+
+    /// [`SceneBvh::dual_hit`] over the hits with `t > tmin` only.
+    pub fn dual_hit_beyond(&self, origin: Vec3, dir: Vec3, tmin: f32, separation: f32) -> DualHit {
+        let hit = self.reduce(origin, dir, tmin, separation, |_| true);
         DualHit {
             first: hit.first,
             second: hit.second,
@@ -438,9 +451,26 @@ impl SceneBvh {
     /// cosine is zero) and whether it is visible never matters. The result also says whether the
     /// first hit faces the origin (any triangle within `separation` of it does).
     pub fn front_dual_hit(&self, origin: Vec3, dir: Vec3, separation: f32) -> FrontHit {
-        self.reduce(origin, dir, separation, |triangle| {
+        self.front_dual_hit_beyond(origin, dir, 0.0, separation)
+    }
+
+    /// [`SceneBvh::front_dual_hit`] over the hits with `t > tmin` only.
+    pub fn front_dual_hit_beyond(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        separation: f32,
+    ) -> FrontHit {
+        self.reduce(origin, dir, tmin, separation, |triangle| {
             self.normals[triangle as usize].dot(dir) < 0.0
         })
+    }
+
+    /// Largest absolute coordinate of the scene's corners: what the watertight test's rounding
+    /// scales with.
+    pub fn magnitude(&self) -> f32 {
+        self.magnitude
     }
 
     /// The scene's triangles (corners in the scene's order) and their geometric normals, by
@@ -459,11 +489,12 @@ impl SceneBvh {
         &self,
         origin: Vec3,
         dir: Vec3,
+        tmin: f32,
         separation: f32,
         faces: impl Fn(u32) -> bool,
     ) -> FrontHit {
         let mut reducer = HitReducer::default();
-        self.for_each_hit(origin, dir, 0.0, f32::INFINITY, |t, triangle| {
+        self.for_each_hit(origin, dir, tmin, f32::INFINITY, |t, triangle| {
             reducer.add(t, faces(triangle), separation);
             reducer.second()
         });
@@ -471,7 +502,7 @@ impl SceneBvh {
             return reducer.hit();
         }
         let mut hits = Vec::new();
-        self.for_each_hit(origin, dir, 0.0, f32::INFINITY, |t, triangle| {
+        self.for_each_hit(origin, dir, tmin, f32::INFINITY, |t, triangle| {
             hits.push((t, faces(triangle)));
             f32::INFINITY
         });
