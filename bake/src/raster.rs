@@ -569,6 +569,108 @@ mod tests {
         assert_eq!(bad, 0);
     }
 
+    /// Random small triangle soups seen from random texels, with every second layer: quads
+    /// sharing their diagonal, triangles across the texel's tangent plane and through its cube's
+    /// centre, edge-on triangles in planes through the centre, a texel lying on a triangle of the
+    /// soup (so pixels straddle its plane), and the texel's cube centre on a triangle's plane.
+    #[test]
+    fn random_soups_match_the_bvh() {
+        let rng = RefCell::new(SplitMix64(5));
+        let r = || rng.borrow_mut().next_f64() as f32;
+        for case in 0..300 {
+            let rand_vec = |scale: f32| Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5) * 2.0 * scale;
+            let texel_pos = rand_vec(1.0);
+            let normal = rand_vec(1.0).normalize_or(Vec3::Z);
+            let near = 0.01;
+            let centre = texel_pos + normal * near;
+            let mut positions: Vec<Vec3> = Vec::new();
+            let mut triangles = Vec::new();
+            let mut add = |corners: [Vec3; 3], positions: &mut Vec<Vec3>| {
+                let b = positions.len() as u32;
+                positions.extend(corners);
+                triangles.push([b, b + 1, b + 2]);
+            };
+            // The texel's own triangle, and its neighbour across a shared edge.
+            let (t1, t2) = (
+                normal.any_orthonormal_pair().0 * 0.3,
+                normal.any_orthonormal_pair().1 * 0.3,
+            );
+            add(
+                [texel_pos - t1 - t2, texel_pos + t1 - t2, texel_pos + t2],
+                &mut positions,
+            );
+            add(
+                [texel_pos + t1 - t2, texel_pos + t1 + t2, texel_pos + t2],
+                &mut positions,
+            );
+            for _ in 0..(2 + case % 12) {
+                match (r() * 5.0) as u32 {
+                    // A quad of two triangles sharing a diagonal.
+                    0 => {
+                        let (o, e1, e2) = (rand_vec(2.0), rand_vec(1.0), rand_vec(1.0));
+                        add([o, o + e1, o + e2], &mut positions);
+                        add([o + e2, o + e1, o + e1 + e2], &mut positions);
+                    }
+                    // Edge-on: in a plane through the cube's centre.
+                    1 => {
+                        let (d1, d2) = (rand_vec(1.0), rand_vec(1.0));
+                        let (a, b, c) = (0.2 + r(), 0.2 + r(), 0.2 + r());
+                        add(
+                            [centre + d1 * a, centre + d2 * b, centre + (d1 + d2) * c],
+                            &mut positions,
+                        );
+                    }
+                    // Through the cube's centre (crossing its tangent plane).
+                    2 => {
+                        let (e1, e2) = (rand_vec(0.5), rand_vec(0.5));
+                        add([centre - e1 - e2, centre + e1, centre + e2], &mut positions);
+                    }
+                    // With the cube's centre on its plane, not inside it.
+                    3 => {
+                        let e1 = rand_vec(0.5);
+                        let e2 = e1.cross(rand_vec(1.0));
+                        let o = centre + e1 * 1.5;
+                        add([o, o + e1, o + e2], &mut positions);
+                    }
+                    _ => add(
+                        [rand_vec(2.0), rand_vec(2.0), rand_vec(2.0)],
+                        &mut positions,
+                    ),
+                }
+            }
+            let scene = cssm_formats::Scene::from_triangles(positions, triangles);
+            let bvh = SceneBvh::new(&scene);
+            let raster = RasterScene::new(&bvh);
+            let quantizer = DepthQuantizer::new(near, 8.0);
+            let texel = Texel {
+                position: texel_pos.to_array(),
+                normal: normal.to_array(),
+                area: 1.0,
+                material: 0,
+                chart: 0,
+                x: 0,
+                y: 0,
+            };
+            for n in [8u32, 16] {
+                for layer in SecondLayer::ALL {
+                    let mut a = vec![DONT_CARE; (6 * n * n) as usize];
+                    let mut b = a.clone();
+                    let ra = cubemap::render(&bvh, &texel, n, near, &quantizer, layer, &mut a);
+                    let rb = render(&raster, &texel, n, near, &quantizer, layer, &mut b);
+                    assert_eq!(ra, rb);
+                    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+                        assert_eq!(
+                            x,
+                            y,
+                            "case {case} n {n} {layer} pixel {i} {:?}",
+                            cube::split_pixel(n, i as u32)
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn cornell_texels_match_the_bvh() {
         let scene = cornell();
