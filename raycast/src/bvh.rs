@@ -7,11 +7,16 @@ use cssm_formats::Scene;
 use glam::{UVec2, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    aabb::Aabb,
+    cwbvh::{CwBvh, builder::build_cwbvh},
     ray::Ray,
     traverse,
     triangle::Triangle,
 };
+
+/// Widening of every triangle's box in the BVH, relative to the scene's largest coordinate: some
+/// thousand times the rounding of a ray/box test.
+const BOX_PAD: f32 = 1.0 / 16384.0;
 
 /// A BVH over the scene's triangles.
 pub struct SceneBvh {
@@ -338,8 +343,27 @@ impl SceneBvh {
     /// Builds the BVH (deterministic for a given scene).
     pub fn new(scene: &Scene) -> Self {
         let tris = scene_triangles(scene);
-        let bvh = build_cwbvh_from_tris(
-            &tris,
+        let magnitude = scene
+            .positions
+            .iter()
+            .map(|p| p.abs().max_element())
+            .fold(0.0, f32::max);
+        // Every triangle's box is widened a little: obvhs' box test rounds, and a ray that
+        // grazes a box (through the edge a block's two side faces share, exactly on the box's
+        // corner) may miss it although the watertight test hits the triangle inside. The
+        // widening is far beyond that rounding, so the traversal meets every hit the test
+        // reports, as testing every triangle would (the bake's rasteriser does, and its cube
+        // maps must be the same).
+        let pad = Vec3A::splat(BOX_PAD * magnitude.max(f32::MIN_POSITIVE));
+        let boxes: Vec<Aabb> = tris
+            .iter()
+            .map(|t| {
+                let b = t.aabb();
+                Aabb::new(b.min - pad, b.max + pad)
+            })
+            .collect();
+        let bvh = build_cwbvh(
+            &boxes,
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );
@@ -357,11 +381,6 @@ impl SceneBvh {
                 (b - a).cross(c - a)
             })
             .collect();
-        let magnitude = scene
-            .positions
-            .iter()
-            .map(|p| p.abs().max_element())
-            .fold(0.0, f32::max);
         Self {
             bvh,
             triangles,
