@@ -84,8 +84,10 @@ struct Extra {
 struct Scratch {
     /// Resolution the centre rays were built for.
     n: u32,
-    /// Centre direction and its watertight ray (from the origin) of every pixel.
-    centre_rays: Vec<(Vec3, WatertightRay)>,
+    /// Centre direction of every pixel.
+    centre_dirs: Vec<Vec3>,
+    /// Its watertight ray (from the origin).
+    centre_rays: Vec<WatertightRay>,
     kind: Vec<u32>,
     extras: Vec<Extra>,
     /// `extras[row_start[face * n + row]..row_start[face * n + row + 1]]` fall in that row.
@@ -300,14 +302,19 @@ fn render_with(
 
     if scratch.n != n || scratch.centre_rays.len() != pixels as usize {
         scratch.n = n;
-        scratch.centre_rays = (0..pixels)
-            .map(|p| {
-                let dir = cube::pixel_direction(n, p);
-                (dir, WatertightRay::new(Vec3::ZERO, dir))
-            })
+        scratch.centre_dirs = (0..pixels).map(|p| cube::pixel_direction(n, p)).collect();
+        scratch.centre_rays = (scratch.centre_dirs.iter())
+            .map(|&dir| WatertightRay::new(Vec3::ZERO, dir))
             .collect();
+        // The centre rays of a face share their axes (the face's major axis is the largest
+        // component of each), so a triangle is reordered once per face.
+        for (p, ray) in scratch.centre_rays.iter().enumerate() {
+            let first = scratch.centre_rays[p - p % (n * n) as usize];
+            assert_eq!(ray.axes(), first.axes());
+        }
     }
     let Scratch {
+        centre_dirs,
         centre_rays,
         kind,
         extras,
@@ -323,6 +330,14 @@ fn render_with(
     kind.resize(pixels as usize, SKIP);
     extras.clear();
     let mut rays = 0;
+    // Per face, the rows and columns holding a pixel to test (`[row0, row1, col0, col1]`;
+    // empty when `row0 > row1`): for a texel's normal most of a face or all of it is don't care.
+    let mut active = [[u32::MAX, 0, u32::MAX, 0]; 6];
+    let mut activate = |cell: u32| {
+        let (face, row, col) = cube::split_pixel(n, cell);
+        let a = &mut active[face as usize];
+        *a = [a[0].min(row), a[1].max(row), a[2].min(col), a[3].max(col)];
+    };
     let nrm = normal.to_array();
     let half_step = 1.0 / n as f32;
     for face in 0..6 {
@@ -330,14 +345,14 @@ fn render_with(
         let (_, ua, va) = cube::face_axes(face);
         let corner_reach = half_step * (nrm[ua].abs() + nrm[va].abs());
         for pixel in face * n * n..(face + 1) * n * n {
-            let (centre_dir, _) = centre_rays[pixel as usize];
-            let below = centre_dir.dot(normal);
+            let below = centre_dirs[pixel as usize].dot(normal);
             if below + corner_reach < 0.0 {
                 continue;
             }
             rays += 1;
             if below >= 0.0 {
                 kind[pixel as usize] = CENTRE;
+                activate(pixel);
                 continue;
             }
             let (dir, depth_scale) = cube::cast_direction(n, pixel, normal);
@@ -345,9 +360,11 @@ fn render_with(
                 continue;
             }
             let (face, u, v, _) = cube::project(dir);
+            let cell = cube::pixel_index(n, face, u, v);
+            activate(cell);
             extras.push(Extra {
                 pixel,
-                cell: cube::pixel_index(n, face, u, v),
+                cell,
                 dir,
                 ray: WatertightRay::new(centre, dir),
                 depth_scale,
@@ -379,25 +396,36 @@ fn render_with(
 
     seen.clear();
     seen.resize(if exchange { pixels as usize } else { 0 }, Seen::Behind);
-    reducers.resize(face_pixels, HitReducer::default());
+    if reducers.len() != face_pixels {
+        reducers.clear();
+        reducers.resize(face_pixels, HitReducer::default());
+    }
     let step = 2.0 / f64::from(n);
     let cell = |x: f64| ((x + 1.0) / step).floor();
-    let last = f64::from(n - 1);
     let mut uv = [[0.0f64; 2]; 8];
     for face in 0..6 {
         let base = face * n * n;
-        reducers.fill(HitReducer::default());
-        for tri in triangles.iter() {
+        let axes = centre_rays[base as usize].axes();
+        let [row0, row1, col0, col1] = active[face as usize];
+        let rows = f64::from(row0)..=f64::from(row1);
+        let (col0, col1) = (f64::from(col0), f64::from(col1));
+        // A face with nothing to test keeps its don't-care pixels.
+        let face_triangles = if rows.is_empty() {
+            &[][..]
+        } else {
+            &triangles[..]
+        };
+        for tri in face_triangles {
             let normal_of = scene.normals[tri.index as usize];
+            let permuted = tri.rel.map(|p| axes.map(|k| p[k]));
             // Rows of the face to visit, each with its columns.
             let mut visit = |row: u32, c0: u32, c1: u32| {
                 for col in c0..=c1 {
                     let pixel = base + row * n + col;
                     if kind[pixel as usize] == CENTRE {
-                        let (dir, ray) = &centre_rays[pixel as usize];
-                        let t = ray.intersect_relative(&tri.rel);
+                        let t = centre_rays[pixel as usize].intersect_permuted(&permuted);
                         if t > min_hit {
-                            let faces = any || normal_of.dot(*dir) < 0.0;
+                            let faces = any || normal_of.dot(centre_dirs[pixel as usize]) < 0.0;
                             reducers[(row * n + col) as usize].add(t, faces, separation);
                         }
                     }
@@ -415,8 +443,8 @@ fn render_with(
                 }
             };
             let Some(margin) = tri.margin else {
-                for row in 0..n {
-                    visit(row, 0, n - 1);
+                for row in row0..=row1 {
+                    visit(row, col0 as u32, col1 as u32);
                 }
                 continue;
             };
@@ -445,8 +473,8 @@ fn render_with(
                 vmax = vmax.max(slot[1]);
             }
             let uv = &uv[..poly.len];
-            let r0 = cell(vmin - margin).max(0.0);
-            let r1 = cell(vmax + margin).min(last);
+            let r0 = cell(vmin - margin).max(*rows.start());
+            let r1 = cell(vmax + margin).min(*rows.end());
             if !(r0 <= r1) {
                 continue;
             }
@@ -456,8 +484,8 @@ fn render_with(
                 let Some((u0, u1)) = band_span(uv, lo, hi) else {
                     continue;
                 };
-                let c0 = cell(u0 - margin).max(0.0);
-                let c1 = cell(u1 + margin).min(last);
+                let c0 = cell(u0 - margin).max(col0);
+                let c1 = cell(u1 + margin).min(col1);
                 if c0 <= c1 {
                     visit(row, c0 as u32, c1 as u32);
                 }
@@ -470,16 +498,17 @@ fn render_with(
             if kind[pixel] != CENTRE {
                 continue;
             }
-            let (dir, ray) = &centre_rays[pixel];
             let hit = hit_of(
                 &reducers[local],
                 scene,
-                &ray.with_origin(centre),
-                *dir,
+                &centre_rays[pixel].with_origin(centre),
+                centre_dirs[pixel],
                 any,
                 min_hit,
                 separation,
             );
+            // Ready for the next face (every reducer starts and ends a face cleared).
+            reducers[local] = HitReducer::default();
             let (interval, pixel_seen) = cubemap::finish_pixel(second_layer, hit, 1.0, quantizer);
             out[pixel] = interval;
             if exchange {

@@ -71,9 +71,10 @@ pub struct FrontHit {
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
     origin: Vec3,
-    kx: usize,
-    ky: usize,
-    kz: usize,
+    // Bytes, not `usize`: a renderer keeps a table of these, one per pixel.
+    kx: u8,
+    ky: u8,
+    kz: u8,
     sx: f32,
     sy: f32,
     sz: f32,
@@ -100,9 +101,9 @@ impl WatertightRay {
         }
         Self {
             origin,
-            kx,
-            ky,
-            kz,
+            kx: kx as u8,
+            ky: ky as u8,
+            kz: kz as u8,
             sx: d[kx] / d[kz],
             sy: d[ky] / d[kz],
             sz: 1.0 / d[kz],
@@ -136,14 +137,29 @@ impl WatertightRay {
     /// against many rays from one origin subtracts once. The ray's own origin is not used.
     #[inline]
     pub fn intersect_relative(&self, rel: &[[f32; 3]; 3]) -> f32 {
+        let [kx, ky, kz] = self.axes();
+        self.intersect_permuted(&rel.map(|p| [p[kx], p[ky], p[kz]]))
+    }
+
+    /// The ray's axes `(kx, ky, kz)`: [`WatertightRay::intersect_permuted`] takes the corners'
+    /// coordinates in this order.
+    pub fn axes(&self) -> [usize; 3] {
+        [self.kx as usize, self.ky as usize, self.kz as usize]
+    }
+
+    /// [`WatertightRay::intersect_relative`] with each corner's coordinates already in the order
+    /// of [`WatertightRay::axes`]: a renderer whose rays share their axes (the pixels of one cube
+    /// face) reorders a triangle once. This is the test itself; the other forms only move
+    /// values into place.
+    #[inline(always)]
+    pub fn intersect_permuted(&self, rel: &[[f32; 3]; 3]) -> f32 {
         let [a, b, c] = rel;
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let ax = a[kx] - self.sx * a[kz];
-        let ay = a[ky] - self.sy * a[kz];
-        let bx = b[kx] - self.sx * b[kz];
-        let by = b[ky] - self.sy * b[kz];
-        let cx = c[kx] - self.sx * c[kz];
-        let cy = c[ky] - self.sy * c[kz];
+        let ax = a[0] - self.sx * a[2];
+        let ay = a[1] - self.sy * a[2];
+        let bx = b[0] - self.sx * b[2];
+        let by = b[1] - self.sy * b[2];
+        let cx = c[0] - self.sx * c[2];
+        let cy = c[1] - self.sy * c[2];
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
@@ -160,7 +176,7 @@ impl WatertightRay {
         if det == 0.0 {
             return f32::INFINITY;
         }
-        let t = (u * self.sz * a[kz] + v * self.sz * b[kz] + w * self.sz * c[kz]) / det;
+        let t = (u * self.sz * a[2] + v * self.sz * b[2] + w * self.sz * c[2]) / det;
         if t.is_finite() { t } else { f32::INFINITY }
     }
 }
