@@ -225,9 +225,9 @@ pub struct BakeArgs {
     second_layer: bake::cubemap::SecondLayer,
     /// Which renderer draws the depth cube maps: raster (triangle by triangle, the watertight
     /// ray/triangle test on the pixels each triangle covers; fastest for scenes of few
-    /// triangles), bvh (one BVH traversal per pixel), or auto (raster up to 512 triangles, bvh
-    /// above; the default). The file is byte-identical either way; only the time differs
-    /// (reports/bake.md).
+    /// triangles), bvh (one BVH traversal per pixel), or auto (raster for scenes of at most
+    /// N x N triangles at cube resolution N, where the two break even, bvh above; the default).
+    /// The file is byte-identical either way; only the time differs (reports/bake.md).
     #[arg(long, default_value = "auto")]
     cube_renderer: bake::cubemap::CubeRenderer,
     /// How the file stores the runs: packed (run lengths and depth differences as varints before

@@ -80,7 +80,8 @@ impl std::str::FromStr for SecondLayer {
 /// differs with the scene's size (reports/bake.md, "CPU rasteriser").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CubeRenderer {
-    /// The rasteriser up to [`RASTER_MAX_TRIANGLES`] triangles, the BVH above.
+    /// The rasteriser for scenes of at most `N * N` triangles at cube resolution `N`, the BVH
+    /// above ([`CubeRenderer::resolve`]).
     #[default]
     Auto,
     /// Triangle by triangle ([`crate::raster`]): fastest for scenes of few triangles.
@@ -88,10 +89,6 @@ pub enum CubeRenderer {
     /// One BVH traversal per pixel ([`render`]).
     Bvh,
 }
-
-/// Largest scene [`CubeRenderer::Auto`] rasterises: where the two renderers' measured speeds
-/// cross (reports/bake.md, "CPU rasteriser").
-pub const RASTER_MAX_TRIANGLES: usize = 512;
 
 impl CubeRenderer {
     /// Every choice, default first.
@@ -107,18 +104,23 @@ impl CubeRenderer {
         }
     }
 
-    /// The renderer used for a scene of `triangles` triangles: [`CubeRenderer::Raster`] or
-    /// [`CubeRenderer::Bvh`].
+    /// The renderer used for a scene of `triangles` triangles at cube resolution `n`:
+    /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`]. [`CubeRenderer::Auto`] rasterises up
+    /// to `n * n` triangles. The rasteriser's cost per map grows with the triangles (each is
+    /// clipped to every face) and the pixels they cover, the BVH's with the pixels only; in
+    /// `benches/cube_renderer.rs` the two break even at about 940 triangles at cube 32 and 4,800
+    /// at cube 64 (reports/bake.md, "CPU rasteriser").
     ///
     /// ```
-    /// use cssm_bake::cubemap::{CubeRenderer, RASTER_MAX_TRIANGLES};
-    /// assert_eq!(CubeRenderer::Auto.resolve(36), CubeRenderer::Raster);
-    /// assert_eq!(CubeRenderer::Auto.resolve(RASTER_MAX_TRIANGLES + 1), CubeRenderer::Bvh);
-    /// assert_eq!(CubeRenderer::Bvh.resolve(36), CubeRenderer::Bvh);
+    /// use cssm_bake::cubemap::CubeRenderer;
+    /// assert_eq!(CubeRenderer::Auto.resolve(30, 64), CubeRenderer::Raster);
+    /// assert_eq!(CubeRenderer::Auto.resolve(6_320, 64), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Auto.resolve(2_000, 32), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Bvh.resolve(30, 64), CubeRenderer::Bvh);
     /// ```
-    pub fn resolve(self, triangles: usize) -> CubeRenderer {
+    pub fn resolve(self, triangles: usize, n: u32) -> CubeRenderer {
         match self {
-            CubeRenderer::Auto if triangles <= RASTER_MAX_TRIANGLES => CubeRenderer::Raster,
+            CubeRenderer::Auto if triangles <= (n as usize).pow(2) => CubeRenderer::Raster,
             CubeRenderer::Auto => CubeRenderer::Bvh,
             other => other,
         }
@@ -145,27 +147,32 @@ impl std::str::FromStr for CubeRenderer {
     }
 }
 
-/// A scene ready to render cube maps with, by the renderer [`CubeRenderer::resolve`] picks.
+/// A scene ready to render cube maps with, by the renderer [`CubeRenderer::resolve`] picks for
+/// each map's resolution.
 pub struct Renderer<'a> {
     bvh: &'a SceneBvh,
+    choice: CubeRenderer,
+    /// The rasteriser's scene, unless the choice is the BVH.
     raster: Option<RasterScene>,
 }
 
 impl<'a> Renderer<'a> {
-    /// The renderer `choice` resolves to for `bvh`'s scene.
+    /// Renders `bvh`'s scene as `choice` says.
     pub fn new(bvh: &'a SceneBvh, choice: CubeRenderer) -> Self {
-        let (triangles, _) = bvh.triangles_by_scene_index();
-        let raster = (choice.resolve(triangles.len()) == CubeRenderer::Raster)
-            .then(|| RasterScene::new(bvh));
-        Self { bvh, raster }
+        let raster = (choice != CubeRenderer::Bvh).then(|| RasterScene::new(bvh));
+        Self {
+            bvh,
+            choice,
+            raster,
+        }
     }
 
-    /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`].
-    pub fn kind(&self) -> CubeRenderer {
-        if self.raster.is_some() {
-            CubeRenderer::Raster
-        } else {
-            CubeRenderer::Bvh
+    /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`]: the renderer of maps of resolution
+    /// `n`.
+    pub fn kind(&self, n: u32) -> CubeRenderer {
+        match &self.raster {
+            Some(scene) => self.choice.resolve(scene.len(), n),
+            None => CubeRenderer::Bvh,
         }
     }
 
@@ -181,10 +188,10 @@ impl<'a> Renderer<'a> {
         out: &mut [Interval],
     ) -> u64 {
         match &self.raster {
-            Some(scene) => {
+            Some(scene) if self.kind(n) == CubeRenderer::Raster => {
                 crate::raster::render(scene, texel, n, near, quantizer, second_layer, out)
             }
-            None => render(self.bvh, texel, n, near, quantizer, second_layer, out),
+            _ => render(self.bvh, texel, n, near, quantizer, second_layer, out),
         }
     }
 }

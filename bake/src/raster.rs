@@ -333,8 +333,7 @@ fn render_with(
     // Per face, the rows and columns holding a pixel to test (`[row0, row1, col0, col1]`;
     // empty when `row0 > row1`): for a texel's normal most of a face or all of it is don't care.
     let mut active = [[u32::MAX, 0, u32::MAX, 0]; 6];
-    let mut activate = |cell: u32| {
-        let (face, row, col) = cube::split_pixel(n, cell);
+    let mut activate = |face: u32, row: u32, col: u32| {
         let a = &mut active[face as usize];
         *a = [a[0].min(row), a[1].max(row), a[2].min(col), a[3].max(col)];
     };
@@ -344,7 +343,8 @@ fn render_with(
         // `cube::pixel_is_dont_care` with its per-face term hoisted, the same arithmetic.
         let (_, ua, va) = cube::face_axes(face);
         let corner_reach = half_step * (nrm[ua].abs() + nrm[va].abs());
-        for pixel in face * n * n..(face + 1) * n * n {
+        for (row, col) in (0..n).flat_map(|row| (0..n).map(move |col| (row, col))) {
+            let pixel = face * n * n + row * n + col;
             let below = centre_dirs[pixel as usize].dot(normal);
             if below + corner_reach < 0.0 {
                 continue;
@@ -352,7 +352,7 @@ fn render_with(
             rays += 1;
             if below >= 0.0 {
                 kind[pixel as usize] = CENTRE;
-                activate(pixel);
+                activate(face, row, col);
                 continue;
             }
             let (dir, depth_scale) = cube::cast_direction(n, pixel, normal);
@@ -361,7 +361,8 @@ fn render_with(
             }
             let (face, u, v, _) = cube::project(dir);
             let cell = cube::pixel_index(n, face, u, v);
-            activate(cell);
+            let (_, cell_row, cell_col) = cube::split_pixel(n, cell);
+            activate(face, cell_row, cell_col);
             extras.push(Extra {
                 pixel,
                 cell,
@@ -501,7 +502,7 @@ fn render_with(
             let hit = hit_of(
                 &reducers[local],
                 scene,
-                &centre_rays[pixel].with_origin(centre),
+                || centre_rays[pixel].with_origin(centre),
                 centre_dirs[pixel],
                 any,
                 min_hit,
@@ -517,7 +518,7 @@ fn render_with(
         }
     }
     for e in extras.iter() {
-        let hit = hit_of(&e.reducer, scene, &e.ray, e.dir, any, min_hit, separation);
+        let hit = hit_of(&e.reducer, scene, || e.ray, e.dir, any, min_hit, separation);
         let (interval, pixel_seen) =
             cubemap::finish_pixel(second_layer, hit, e.depth_scale, quantizer);
         out[e.pixel as usize] = interval;
@@ -537,7 +538,7 @@ fn render_with(
 fn hit_of(
     reducer: &HitReducer,
     scene: &RasterScene,
-    ray: &WatertightRay,
+    ray: impl FnOnce() -> WatertightRay,
     dir: Vec3,
     any: bool,
     min_hit: f32,
@@ -546,6 +547,7 @@ fn hit_of(
     if !reducer.overflowed() {
         return reducer.hit();
     }
+    let ray = ray();
     let hits: Vec<(f32, bool)> = scene
         .triangles
         .iter()
