@@ -5,7 +5,8 @@
 //! `--scenes DIR` (default ../shared/scenes) has them. Where the raster/BVH ratio crosses 1 is
 //! where `--cube-renderer auto` switches (`cubemap::CubeRenderer::resolve`).
 //!
-//! `cargo bench --bench cube_renderer [-- --scenes DIR --cube N --threads T]`. Each row renders
+//! `cargo bench --bench cube_renderer [-- --scenes DIR --cube N --threads T --max-triangles M
+//! --no-bake]`. Each row renders
 //! the same texels (random surface points, fixed seed) with both renderers on `T` threads (default
 //! 1: per-core speed, least disturbed by other work on the machine), best of three runs each,
 //! and checks that the maps are identical. Then one whole Cornell-box bake (atlas 64, cube 64,
@@ -131,6 +132,10 @@ fn main() {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
     let n: u32 = flag("--cube").and_then(|s| s.parse().ok()).unwrap_or(64);
     let threads: usize = flag("--threads").and_then(|s| s.parse().ok()).unwrap_or(1);
+    let max_triangles: usize = flag("--max-triangles")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(usize::MAX);
+    let whole_bake = !args.iter().any(|a| a == "--no-bake");
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -172,6 +177,9 @@ fn main() {
             continue;
         };
         let triangles = scene.triangles.len();
+        if triangles > max_triangles {
+            continue;
+        }
         // Fewer texels for the big scenes, where the rasteriser clips every triangle per face.
         let count = (400_000 / triangles.max(1)).clamp(8, 400);
         let texels = texels(scene, count);

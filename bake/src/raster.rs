@@ -203,32 +203,52 @@ impl Polygon {
     }
 }
 
-/// Range of `u` over the convex polygon `uv` (projected corners) within `v in [lo, hi]`, if it
-/// reaches that band.
-fn band_span(uv: &[[f64; 2]], lo: f64, hi: f64) -> Option<(f64, f64)> {
-    let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
-    for i in 0..uv.len() {
-        let (p, q) = (uv[i], uv[(i + 1) % uv.len()]);
-        // The part of the edge p..q inside the band, as parameters in [0, 1].
-        let (mut s0, mut s1) = (0.0f64, 1.0f64);
+/// An edge of a projected polygon, lower end first, for [`band_span`].
+#[derive(Clone, Copy, Default)]
+struct Edge {
+    /// `v` and `u` at the lower end.
+    v0: f64,
+    u0: f64,
+    /// `v` and `u` at the upper end.
+    v1: f64,
+    u1: f64,
+    /// `du / dv` (0 for a horizontal edge).
+    slope: f64,
+}
+
+impl Edge {
+    fn new(p: [f64; 2], q: [f64; 2]) -> Edge {
+        let (p, q) = if p[1] <= q[1] { (p, q) } else { (q, p) };
         let dv = q[1] - p[1];
-        if dv == 0.0 {
-            if p[1] < lo || p[1] > hi {
-                continue;
-            }
+        Edge {
+            v0: p[1],
+            u0: p[0],
+            v1: q[1],
+            u1: q[0],
+            slope: if dv > 0.0 { (q[0] - p[0]) / dv } else { 0.0 },
+        }
+    }
+}
+
+/// Range of `u` over the convex polygon of `edges` within `v in [lo, hi]`, if it reaches that
+/// band: the extremes lie on the edges' parts inside the band. (Rounding here is some 1e-15;
+/// the cover is widened by at least 1e-5.)
+fn band_span(edges: &[Edge], lo: f64, hi: f64) -> Option<(f64, f64)> {
+    let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
+    for e in edges {
+        if e.v1 < lo || e.v0 > hi {
+            continue;
+        }
+        let (ua, ub) = if e.v1 == e.v0 {
+            (e.u0, e.u1)
         } else {
-            let (a, b) = ((lo - p[1]) / dv, (hi - p[1]) / dv);
-            s0 = s0.max(a.min(b));
-            s1 = s1.min(a.max(b));
-            if s0 > s1 {
-                continue;
-            }
-        }
-        for s in [s0, s1] {
-            let u = p[0] + s * (q[0] - p[0]);
-            min = min.min(u);
-            max = max.max(u);
-        }
+            (
+                e.u0 + (lo.max(e.v0) - e.v0) * e.slope,
+                e.u0 + (hi.min(e.v1) - e.v0) * e.slope,
+            )
+        };
+        min = min.min(ua.min(ub));
+        max = max.max(ua.max(ub));
     }
     (min <= max).then_some((min, max))
 }
@@ -404,6 +424,7 @@ fn render_with(
     let step = 2.0 / f64::from(n);
     let cell = |x: f64| ((x + 1.0) / step).floor();
     let mut uv = [[0.0f64; 2]; 8];
+    let mut edges = [Edge::default(); 8];
     for face in 0..6 {
         let base = face * n * n;
         let axes = centre_rays[base as usize].axes();
@@ -473,7 +494,10 @@ fn render_with(
                 vmin = vmin.min(slot[1]);
                 vmax = vmax.max(slot[1]);
             }
-            let uv = &uv[..poly.len];
+            for i in 0..poly.len {
+                edges[i] = Edge::new(uv[i], uv[(i + 1) % poly.len]);
+            }
+            let edges = &edges[..poly.len];
             let r0 = cell(vmin - margin).max(*rows.start());
             let r1 = cell(vmax + margin).min(*rows.end());
             if !(r0 <= r1) {
@@ -482,7 +506,7 @@ fn render_with(
             for row in r0 as u32..=r1 as u32 {
                 let lo = f64::from(row) * step - 1.0 - margin;
                 let hi = f64::from(row + 1) * step - 1.0 + margin;
-                let Some((u0, u1)) = band_span(uv, lo, hi) else {
+                let Some((u0, u1)) = band_span(edges, lo, hi) else {
                     continue;
                 };
                 let c0 = cell(u0 - margin).max(col0);
@@ -492,10 +516,13 @@ fn render_with(
                 }
             }
         }
-        // This face's centre rays are complete.
-        for local in 0..face_pixels {
+        // This face's centre rays are complete; they all lie in its active rows and columns.
+        let face_out = &mut out[base as usize..base as usize + face_pixels];
+        face_out.fill(DONT_CARE);
+        let cells =
+            (row0..=row1).flat_map(|row| (col0 as u32..=col1 as u32).map(move |col| row * n + col));
+        for local in cells.map(|c| c as usize) {
             let pixel = base as usize + local;
-            out[pixel] = DONT_CARE;
             if kind[pixel] != CENTRE {
                 continue;
             }
@@ -511,7 +538,7 @@ fn render_with(
             // Ready for the next face (every reducer starts and ends a face cleared).
             reducers[local] = HitReducer::default();
             let (interval, pixel_seen) = cubemap::finish_pixel(second_layer, hit, 1.0, quantizer);
-            out[pixel] = interval;
+            face_out[local] = interval;
             if exchange {
                 seen[pixel] = pixel_seen;
             }
