@@ -207,6 +207,9 @@ fn main() {
         );
     }
 
+    if !whole_bake {
+        return;
+    }
     println!();
     println!(
         "Whole bake in process (Cornell box, atlas 64, cube 64, every thread, default options):"

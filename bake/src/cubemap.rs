@@ -80,7 +80,7 @@ impl std::str::FromStr for SecondLayer {
 /// differs with the scene's size (reports/bake.md, "CPU rasteriser").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CubeRenderer {
-    /// The rasteriser for scenes of at most `N * N` triangles at cube resolution `N`, the BVH
+    /// The rasteriser for scenes of at most `N^3 / 48` triangles at cube resolution `N`, the BVH
     /// above ([`CubeRenderer::resolve`]).
     #[default]
     Auto,
@@ -106,21 +106,26 @@ impl CubeRenderer {
 
     /// The renderer used for a scene of `triangles` triangles at cube resolution `n`:
     /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`]. [`CubeRenderer::Auto`] rasterises up
-    /// to `n * n` triangles. The rasteriser's cost per map grows with the triangles (each is
-    /// clipped to every face) and the pixels they cover, the BVH's with the pixels only; in
-    /// `benches/cube_renderer.rs` the two break even at about 940 triangles at cube 32 and 4,800
-    /// at cube 64 (reports/bake.md, "CPU rasteriser").
+    /// to `n^3 / 48` triangles (10 at cube 8, 85 at 16, 682 at 32, 5,461 at 64). The
+    /// rasteriser's cost per map grows with the triangles (each is clipped to every face and
+    /// scanned row by row) and the pixels they cover, the BVH's with the pixels and slowly with
+    /// the triangles; in `benches/cube_renderer.rs` (the Cornell box split into more and more
+    /// triangles) the two break even at about 19 triangles at cube 8, 170 at 16, 745 at 32 and
+    /// 5,000 at 64, close to `n^3 / 48` (reports/bake.md, "CPU rasteriser").
     ///
     /// ```
     /// use cssm_bake::cubemap::CubeRenderer;
     /// assert_eq!(CubeRenderer::Auto.resolve(30, 64), CubeRenderer::Raster);
+    /// assert_eq!(CubeRenderer::Auto.resolve(30, 8), CubeRenderer::Bvh);
     /// assert_eq!(CubeRenderer::Auto.resolve(6_320, 64), CubeRenderer::Bvh);
     /// assert_eq!(CubeRenderer::Auto.resolve(2_000, 32), CubeRenderer::Bvh);
     /// assert_eq!(CubeRenderer::Bvh.resolve(30, 64), CubeRenderer::Bvh);
     /// ```
     pub fn resolve(self, triangles: usize, n: u32) -> CubeRenderer {
         match self {
-            CubeRenderer::Auto if triangles <= (n as usize).pow(2) => CubeRenderer::Raster,
+            CubeRenderer::Auto if triangles as u64 * 48 <= u64::from(n).pow(3) => {
+                CubeRenderer::Raster
+            }
             CubeRenderer::Auto => CubeRenderer::Bvh,
             other => other,
         }

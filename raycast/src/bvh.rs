@@ -137,8 +137,21 @@ impl WatertightRay {
     /// against many rays from one origin subtracts once. The ray's own origin is not used.
     #[inline]
     pub fn intersect_relative(&self, rel: &[[f32; 3]; 3]) -> f32 {
-        let [kx, ky, kz] = self.axes();
-        self.intersect_permuted(&rel.map(|p| [p[kx], p[ky], p[kz]]))
+        self.intersect_permuted(&rel.map(|p| self.permute(p)))
+    }
+
+    /// `p`'s coordinates in the order of [`WatertightRay::axes`], by constant indices (one of
+    /// six orders; the branch is the same for every triangle a ray meets).
+    #[inline(always)]
+    fn permute(&self, p: [f32; 3]) -> [f32; 3] {
+        match (self.kx, self.ky) {
+            (1, 2) => [p[1], p[2], p[0]],
+            (2, 1) => [p[2], p[1], p[0]],
+            (2, 0) => [p[2], p[0], p[1]],
+            (0, 2) => [p[0], p[2], p[1]],
+            (0, 1) => [p[0], p[1], p[2]],
+            _ => [p[1], p[0], p[2]],
+        }
     }
 
     /// The ray's axes `(kx, ky, kz)`: [`WatertightRay::intersect_permuted`] takes the corners'
