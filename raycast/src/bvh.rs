@@ -137,21 +137,7 @@ impl WatertightRay {
     /// against many rays from one origin subtracts once. The ray's own origin is not used.
     #[inline]
     pub fn intersect_relative(&self, rel: &[[f32; 3]; 3]) -> f32 {
-        self.intersect_permuted(&rel.map(|p| self.permute(p)))
-    }
-
-    /// `p`'s coordinates in the order of [`WatertightRay::axes`], by constant indices (one of
-    /// six orders; the branch is the same for every triangle a ray meets).
-    #[inline(always)]
-    fn permute(&self, p: [f32; 3]) -> [f32; 3] {
-        match (self.kx, self.ky) {
-            (1, 2) => [p[1], p[2], p[0]],
-            (2, 1) => [p[2], p[1], p[0]],
-            (2, 0) => [p[2], p[0], p[1]],
-            (0, 2) => [p[0], p[2], p[1]],
-            (0, 1) => [p[0], p[1], p[2]],
-            _ => [p[1], p[0], p[2]],
-        }
+        self.test(rel, self.axes())
     }
 
     /// The ray's axes `(kx, ky, kz)`: [`WatertightRay::intersect_permuted`] takes the corners'
@@ -162,17 +148,25 @@ impl WatertightRay {
 
     /// [`WatertightRay::intersect_relative`] with each corner's coordinates already in the order
     /// of [`WatertightRay::axes`]: a renderer whose rays share their axes (the pixels of one cube
-    /// face) reorders a triangle once. This is the test itself; the other forms only move
-    /// values into place.
-    #[inline(always)]
+    /// face) reorders a triangle once.
+    #[inline]
     pub fn intersect_permuted(&self, rel: &[[f32; 3]; 3]) -> f32 {
+        self.test(rel, [0, 1, 2])
+    }
+
+    /// The test itself, reading coordinate `axes[i]` of each corner as the ray's axis `i`: every
+    /// form above is this one arithmetic, with the corners read in place (`axes` the ray's own)
+    /// or already reordered (`[0, 1, 2]`, constant indices once inlined).
+    #[inline(always)]
+    fn test(&self, rel: &[[f32; 3]; 3], axes: [usize; 3]) -> f32 {
         let [a, b, c] = rel;
-        let ax = a[0] - self.sx * a[2];
-        let ay = a[1] - self.sy * a[2];
-        let bx = b[0] - self.sx * b[2];
-        let by = b[1] - self.sy * b[2];
-        let cx = c[0] - self.sx * c[2];
-        let cy = c[1] - self.sy * c[2];
+        let [kx, ky, kz] = axes;
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
@@ -189,7 +183,7 @@ impl WatertightRay {
         if det == 0.0 {
             return f32::INFINITY;
         }
-        let t = (u * self.sz * a[2] + v * self.sz * b[2] + w * self.sz * c[2]) / det;
+        let t = (u * self.sz * a[kz] + v * self.sz * b[kz] + w * self.sz * c[kz]) / det;
         if t.is_finite() { t } else { f32::INFINITY }
     }
 }
