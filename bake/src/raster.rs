@@ -500,7 +500,8 @@ fn render_with(
             let edges = &edges[..poly.len];
             let r0 = cell(vmin - margin).max(*rows.start());
             let r1 = cell(vmax + margin).min(*rows.end());
-            if !(r0 <= r1) {
+            // (`max` and `min` drop a NaN bound: the rows stay within the active ones.)
+            if r0 > r1 {
                 continue;
             }
             for row in r0 as u32..=r1 as u32 {
