@@ -10,9 +10,9 @@
 //! pixel is covered by two or three; a BVH traversal per pixel costs several node tests first.
 //!
 //! Conservative cover: the watertight test decides exactly for a triangle whose corners are moved
-//! by at most a few ulps of the coordinates' magnitude ([`corner_slack`]); seen from the cube's
+//! by at most a few ulps of the coordinates' magnitude (`corner_slack`); seen from the cube's
 //! centre at distance `d` or more, such a move shifts the triangle's projection by less than
-//! `margin` in face coordinates ([`Triangle::margin`]). The cover is the triangle clipped to the
+//! `margin` in face coordinates (`Triangle::margin`). The cover is the triangle clipped to the
 //! face's frustum widened by that margin, projected, and widened again by it: it holds every pixel
 //! whose ray the test may report as a hit.
 //!

@@ -200,7 +200,7 @@ const CLUSTER: usize = 3;
 /// cube maps. Hits within `separation` of the first are one surface (a ray through a shared
 /// edge meets both triangles at one `t`), but which hits those are is only known once the first
 /// is: so the reducer keeps every hit within `separation` of the current first (up to
-/// [`CLUSTER`] of them; more sets [`HitReducer::overflowed`] and the caller reduces the full
+/// three of them; more sets [`HitReducer::overflowed`] and the caller reduces the full
 /// list with [`reduce_hits`]), and re-sorts them when a nearer first arrives.
 ///
 /// ```
