@@ -226,6 +226,14 @@ pub struct BakeArgs {
     /// visibility an image uses, in a much smaller file; reports/compression.md, best variant).
     #[arg(long, default_value = "exchange")]
     second_layer: bake::cubemap::SecondLayer,
+    /// Which renderer draws the depth cube maps: raster (triangle by triangle, the watertight
+    /// ray/triangle test on the pixels each triangle covers; fastest for scenes of few
+    /// triangles), bvh (one BVH traversal per pixel), or auto (raster for scenes of at most
+    /// N^3/48 triangles at cube resolution N, about where the two break even: 5,461 at cube 64;
+    /// bvh above; the default).
+    /// The file is byte-identical either way; only the time differs (reports/bake.md).
+    #[arg(long, default_value = "auto")]
+    cube_renderer: bake::cubemap::CubeRenderer,
     /// How the file stores the runs: packed (run lengths and depth differences as varints before
     /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).
     #[arg(long, default_value = "packed")]
@@ -275,6 +283,7 @@ impl BakeArgs {
             run_value: self.run_value,
             merge_short_runs: self.merge_short_runs,
             second_layer: self.second_layer,
+            cube_renderer: self.cube_renderer,
         };
         options.check().map_err(|e| cssm::flag_error(&e))?;
         Ok(BakeConfig {

@@ -11,7 +11,8 @@ use cssm_formats::{
     cube::{self, DEPTH_MAX, DepthQuantizer},
 };
 
-use crate::raycast::SceneBvh;
+use crate::raster::RasterScene;
+use crate::raycast::{FrontHit, SceneBvh};
 
 /// Acceptable code range `[lo, hi]` of one pixel; `[0, DEPTH_MAX]` means "don't care".
 pub type Interval = (u16, u16);
@@ -75,12 +76,137 @@ impl std::str::FromStr for SecondLayer {
     }
 }
 
+/// Which renderer draws the cube maps: both write byte-identical maps, only their speed
+/// differs with the scene's size (reports/bake.md, "CPU rasteriser").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CubeRenderer {
+    /// The rasteriser for scenes of at most `N^3 / 48` triangles at cube resolution `N`, the BVH
+    /// above ([`CubeRenderer::resolve`]).
+    #[default]
+    Auto,
+    /// Triangle by triangle ([`crate::raster`]): fastest for scenes of few triangles.
+    Raster,
+    /// One BVH traversal per pixel ([`render`]).
+    Bvh,
+}
+
+impl CubeRenderer {
+    /// Every choice, default first.
+    pub const ALL: [CubeRenderer; 3] =
+        [CubeRenderer::Auto, CubeRenderer::Raster, CubeRenderer::Bvh];
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            CubeRenderer::Auto => "auto",
+            CubeRenderer::Raster => "raster",
+            CubeRenderer::Bvh => "bvh",
+        }
+    }
+
+    /// The renderer used for a scene of `triangles` triangles at cube resolution `n`:
+    /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`]. [`CubeRenderer::Auto`] rasterises up
+    /// to `n^3 / 48` triangles (10 at cube 8, 85 at 16, 682 at 32, 5,461 at 64). The
+    /// rasteriser's cost per map grows with the triangles (each is clipped to every face and
+    /// scanned row by row) and the pixels they cover, the BVH's with the pixels and slowly with
+    /// the triangles; in `benches/cube_renderer.rs` (the Cornell box split into more and more
+    /// triangles) the two break even at about 19 triangles at cube 8, 170 at 16, 745 at 32 and
+    /// 5,000 at 64, close to `n^3 / 48` (reports/bake.md, "CPU rasteriser").
+    ///
+    /// ```
+    /// use cssm_bake::cubemap::CubeRenderer;
+    /// assert_eq!(CubeRenderer::Auto.resolve(30, 64), CubeRenderer::Raster);
+    /// assert_eq!(CubeRenderer::Auto.resolve(30, 8), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Auto.resolve(6_320, 64), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Auto.resolve(2_000, 32), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Bvh.resolve(30, 64), CubeRenderer::Bvh);
+    /// ```
+    pub fn resolve(self, triangles: usize, n: u32) -> CubeRenderer {
+        match self {
+            CubeRenderer::Auto if triangles as u64 * 48 <= u64::from(n).pow(3) => {
+                CubeRenderer::Raster
+            }
+            CubeRenderer::Auto => CubeRenderer::Bvh,
+            other => other,
+        }
+    }
+}
+
+impl std::fmt::Display for CubeRenderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for CubeRenderer {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "auto" => Ok(CubeRenderer::Auto),
+            "raster" => Ok(CubeRenderer::Raster),
+            "bvh" => Ok(CubeRenderer::Bvh),
+            other => Err(format!(
+                "unknown cube renderer '{other}': expected auto, raster or bvh"
+            )),
+        }
+    }
+}
+
+/// A scene ready to render cube maps with, by the renderer [`CubeRenderer::resolve`] picks for
+/// each map's resolution.
+pub struct Renderer<'a> {
+    bvh: &'a SceneBvh,
+    choice: CubeRenderer,
+    /// The rasteriser's scene, unless the choice is the BVH.
+    raster: Option<RasterScene>,
+}
+
+impl<'a> Renderer<'a> {
+    /// Renders `bvh`'s scene as `choice` says.
+    pub fn new(bvh: &'a SceneBvh, choice: CubeRenderer) -> Self {
+        let raster = (choice != CubeRenderer::Bvh).then(|| RasterScene::new(bvh));
+        Self {
+            bvh,
+            choice,
+            raster,
+        }
+    }
+
+    /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`]: the renderer of maps of resolution
+    /// `n`.
+    pub fn kind(&self, n: u32) -> CubeRenderer {
+        match &self.raster {
+            Some(scene) => self.choice.resolve(scene.len(), n),
+            None => CubeRenderer::Bvh,
+        }
+    }
+
+    /// Renders one texel's cube map into `out`, as [`render`] does (byte for byte), returning the
+    /// rays cast.
+    pub fn render(
+        &self,
+        texel: &Texel,
+        n: u32,
+        near: f32,
+        quantizer: &DepthQuantizer,
+        second_layer: SecondLayer,
+        out: &mut [Interval],
+    ) -> u64 {
+        match &self.raster {
+            Some(scene) if self.kind(n) == CubeRenderer::Raster => {
+                crate::raster::render(scene, texel, n, near, quantizer, second_layer, out)
+            }
+            _ => render(self.bvh, texel, n, near, quantizer, second_layer, out),
+        }
+    }
+}
+
 /// The don't-care interval.
 pub const DONT_CARE: Interval = (0, DEPTH_MAX);
 
 /// What a pixel's ray saw, for [`SecondLayer::Exchange`]'s second pass.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Seen {
+pub(crate) enum Seen {
     /// Wholly behind the tangent plane (or cast along it with no depth): don't care.
     Behind,
     /// No surface facing the texel along the ray.
@@ -89,8 +215,9 @@ enum Seen {
     FacingSurface,
 }
 
-/// Renders one texel's cube map into `out` (`6 * n * n` intervals). Returns the number of rays
-/// cast (pixels that were not don't-care).
+/// Renders one texel's cube map into `out` (`6 * n * n` intervals) by one BVH traversal per
+/// pixel. Returns the number of rays cast (pixels that were not don't-care).
+/// [`crate::raster::render`] writes the same intervals triangle by triangle.
 pub fn render(
     bvh: &SceneBvh,
     texel: &Texel,
@@ -102,8 +229,8 @@ pub fn render(
 ) -> u64 {
     let normal = texel.nrm();
     let centre = texel.pos() + normal * near;
-    // Hits closer together than a tenth of a depth code are the same surface.
-    let separation = 0.1 * quantizer.far() / DEPTH_MAX as f32;
+    let separation = separation(quantizer);
+    let min_hit = min_hit(near, bvh.magnitude());
     let exchange = second_layer == SecondLayer::Exchange;
     let mut seen = if exchange {
         vec![Seen::Behind; out.len()]
@@ -123,45 +250,87 @@ pub fn render(
         if depth_scale < 1e-3 {
             continue;
         }
-        let (first, second) = match second_layer {
+        let hit = match second_layer {
             SecondLayer::Any => {
-                let hit = bvh.dual_hit(centre, dir, separation);
-                (hit.first, hit.second)
-            }
-            SecondLayer::Facing => {
-                let hit = bvh.front_dual_hit(centre, dir, separation);
-                (hit.first, hit.second)
-            }
-            SecondLayer::Exchange => {
-                let hit = bvh.front_dual_hit(centre, dir, separation);
-                let second = hit.second * depth_scale;
-                seen[pixel] = if hit.first_faces || second.is_finite() {
-                    Seen::FacingSurface
-                } else {
-                    Seen::NoFacingSurface
-                };
-                if !hit.first_faces && second.is_finite() {
-                    // Nothing to keep visible: every code below the first facing surface.
-                    *slot = (0, quantizer.last_code_before(second));
-                    continue;
+                let hit = bvh.dual_hit_beyond(centre, dir, min_hit, separation);
+                FrontHit {
+                    first: hit.first,
+                    first_faces: true,
+                    second: hit.second,
                 }
-                (hit.first, hit.second)
+            }
+            SecondLayer::Facing | SecondLayer::Exchange => {
+                bvh.front_dual_hit_beyond(centre, dir, min_hit, separation)
             }
         };
-        *slot = quantizer.interval(first * depth_scale, second * depth_scale);
-    }
-    if exchange {
-        for (pixel, slot) in out.iter_mut().enumerate() {
-            if seen[pixel] == Seen::NoFacingSurface
-                && cube::neighbours(n, pixel as u32)
-                    .iter()
-                    .all(|&q| seen[q as usize] != Seen::FacingSurface)
-            {
-                *slot = DONT_CARE;
-            }
+        let (interval, pixel_seen) = finish_pixel(second_layer, hit, depth_scale, quantizer);
+        *slot = interval;
+        if exchange {
+            seen[pixel] = pixel_seen;
         }
     }
+    if exchange {
+        exchange_pass(n, &seen, out);
+    }
     rays
+}
+
+/// Hits closer together than a tenth of a depth code are the same surface.
+pub(crate) fn separation(quantizer: &DepthQuantizer) -> f32 {
+    0.1 * quantizer.far() / DEPTH_MAX as f32
+}
+
+/// Hits nearer the cube's centre than this are not seen. The centre sits the near distance off
+/// its own surface; a surface through the centre itself (a texel in a corner, pushed along its
+/// normal into the plane of the adjacent wall) meets the ray at `t = 0` give or take the
+/// watertight test's rounding, which scales with the coordinates' magnitude, and whether the
+/// BVH's box tests let such a hit through is a matter of rounding too. Ignoring every hit within
+/// a hundredth of the near distance, and well beyond that rounding, makes the answer the same
+/// for every renderer: such a hit would only say "code 0" for a surface the texel lies on.
+pub(crate) fn min_hit(near: f32, magnitude: f32) -> f32 {
+    (0.01 * near).max(256.0 * f32::EPSILON * magnitude)
+}
+
+/// A cast pixel's interval from its ray's hits (`hit.first_faces` unused for
+/// [`SecondLayer::Any`], whose second hit is taken whichever way it faces), and what its ray saw.
+#[inline]
+pub(crate) fn finish_pixel(
+    second_layer: SecondLayer,
+    hit: FrontHit,
+    depth_scale: f32,
+    quantizer: &DepthQuantizer,
+) -> (Interval, Seen) {
+    let mut seen = Seen::Behind;
+    if second_layer == SecondLayer::Exchange {
+        let second = hit.second * depth_scale;
+        seen = if hit.first_faces || second.is_finite() {
+            Seen::FacingSurface
+        } else {
+            Seen::NoFacingSurface
+        };
+        if !hit.first_faces && second.is_finite() {
+            // Nothing to keep visible: every code below the first facing surface.
+            return ((0, quantizer.last_code_before(second)), seen);
+        }
+    }
+    (
+        quantizer.interval(hit.first * depth_scale, hit.second * depth_scale),
+        seen,
+    )
+}
+
+/// [`SecondLayer::Exchange`]'s second pass: a pixel that met no facing surface, nor did any of
+/// its eight neighbours, is don't care.
+pub(crate) fn exchange_pass(n: u32, seen: &[Seen], out: &mut [Interval]) {
+    for (pixel, slot) in out.iter_mut().enumerate() {
+        if seen[pixel] == Seen::NoFacingSurface
+            && cube::neighbours(n, pixel as u32)
+                .iter()
+                .all(|&q| seen[q as usize] != Seen::FacingSurface)
+        {
+            *slot = DONT_CARE;
+        }
+    }
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@ pub mod check;
 pub mod compress;
 pub mod csm;
 pub mod cubemap;
+pub mod raster;
 pub mod traverse;
 
 /// Exact ray casting (obvhs), shared with the runtime: [`cssm_raycast`].
@@ -114,6 +115,9 @@ pub struct BakeOptions {
     /// Which intersection closes each pixel's interval (beyond the paper; see
     /// [`cubemap::SecondLayer`]).
     pub second_layer: cubemap::SecondLayer,
+    /// Which renderer draws the depth cube maps; the maps are byte-identical either way (see
+    /// [`cubemap::CubeRenderer`]).
+    pub cube_renderer: cubemap::CubeRenderer,
 }
 
 impl Default for BakeOptions {
@@ -132,6 +136,7 @@ impl Default for BakeOptions {
             run_value: compress::RunValue::Middle,
             merge_short_runs: 0,
             second_layer: cubemap::SecondLayer::Exchange,
+            cube_renderer: cubemap::CubeRenderer::Auto,
         }
     }
 }
@@ -382,7 +387,8 @@ fn bake_slice(
     }
 
     let t0 = Instant::now();
-    let bvh = TexelGeometry::new(scene);
+    let geometry = TexelGeometry::new(scene);
+    let renderer = geometry.renderers(options.cube_renderer);
     let quantizer = DepthQuantizer::new(near, far);
     let bvh_time = t0.elapsed();
 
@@ -399,7 +405,7 @@ fn bake_slice(
             ..options.clone()
         };
         fewest_runs(
-            &bvh,
+            &renderer,
             &atlas.texels,
             orders,
             near,
@@ -448,7 +454,7 @@ fn bake_slice(
     for (b, ids) in slice.chunks(batch_maps).enumerate() {
         let slots = &mut batch[..ids.len() * pixel_count as usize];
         stats.rays += render_maps(
-            &bvh,
+            &renderer,
             &atlas.texels,
             ids,
             n,
@@ -569,9 +575,29 @@ impl TexelGeometry {
         }
     }
 
-    /// What the cube map of `texel` sees.
-    fn seen_from(&self, texel: &cssm_formats::Texel) -> &raycast::SceneBvh {
-        &self.bvhs[self.bvh_of_object[texel.object as usize]]
+    /// A cube-map renderer over each BVH, as `choice` says.
+    fn renderers(&self, choice: cubemap::CubeRenderer) -> TexelRenderers<'_> {
+        TexelRenderers {
+            renderers: self
+                .bvhs
+                .iter()
+                .map(|bvh| cubemap::Renderer::new(bvh, choice))
+                .collect(),
+            of_object: &self.bvh_of_object,
+        }
+    }
+}
+
+/// The renderers of [`TexelGeometry`]'s geometries.
+struct TexelRenderers<'a> {
+    renderers: Vec<cubemap::Renderer<'a>>,
+    of_object: &'a [usize],
+}
+
+impl TexelRenderers<'_> {
+    /// The renderer of what the cube map of `texel` sees.
+    fn seen_from(&self, texel: &cssm_formats::Texel) -> &cubemap::Renderer<'_> {
+        &self.renderers[self.of_object[texel.object as usize]]
     }
 }
 
@@ -579,7 +605,7 @@ impl TexelGeometry {
 /// returns the rays cast.
 #[allow(clippy::too_many_arguments)]
 fn render_maps(
-    geometry: &TexelGeometry,
+    renderer: &TexelRenderers,
     texels: &[cssm_formats::Texel],
     ids: &[u32],
     n: u32,
@@ -593,8 +619,7 @@ fn render_maps(
         .zip(ids.par_iter())
         .map(|(out, &texel)| {
             let texel = &texels[texel as usize];
-            let bvh = geometry.seen_from(texel);
-            cubemap::render(bvh, texel, n, near, quantizer, second_layer, out)
+            renderer.seen_from(texel).render(texel, n, near, quantizer, second_layer, out)
         })
         .sum()
 }
@@ -606,7 +631,7 @@ fn render_maps(
 /// once and its maps reused for every order; a larger one is rendered again for each order,
 /// batch by batch, so memory stays bounded however large the chart.
 fn fewest_runs(
-    bvh: &TexelGeometry,
+    renderer: &TexelRenderers,
     texels: &[cssm_formats::Texel],
     orders: &[&[u32]],
     near: f32,
@@ -621,7 +646,7 @@ fn fewest_runs(
     let pixels = (6 * n * n) as usize;
     let render = |ids: &[u32], slots: &mut [cubemap::Interval]| {
         render_maps(
-            bvh,
+            renderer,
             texels,
             ids,
             n,
@@ -699,7 +724,8 @@ pub(crate) mod tests {
             ],
             vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]],
         );
-        let bvh = super::TexelGeometry::new(&scene);
+        let geometry = super::TexelGeometry::new(&scene);
+        let renderer = geometry.renderers(super::cubemap::CubeRenderer::Bvh);
         let texels: Vec<cssm_formats::Texel> = (0..40u16)
             .map(|i| cssm_formats::Texel {
                 position: [-1.5 + 0.075 * f32::from(i), 0.0, 0.0],
@@ -722,7 +748,7 @@ pub(crate) mod tests {
         for cached_maps in [usize::MAX, 0] {
             let pick = |orders: &[&[u32]]| {
                 super::fewest_runs(
-                    &bvh,
+                    &renderer,
                     &texels,
                     orders,
                     0.01,

@@ -26,6 +26,8 @@ pub mod bvh;
 pub mod rng;
 pub mod sample;
 
-pub use bvh::{DualHit, FrontHit, SceneBvh, scene_triangles};
+pub use bvh::{
+    DualHit, FrontHit, HitReducer, SceneBvh, WatertightRay, reduce_hits, scene_triangles,
+};
 pub use rng::SplitMix64;
 pub use sample::{SurfacePoint, SurfaceSampler, triangle_area};

@@ -705,6 +705,7 @@ impl Plan {
             run_value: v.run_value,
             merge_short_runs: v.merge_short_runs,
             second_layer: v.second_layer,
+            cube_renderer: Default::default(),
         }
     }
 
