@@ -79,6 +79,7 @@ fn texels(scene: &Scene, count: usize) -> Vec<Texel> {
                 area: 1.0,
                 material: 0,
                 chart: 0,
+                object: 0,
                 x: 0,
                 y: 0,
             }

@@ -712,6 +712,7 @@ mod tests {
                 area: 1.0,
                 material: 0,
                 chart: 0,
+                object: 0,
                 x: 0,
                 y: 0,
             };
@@ -754,6 +755,7 @@ mod tests {
                     area: 1.0,
                     material: 0,
                     chart: 0,
+                    object: 0,
                     x: 0,
                     y: 0,
                 };
