@@ -42,15 +42,47 @@ pub fn run_check(config: CheckConfig) -> CliResult {
         .expect("valid template")
         .progress_chars("=> "),
     );
-    let m = bake::check::measure_with_progress(
-        &scene,
-        &file,
-        config.pairs,
-        config.seed,
-        config.query,
-        &mut |done, _| bar.set_position(done),
-    );
-    bar.finish_and_clear();
+    let has_rigid = scene
+        .objects
+        .iter()
+        .any(|o| o.kind == formats::ObjectKind::Rigid);
+    let m = if has_rigid {
+        // Moving objects (§3.3): where --place puts them, else where the scene placed them.
+        let poses = poses(&scene, &config.place, &dir)?;
+        let posed = bake::check::measure_posed_with_progress(
+            &scene,
+            &file,
+            &poses,
+            config.pairs,
+            config.seed,
+            config.query,
+            &mut |done, _| bar.set_position(done),
+        )
+        .map_err(|e| format!("{}: {e}", config.file.display()))?;
+        bar.finish_and_clear();
+        for line in posed.overlaps.describe(&scene) {
+            eprintln!("warning: {line}");
+        }
+        posed.measurement
+    } else {
+        if let Some(p) = config.place.first() {
+            return Err(format!(
+                "--place {}: the scene in {} has no rigid objects ([[objects]] in scene.toml)",
+                p.name,
+                dir.display()
+            ));
+        }
+        let m = bake::check::measure_with_progress(
+            &scene,
+            &file,
+            config.pairs,
+            config.seed,
+            config.query,
+            &mut |done, _| bar.set_position(done),
+        );
+        bar.finish_and_clear();
+        m
+    };
     let summary = CheckSummary::new(&config.file, &m, start.elapsed().as_secs_f64());
     if config.json {
         println!("{}", summary.to_json());
@@ -69,4 +101,40 @@ pub fn run_check(config: CheckConfig) -> CliResult {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Every object's pose: as loaded, but for the rigid objects `places` moves (their scale
+/// stays). `Err` names an unknown or static object.
+fn poses(
+    scene: &formats::Scene,
+    places: &[crate::cli::Place],
+    dir: &std::path::Path,
+) -> Result<Vec<glam::Affine3A>, String> {
+    let mut poses: Vec<glam::Affine3A> = scene.objects.iter().map(|o| o.transform).collect();
+    for place in places {
+        let rigid = |o: &&formats::SceneObject| o.kind == formats::ObjectKind::Rigid;
+        let Some(index) = scene
+            .objects
+            .iter()
+            .position(|o| rigid(&o) && o.name == place.name)
+        else {
+            let names: Vec<&str> = scene
+                .objects
+                .iter()
+                .filter(rigid)
+                .map(|o| o.name.as_str())
+                .collect();
+            return Err(format!(
+                "--place {}: no rigid object of that name in {} (it has: {})",
+                place.name,
+                dir.display(),
+                names.join(", ")
+            ));
+        };
+        let (scale, _, _) = scene.objects[index]
+            .transform
+            .to_scale_rotation_translation();
+        poses[index] = formats::scene::placement(place.translation, place.rotation_deg, scale.x);
+    }
+    Ok(poses)
 }

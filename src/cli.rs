@@ -64,7 +64,8 @@ pub enum Command {
     Inspect(InspectArgs),
     /// Measure a .cssm file's visibility against exact ray casts on random surface point pairs.
     #[command(after_help = "Examples:\n  cssm check cornell.cssm\n  \
-        cssm check cornell.cssm --pairs 1000000 --no-pcf --min-agreement 0.98")]
+        cssm check cornell.cssm --pairs 1000000 --no-pcf --min-agreement 0.98\n  \
+        cssm check bunny-box.cssm --place bunny=300,0,200,0,90,0   # the bunny moved and turned")]
     Check(CheckArgs),
     /// Render a scene on the GPU to a PNG (tone-mapped) and optionally an EXR (linear radiance).
     #[command(
@@ -355,6 +356,52 @@ pub struct CheckArgs {
     /// Print the result as one JSON object.
     #[arg(long)]
     json: bool,
+    /// Move the rigid object NAME (an `[[objects]]` entry) before measuring, to translation
+    /// X,Y,Z and, optionally, rotation RX,RY,RZ (degrees, as scene.toml's rotation_deg; its
+    /// scale stays): visibility between moving objects (each object's own maps for itself,
+    /// the others' coherent shadow maps) against ray casts of the moved scene. Repeatable.
+    #[arg(long, value_name = "NAME=X,Y,Z[,RX,RY,RZ]", allow_hyphen_values = true, value_parser = parse_place)]
+    place: Vec<Place>,
+}
+
+/// `--place NAME=X,Y,Z[,RX,RY,RZ]` of `cssm check`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Place {
+    /// The `[[objects]]` name.
+    pub name: String,
+    /// Its new translation.
+    pub translation: glam::Vec3,
+    /// Its new rotation, XYZ Euler angles in degrees (zero when not given).
+    pub rotation_deg: glam::Vec3,
+}
+
+fn parse_place(s: &str) -> Result<Place, String> {
+    let Some((name, numbers)) = s.split_once('=') else {
+        return Err(format!("'{s}' is not NAME=X,Y,Z[,RX,RY,RZ]"));
+    };
+    if name.is_empty() {
+        return Err(format!("'{s}' names no object"));
+    }
+    let numbers: Vec<f32> = numbers
+        .split(',')
+        .map(finite_f32)
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("'{s}': {e}"))?;
+    let (translation, rotation) = match numbers[..] {
+        [x, y, z] => ([x, y, z], [0.0; 3]),
+        [x, y, z, a, b, c] => ([x, y, z], [a, b, c]),
+        _ => {
+            return Err(format!(
+                "'{s}': expected 3 or 6 numbers after the name, got {}",
+                numbers.len()
+            ));
+        }
+    };
+    Ok(Place {
+        name: name.to_string(),
+        translation: translation.into(),
+        rotation_deg: rotation.into(),
+    })
 }
 
 /// `cssm check`, as library types.
@@ -373,6 +420,8 @@ pub struct CheckConfig {
     pub min_agreement: Option<f64>,
     /// `--json`.
     pub json: bool,
+    /// `--place`: rigid objects moved before measuring.
+    pub place: Vec<Place>,
 }
 
 impl CheckArgs {
@@ -392,6 +441,7 @@ impl CheckArgs {
             },
             min_agreement: self.min_agreement,
             json: self.json,
+            place: self.place,
         }
     }
 }

@@ -1,5 +1,5 @@
 //! Coherent shadow maps of one rigid object (§3.1, after Ritschel et al. 2007, the paper's
-//! [17]): orthographic depth maps of the object from `k x k` directions over the sphere, in a
+//! \[17\]): orthographic depth maps of the object from `k x k` directions over the sphere, in a
 //! coherent order, each pixel storing any depth between the ray's first and second hit (dual
 //! depth), compressed into the same piecewise-constant runs and random-access layout as a
 //! CSSM. A CSM answers whether the segment from a point outside the object's convex hull to

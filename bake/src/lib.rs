@@ -619,7 +619,9 @@ fn render_maps(
         .zip(ids.par_iter())
         .map(|(out, &texel)| {
             let texel = &texels[texel as usize];
-            renderer.seen_from(texel).render(texel, n, near, quantizer, second_layer, out)
+            renderer
+                .seen_from(texel)
+                .render(texel, n, near, quantizer, second_layer, out)
         })
         .sum()
 }

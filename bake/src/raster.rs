@@ -266,7 +266,7 @@ fn band_span(edges: &[Edge], lo: f64, hi: f64) -> Option<(f64, f64)> {
 /// let bvh = SceneBvh::new(&scene);
 /// let texel = Texel {
 ///     position: [278.0, 0.0, 279.0], normal: [0.0, 1.0, 0.0], area: 1.0,
-///     material: 0, chart: 0, x: 0, y: 0,
+///     material: 0, chart: 0, object: 0, x: 0, y: 0,
 /// };
 /// let (n, near, quantizer) = (8, 0.5, DepthQuantizer::new(0.5, scene.diameter()));
 /// let layer = cubemap::SecondLayer::Exchange;

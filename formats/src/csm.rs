@@ -1,5 +1,5 @@
 //! Coherent shadow maps of the rigid objects (§3.1, after Ritschel et al. 2007, the paper's
-//! [17]): orthographic depth maps of one object from `k x k` directions over the sphere, in a
+//! \[17\]): orthographic depth maps of one object from `k x k` directions over the sphere, in a
 //! coherent order, each pixel storing any depth between the ray's first and second hit (dual
 //! depth), compressed into the CSSM's piecewise-constant runs and random-access layout
 //! ([`RunData`]). A CSM answers whether the segment between two points outside the object's

@@ -55,6 +55,17 @@ pub struct Placement {
 }
 
 impl Placement {
+    /// Where an object baked at `baked` (object to world, as loaded) stands at `pose`; `group`
+    /// as [`object_groups`] gives it.
+    pub fn new(baked: Affine3A, pose: Affine3A, group: u32) -> Self {
+        let to_object = pose.inverse();
+        Self {
+            to_baked: baked * to_object,
+            to_object,
+            group,
+        }
+    }
+
     /// Normal matrix of [`Placement::to_baked`] (its inverse transpose; the rotation itself for
     /// rigid poses).
     pub fn normal_to_baked(&self) -> glam::Mat3A {
@@ -65,6 +76,22 @@ impl Placement {
     pub fn normal(&self, n: Vec3) -> Vec3 {
         Vec3::from(self.normal_to_baked() * glam::Vec3A::from(n)).normalize_or(n)
     }
+}
+
+/// The group of every object of `objects` (a scene's, in order): 0 for the static ones, which
+/// never move and whose texels' maps see them all, `1 + i` for the `i`-th rigid object.
+pub fn object_groups(objects: &[crate::SceneObject]) -> Vec<u32> {
+    let mut rigid = 0;
+    objects
+        .iter()
+        .map(|o| match o.kind {
+            ObjectKind::Static => 0,
+            ObjectKind::Rigid => {
+                rigid += 1;
+                rigid
+            }
+        })
+        .collect()
 }
 
 /// Answers visibility queries between surface points of a scene whose rigid objects move
@@ -113,34 +140,29 @@ impl<'a> MovingQuery<'a> {
                 t.object
             ));
         }
+        let groups = object_groups(&scene.objects);
         let mut csms = Vec::new();
-        let mut rigid = 0;
-        let mut placements = Vec::with_capacity(objects);
         for (i, o) in scene.objects.iter().enumerate() {
-            let group = match o.kind {
-                ObjectKind::Static => 0,
-                ObjectKind::Rigid => {
-                    rigid += 1;
-                    let csm = file
-                        .csms
-                        .iter()
-                        .find(|c| c.object as usize == i)
-                        .ok_or_else(|| {
-                            format!(
-                                "rigid object {i} ('{}') has no coherent shadow map in the file",
-                                o.name
-                            )
-                        })?;
-                    csms.push(csm);
-                    rigid
-                }
-            };
-            placements.push(Placement {
-                to_baked: Affine3A::IDENTITY,
-                to_object: o.transform.inverse(),
-                group,
-            });
+            if o.kind == ObjectKind::Rigid {
+                let csm = file
+                    .csms
+                    .iter()
+                    .find(|c| c.object as usize == i)
+                    .ok_or_else(|| {
+                        format!(
+                            "rigid object {i} ('{}') has no coherent shadow map in the file",
+                            o.name
+                        )
+                    })?;
+                csms.push(csm);
+            }
         }
+        let placements = scene
+            .objects
+            .iter()
+            .zip(&groups)
+            .map(|(o, &group)| Placement::new(o.transform, o.transform, group))
+            .collect();
         Ok(Self {
             query: VisibilityQuery::new(file, options),
             baked: scene.objects.iter().map(|o| o.transform).collect(),
@@ -172,8 +194,7 @@ impl<'a> MovingQuery<'a> {
             }
         }
         for ((placement, pose), baked) in self.placements.iter_mut().zip(poses).zip(&self.baked) {
-            placement.to_object = pose.inverse();
-            placement.to_baked = *baked * placement.to_object;
+            *placement = Placement::new(*baked, *pose, placement.group);
         }
         Ok(())
     }
@@ -189,8 +210,13 @@ impl<'a> MovingQuery<'a> {
     }
 
     /// `p` and its normal `n` (world space now) in the frame object `object` was baked in.
+    /// The static part never moves: its frame is the world's, and its points pass unchanged
+    /// (so that a scene without rigid objects answers exactly as [`VisibilityQuery`]).
     fn to_baked(&self, object: u32, p: Vec3, n: Vec3) -> (Vec3, Vec3) {
         let placement = &self.placements[object as usize];
+        if placement.group == 0 {
+            return (p, n);
+        }
         (placement.to_baked.transform_point3(p), placement.normal(n))
     }
 
@@ -201,21 +227,24 @@ impl<'a> MovingQuery<'a> {
             self.placements[a.object as usize].group,
             self.placements[b.object as usize].group,
         );
-        // 1. Self-occlusion, in the frames the objects were baked in.
+        // 1. Self-occlusion: each end's maps answer for the other end, in the end's own baked
+        // frame (one frame when both lie on one object).
+        let (p_b, n_b) = self.to_baked(a.object, b.position, b.normal);
+        let forward = self
+            .query
+            .visibility_from_senders(a.senders, p_b, Some(n_b));
+        let (p_a, n_a) = self.to_baked(b.object, a.position, a.normal);
+        let backward = self
+            .query
+            .visibility_from_senders(b.senders, p_a, Some(n_a));
         let own = if group_a == group_b {
-            let (p_a, n_a) = self.to_baked(a.object, a.position, a.normal);
-            let (p_b, n_b) = self.to_baked(a.object, b.position, b.normal);
-            self.query
-                .visibility_between(a.senders, p_a, n_a, b.senders, p_b, n_b)
+            // VisibilityQuery::visibility_between's combination.
+            match (forward, backward) {
+                (Some(f), Some(r)) if self.query.options.both_ends => Some(0.5 * (f + r)),
+                (Some(f), _) => Some(f),
+                (None, r) => r,
+            }
         } else {
-            let (p_b, n_b) = self.to_baked(a.object, b.position, b.normal);
-            let forward = self
-                .query
-                .visibility_from_senders(a.senders, p_b, Some(n_b));
-            let (p_a, n_a) = self.to_baked(b.object, a.position, a.normal);
-            let backward = self
-                .query
-                .visibility_from_senders(b.senders, p_a, Some(n_a));
             match (forward, backward) {
                 (Some(f), Some(r)) => Some(f * r),
                 (f, r) => f.or(r),

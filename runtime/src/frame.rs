@@ -198,6 +198,10 @@ pub fn check_schedule(passes: &[PassInfo], has_indirect: bool) -> Result<(), Str
 pub struct CssmResources {
     /// The query's six bindings ([`crate::visibility`]).
     pub query: CssmGpu,
+    /// The moving objects' placements and coherent shadow maps (§3.3,
+    /// [`crate::visibility::moving`]); the identity placements and no CSM in a scene without
+    /// rigid objects.
+    pub moving: crate::visibility::moving::MovingGpu,
     /// The median-cut hierarchy (§4.2).
     pub hierarchy: HierarchyGpu,
 }
@@ -386,6 +390,7 @@ impl FrameContext {
         let cssm = match cssm {
             Some(file) => Some(CssmResources {
                 query: CssmGpu::new(device, queue, file, settings.visibility)?,
+                moving: crate::visibility::moving::MovingGpu::new(device, file, scene)?,
                 hierarchy: HierarchyGpu::new(device, &file.hierarchy)?,
             }),
             None => None,

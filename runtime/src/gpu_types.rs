@@ -138,6 +138,11 @@ pub struct GpuTexel {
     pub x: u32,
     /// Atlas row.
     pub y: u32,
+    /// Index into `Scene::objects` of the object it lies on (§3.3: which placement moves it,
+    /// whose maps its cube map holds).
+    pub object: u32,
+    /// Unused.
+    pub _pad: [u32; 3],
 }
 
 /// Constants of a loaded CSSM and of its query.
@@ -295,6 +300,7 @@ mod tests {
                 ("material", offset_of!(GpuTexel, material)),
                 ("x", offset_of!(GpuTexel, x)),
                 ("y", offset_of!(GpuTexel, y)),
+                ("object", offset_of!(GpuTexel, object)),
             ],
         );
         check(

@@ -321,6 +321,8 @@ impl CssmGpu {
                     material: t.material,
                     x: t.x as u32,
                     y: t.y as u32,
+                    object: t.object,
+                    _pad: [0; 3],
                 }
             })
             .collect();

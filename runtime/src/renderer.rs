@@ -307,10 +307,10 @@ impl Renderer {
     /// G-buffer) draw it there from the next frame on, the shadow maps and the method's
     /// view-independent passes run again, and accumulation restarts.
     ///
-    /// What was precomputed for the object where it was loaded stays there: a `.cssm` holds the
-    /// visibility of the scene as baked, so the indirect light of the CSSM methods does not
-    /// follow a moved object (moving objects get their own CSSM and CSM in a later step), and
-    /// the CPU references render the scene as loaded.
+    /// With a `.cssm`, visibility follows a rigid object (§3.3): its own maps test it in its
+    /// baked frame and its coherent shadow map tests it for everything else. Not yet: its atlas
+    /// texels stay where they were baked, so the light it receives and sends is computed there
+    /// (issue 21), and the CPU references render the scene as loaded.
     ///
     /// # Errors
     /// An index past the scene's objects, or a transform that is not finite or not invertible.
@@ -338,6 +338,9 @@ impl Renderer {
             (index * size_of::<[f32; 16]>()) as u64,
             bytemuck::cast_slice(&motion.to_cols_array()),
         );
+        if let Some(cssm) = &self.ctx.cssm {
+            cssm.moving.set_pose(&self.ctx.queue, index, transform);
+        }
         self.needs_prepare = true;
         self.accumulated = 0;
         Ok(())

@@ -95,7 +95,11 @@ pub const SVO_GROUP: u32 = 1;
 /// (`#{WORKGROUP_1D}`, `#{WORKGROUP_2D}`), the CSSM library's bind group (`#{CSSM_GROUP}`) and
 /// the number of storage bindings its run data spans (`CSSM_RUN_BINDINGS`, 1 unless a loaded
 /// file's runs exceed one binding: [`crate::load::CssmGpu::run_bindings`]).
-fn shader_defs(cssm_group: u32, run_bindings: u32) -> HashMap<String, ShaderDefValue> {
+fn shader_defs(
+    cssm_group: u32,
+    run_bindings: u32,
+    moving_csms: u32,
+) -> HashMap<String, ShaderDefValue> {
     HashMap::from([
         ("WORKGROUP_1D".into(), ShaderDefValue::UInt(WORKGROUP_1D)),
         ("WORKGROUP_2D".into(), ShaderDefValue::UInt(WORKGROUP_2D)),
@@ -106,6 +110,7 @@ fn shader_defs(cssm_group: u32, run_bindings: u32) -> HashMap<String, ShaderDefV
         ),
         ("SVO_GROUP".into(), ShaderDefValue::UInt(SVO_GROUP)),
         ("MOVING_GROUP".into(), ShaderDefValue::UInt(MOVING_GROUP)),
+        ("MOVING_CSMS".into(), ShaderDefValue::UInt(moving_csms)),
     ])
 }
 
@@ -122,8 +127,9 @@ pub fn composer() -> Result<Composer, String> {
             // CSSM_RUN_BINDINGS is left to each composed module (naga_oil refuses a definition
             // whose value differs between a library and the module importing it).
             shader_defs: {
-                let mut defs = shader_defs(CSSM_GROUP, 1);
+                let mut defs = shader_defs(CSSM_GROUP, 1, 0);
                 defs.remove("CSSM_RUN_BINDINGS");
+                defs.remove("MOVING_CSMS");
                 defs
             },
             ..Default::default()
@@ -424,6 +430,20 @@ impl Shader {
     /// # Errors
     /// naga_oil's message (a bug: the registry test composes every module).
     pub fn module_for(self, run_bindings: u32) -> Result<naga::Module, String> {
+        self.module_for_scene(run_bindings, 0)
+    }
+
+    /// [`Self::module_for`] for a scene whose `.cssm` holds `moving_csms` coherent shadow maps
+    /// of moving objects (`MOVING_CSMS`: the moving objects' query tests exactly that many, so
+    /// a static scene's modules carry none of its code; lavapipe compiles each copy).
+    ///
+    /// # Errors
+    /// naga_oil's message (a bug: the registry test composes every module).
+    pub fn module_for_scene(
+        self,
+        run_bindings: u32,
+        moving_csms: u32,
+    ) -> Result<naga::Module, String> {
         // One composer for the process: the libraries are parsed once, and naga_oil keeps each
         // composed import, so a renderer's start-up does not parse them again per module.
         static COMPOSER: OnceLock<Result<Mutex<Composer>, String>> = OnceLock::new();
@@ -438,7 +458,7 @@ impl Shader {
             .make_naga_module(NagaModuleDescriptor {
                 source,
                 file_path,
-                shader_defs: shader_defs(CSSM_GROUP, run_bindings),
+                shader_defs: shader_defs(CSSM_GROUP, run_bindings, moving_csms),
                 ..Default::default()
             })
             .map_err(|e| e.emit_to_string(&composer))
@@ -454,7 +474,18 @@ impl Shader {
     /// what the modules that import `cssm::visibility` are built with
     /// (`Shader::Query.create_for(device, cssm.run_bindings)`).
     pub fn create_for(self, device: &wgpu::Device, run_bindings: u32) -> wgpu::ShaderModule {
-        let source = match self.module_for(run_bindings) {
+        self.create_for_scene(device, run_bindings, 0)
+    }
+
+    /// [`Self::create_for`] for a `.cssm` with `moving_csms` coherent shadow maps
+    /// ([`Self::module_for_scene`]; [`crate::visibility::moving::MovingGpu::csm_count`]).
+    pub fn create_for_scene(
+        self,
+        device: &wgpu::Device,
+        run_bindings: u32,
+        moving_csms: u32,
+    ) -> wgpu::ShaderModule {
+        let source = match self.module_for_scene(run_bindings, moving_csms) {
             Ok(module) => wgpu::ShaderSource::Naga(Cow::Owned(module)),
             Err(_) => wgpu::ShaderSource::Wgsl(self.source().1.into()),
         };

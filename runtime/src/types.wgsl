@@ -48,6 +48,10 @@ struct Texel {
     material: u32,
     x: u32,
     y: u32,
+    object: u32,
+    pad_x: u32,
+    pad_y: u32,
+    pad_z: u32,
 }
 
 struct CssmParams {

@@ -31,8 +31,10 @@ fn gpu_moving_query_matches_cpu_reference() {
     let query_options = QueryOptions::default();
     let mut query = MovingQuery::new(&file, &scene, query_options).unwrap();
     let cssm = CssmGpu::new(&gpu.device, &gpu.queue, &file, query_options).expect("upload");
-    let moving = MovingGpu::new(gpu, &query).expect("upload the moving objects");
+    let moving = MovingGpu::new(&gpu.device, &file, &scene).expect("upload the moving objects");
+    let t0 = std::time::Instant::now();
     let kernel = MovingQueryKernel::new(gpu, &cssm, &moving);
+    eprintln!("kernel built in {:.1} s", t0.elapsed().as_secs_f32());
 
     // The block where it was baked, then lifted, turned and carried across the room.
     let block = scene
@@ -55,7 +57,9 @@ fn gpu_moving_query_matches_cpu_reference() {
     ];
     for (p, pose) in poses.iter().enumerate() {
         query.set_poses(pose).unwrap();
-        moving.set_placements(&gpu.queue, &query);
+        for (index, &t) in pose.iter().enumerate() {
+            moving.set_pose(&gpu.queue, index, t);
+        }
         let posed = scene.posed(pose).unwrap();
         let sampler = SurfaceSampler::new(&posed);
         let mut rng = SplitMix64(17 + p as u64);

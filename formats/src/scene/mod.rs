@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Affine3A, Mat3, Vec3};
 
-pub use self::objects::{ObjectKind, STATIC_OBJECT_NAME, SceneObject};
+pub use self::objects::{ObjectKind, STATIC_OBJECT_NAME, SceneObject, placement};
 use self::toml::{SceneToml, mesh_path};
 use validate::{check_camera, check_light, object_transform};
 
@@ -741,8 +741,9 @@ impl Builder {
         }
         self.push_object(name.into(), ObjectKind::Rigid, start, transform, path)?;
         self.warnings.push(format!(
-            "object `{name}`: rigid objects are baked as static geometry for now (no \
-             per-object CSSM/CSM yet)"
+            "object `{name}`: a moving object's atlas texels do not follow it in the renderer \
+             yet: the light it receives and sends is computed where it was loaded (its \
+             visibility follows it)"
         ));
         Ok(())
     }
@@ -1181,7 +1182,7 @@ intensity  = [10.0, 10.0, 10.0]
         assert!((s.positions[5] - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-5);
         assert!((s.positions[6] - Vec3::new(8.0, 0.0, 0.0)).length() < 1e-5);
         let w = s.warnings.join("\n");
-        assert!(w.contains("object `bunny`: rigid objects are baked as static geometry"));
+        assert!(w.contains("object `bunny`: a moving object's atlas texels do not follow it"));
         // tri.obj has no texcoords, so the merged scene has none.
         assert!(s.texcoords.is_empty());
         assert_eq!(s.triangle_materials, vec![0, 0, 1]);

@@ -40,6 +40,25 @@ pub struct SceneObject {
     pub transform: Affine3A,
 }
 
+/// The object-to-world transform of an `[[objects]]` entry: `scale`, then the rotation by the
+/// XYZ Euler angles `rotation_deg` (applied X, then Y, then Z), then `translation`.
+///
+/// ```
+/// use cssm_formats::scene::placement;
+/// use glam::Vec3;
+/// let t = placement(Vec3::new(10.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 90.0), 2.0);
+/// assert!(t.transform_point3(Vec3::X).distance(Vec3::new(10.0, 2.0, 0.0)) < 1e-5);
+/// ```
+pub fn placement(translation: glam::Vec3, rotation_deg: glam::Vec3, scale: f32) -> Affine3A {
+    let rotation = glam::Mat3::from_rotation_z(rotation_deg.z.to_radians())
+        * glam::Mat3::from_rotation_y(rotation_deg.y.to_radians())
+        * glam::Mat3::from_rotation_x(rotation_deg.x.to_radians());
+    Affine3A::from_mat3_translation(
+        rotation * glam::Mat3::from_diagonal(glam::Vec3::splat(scale)),
+        translation,
+    )
+}
+
 impl SceneObject {
     /// The static object of a scene that is nothing else: named [`STATIC_OBJECT_NAME`], identity
     /// transform, triangles `0..triangle_count`. For scenes built by hand (tests, generated
@@ -329,8 +348,8 @@ mod tests {
         assert_object_is(&s, 2, SQUARE_OBJ);
         // The merged arrays and the warning are as before.
         let w = s.warnings.join("\n");
-        assert!(w.contains("object `bunny`: rigid objects are baked as static geometry"));
-        assert!(w.contains("object `crate`: rigid objects are baked as static geometry"));
+        assert!(w.contains("object `bunny`: a moving object's atlas texels do not follow it"));
+        assert!(w.contains("object `crate`: a moving object's atlas texels do not follow it"));
         assert_eq!(s.triangle_materials, vec![0, 0, 1, 1, 1]);
     }
 

@@ -97,11 +97,8 @@ pub(super) fn object_transform(o: &ObjectToml, path: &Path) -> Result<(Mat3, Vec
     if !(o.scale.is_finite() && o.scale > 0.0) {
         return Err(bad(format!("scale {} must be finite and > 0", o.scale)));
     }
-    // XYZ Euler angles applied X, then Y, then Z.
-    let rot = Mat3::from_rotation_z(r.z.to_radians())
-        * Mat3::from_rotation_y(r.y.to_radians())
-        * Mat3::from_rotation_x(r.x.to_radians());
-    Ok((rot * Mat3::from_diagonal(Vec3::splat(o.scale)), t))
+    let placed = super::placement(t, r, o.scale);
+    Ok((placed.matrix3.into(), t))
 }
 
 #[cfg(test)]

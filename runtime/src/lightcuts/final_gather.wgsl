@@ -1,5 +1,6 @@
 #import cssm::types::{Material, Node, TraversalParams, View}
-#import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels, cssm_visibility_between}
+#import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels}
+#import cssm::moving::moving_visibility_between
 #import cssm::transfer::{brdf, brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
 
 // Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
@@ -8,7 +9,7 @@
 // light and the diffuse bounces of the radiosity iteration. With jittering (§4.5) every sender
 // is a random point of a random texel of its node and frames are averaged progressively.
 // CPU twin: lightcuts/cpu.rs::gather_pixel. Needs types.wgsl, transfer.wgsl, the CSSM library
-// at group 1.
+// at group 1 and the moving objects' (moving.wgsl) at group 2.
 
 @group(0) @binding(0) var<uniform> params: TraversalParams;
 @group(0) @binding(1) var<uniform> view: View;
@@ -27,6 +28,11 @@
 fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, atlas: vec2f) -> vec4f {
     // The receiver's own texels, found once for all its senders.
     let senders = cssm_senders_at(atlas);
+    // The object the pixel lies on: its texels' (a point without texels answers unshadowed).
+    var object = 0u;
+    if senders.weights.x > 0.0 {
+        object = cssm_texels[senders.texels.x].object;
+    }
     var l_out = vec3f(0.0);
     var cut = 0u;
     var s = 0u;
@@ -63,8 +69,9 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                     e = irradiance_from(p, n, y_position, node.normal, node.area, l);
                 }
                 if any(e > vec3f(0.0)) {
-                    // The pixel's texels and the sender's (both ends, CSSM_FLAG_BOTH_ENDS).
-                    var visibility = cssm_visibility_between(senders, p, n, cssm_senders_texel(sender), y_position, y.normal);
+                    // The pixel's texels and the sender's (both ends, CSSM_FLAG_BOTH_ENDS), each
+                    // object's own and the other moving objects' CSMs (§3.3).
+                    var visibility = moving_visibility_between(senders, p, n, object, cssm_senders_texel(sender), y_position, y.normal, y.object);
                     // No texel stands for the point (far outside its chart): unshadowed.
                     if visibility < 0.0 {
                         visibility = 1.0;

@@ -60,7 +60,11 @@ impl FinalGather {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = Shader::FinalGather.create_for(device, cssm.query.run_bindings);
+        let module = Shader::FinalGather.create_for_scene(
+            device,
+            cssm.query.run_bindings,
+            cssm.moving.csm_count,
+        );
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),
@@ -79,7 +83,9 @@ impl FinalGather {
             device,
             "final gather",
             &module,
-            &[&bind_layout, &cssm.query.bind_group_layout],
+            &cssm
+                .moving
+                .with_layout(&[&bind_layout, &cssm.query.bind_group_layout]),
         );
         let (indirect, bind_group) = Self::bind(ctx, &bind_layout, &params, node_radiance)?;
         Ok(Self {
@@ -156,6 +162,7 @@ impl FinalGather {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_bind_group(1, &cssm.query.bind_group, &[]);
+        cssm.moving.bind(&mut pass, 2);
         let (x, y) = shaders::groups_2d(self.size);
         pass.dispatch_workgroups(x, y, 1);
     }

@@ -1,5 +1,6 @@
 #import cssm::types::{Node, TraversalParams}
-#import cssm::visibility::{cssm_senders_texel, cssm_texels, cssm_visibility_between}
+#import cssm::visibility::{cssm_senders_texel, cssm_texels}
+#import cssm::moving::moving_visibility_between
 #import cssm::transfer::{TRANSFER_PI, irradiance_bound, irradiance_from, irradiance_from_texel, tone_mapped}
 
 // GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
@@ -53,8 +54,9 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
                 unoccluded = irradiance_from(p, n, y.position, node.normal, node.area, radiance);
             }
             if any(unoccluded > vec3f(0.0)) {
-                // Both ends' cube maps when the flags ask (CSSM_FLAG_BOTH_ENDS).
-                let visibility = cssm_visibility_between(cssm_senders_texel(receiver), p, n, cssm_senders_texel(sender), y.position, y.normal);
+                // Both ends' cube maps when the flags ask (CSSM_FLAG_BOTH_ENDS), each object's
+                // own and the other moving objects' CSMs (§3.3).
+                let visibility = moving_visibility_between(cssm_senders_texel(receiver), p, n, cssm_texels[receiver].object, cssm_senders_texel(sender), y.position, y.normal, y.object);
                 e += unoccluded * visibility;
             }
         }

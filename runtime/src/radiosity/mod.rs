@@ -166,6 +166,7 @@ impl Radiosity {
     pub fn new(
         device: &wgpu::Device,
         cssm: &CssmGpu,
+        moving: &crate::visibility::moving::MovingGpu,
         hierarchy: &HierarchyGpu,
         texel_direct: &wgpu::Buffer,
         texel_albedo: &[[f32; 4]],
@@ -194,8 +195,9 @@ impl Radiosity {
         let albedo = storage_buffer(device, "texel albedo", bytemuck::cast_slice(texel_albedo));
         let c = wgpu::ShaderStages::COMPUTE;
 
-        // Gather: group 0 its own buffers, group 1 the CSSM.
-        let module = Shader::RadiosityGather.create_for(device, cssm.run_bindings);
+        // Gather: group 0 its own buffers, group 1 the CSSM, group 2 the moving objects.
+        let module =
+            Shader::RadiosityGather.create_for_scene(device, cssm.run_bindings, moving.csm_count);
         let entries = [
             layout::uniform(0, c),
             layout::storage(1, true, c),
@@ -211,7 +213,7 @@ impl Radiosity {
             device,
             "radiosity gather",
             &module,
-            &[&gather_layout, &cssm.bind_group_layout],
+            &moving.with_layout(&[&gather_layout, &cssm.bind_group_layout]),
         );
         let params = |gather: u32| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -312,7 +314,12 @@ impl Radiosity {
     }
 
     /// Records the start (direct light into the leaves, pulled) and `iterations` bounces.
-    pub fn run(&self, frame: &mut FrameEncoder, cssm: &CssmGpu, iterations: u32) {
+    pub fn run(
+        &self,
+        frame: &mut FrameEncoder,
+        cssm: &crate::frame::CssmResources,
+        iterations: u32,
+    ) {
         for k in 0..=iterations {
             let written = (k % 2) as usize;
             let gather = usize::from(k > 0);
@@ -324,7 +331,8 @@ impl Radiosity {
                 });
                 pass.set_pipeline(&self.gather_pipeline);
                 pass.set_bind_group(0, &self.gather_groups[gather][written], &[]);
-                pass.set_bind_group(1, &cssm.bind_group, &[]);
+                pass.set_bind_group(1, &cssm.query.bind_group, &[]);
+                cssm.moving.bind(&mut pass, 2);
                 pass.dispatch_workgroups(shaders::groups_1d(self.leaf_count), 1, 1);
             }
             // wgpu orders the dispatches of one pass: each level reads what the one before wrote.
@@ -406,6 +414,7 @@ impl AtlasGi {
         let radiosity = Radiosity::new(
             &ctx.device,
             &cssm.query,
+            &cssm.moving,
             &cssm.hierarchy,
             &atlas.texel_radiance,
             &texel_albedo(scene, file),
@@ -418,7 +427,7 @@ impl AtlasGi {
     pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder, iterations: u32) {
         let Some(cssm) = &ctx.cssm else { return };
         self.atlas.run(frame);
-        self.radiosity.run(frame, &cssm.query, iterations);
+        self.radiosity.run(frame, cssm, iterations);
     }
 }
 

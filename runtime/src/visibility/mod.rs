@@ -394,6 +394,30 @@ mod tests {
         );
     }
 
+    /// The modules importing the moving objects' query compose and validate for every number of
+    /// CSMs the GPU query takes.
+    #[test]
+    fn moving_modules_compose_for_every_csm_count() {
+        use crate::visibility::moving::MOVING_MAX_CSMS;
+        for shader in [
+            Shader::MovingQuery,
+            Shader::RadiosityGather,
+            Shader::FinalGather,
+        ] {
+            for csms in 0..=MOVING_MAX_CSMS as u32 {
+                let module = shader
+                    .module_for_scene(1, csms)
+                    .unwrap_or_else(|e| panic!("{} for {csms}: {e}", shader.label()));
+                naga::valid::Validator::new(
+                    naga::valid::ValidationFlags::all(),
+                    crate::shaders::tests::CAPABILITIES,
+                )
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{} for {csms}: {e:?}", shader.label()));
+            }
+        }
+    }
+
     /// The storage bindings of the CSSM group a module declares.
     fn cssm_bindings(module: &naga::Module) -> Vec<u32> {
         let mut bindings: Vec<u32> = module

@@ -5,7 +5,10 @@
 //! `cssm_formats::moving::MovingQuery` and for benchmarks.
 
 use bytemuck::{Pod, Zeroable};
-use cssm_formats::moving::{MovingQuery, Placement};
+use cssm_formats::{
+    CssmFile, Scene,
+    moving::{Placement, object_groups},
+};
 use glam::{Affine3A, Vec3};
 use wgpu::util::DeviceExt;
 
@@ -18,6 +21,11 @@ use crate::{
 /// Rigid objects with a coherent shadow map the GPU query tests (`MOVING_MAX_CSMS` in
 /// `moving.wgsl`, which unrolls its loop over them for llvmpipe's loop limit).
 pub const MOVING_MAX_CSMS: usize = 8;
+
+/// Storage buffers per shader stage the moving objects' bind group adds to a pass's (the
+/// placements, CSMs, cells, offsets, runs). A scene with moving objects needs the device to
+/// allow [`crate::required_limits`]' 12 and these; a static scene's passes leave the group out.
+pub const MOVING_STORAGE_BUFFERS: u32 = 5;
 
 /// One object's placement as `moving.wgsl` reads it: the rows of its affine transforms.
 #[repr(C)]
@@ -78,7 +86,7 @@ pub struct GpuCsm {
 }
 
 /// The moving objects' bind group (`MOVING_GROUP` in the modules that import `cssm::moving`):
-/// placements (written by [`MovingGpu::set_placements`]), CSMs and their run data.
+/// placements (written by [`MovingGpu::set_pose`]), CSMs and their run data.
 pub struct MovingGpu {
     /// One [`GpuPlacement`] per object (binding 0).
     pub placements: wgpu::Buffer,
@@ -86,8 +94,13 @@ pub struct MovingGpu {
     pub bind_group_layout: wgpu::BindGroupLayout,
     /// The bind group.
     pub bind_group: wgpu::BindGroup,
-    /// Objects in the scene.
-    pub object_count: usize,
+    /// Each object's transform as baked (as loaded).
+    baked: Vec<Affine3A>,
+    /// Each object's group ([`object_groups`]).
+    groups: Vec<u32>,
+    /// How many CSMs the file holds: the modules importing `cssm::moving` are composed for it
+    /// ([`crate::shaders::Shader::create_for_scene`]).
+    pub csm_count: u32,
 }
 
 impl MovingGpu {
@@ -98,20 +111,35 @@ impl MovingGpu {
             .collect()
     }
 
-    /// Uploads `query`'s CSMs and placements. `Err` when there are more than
+    /// Uploads the CSMs of `file` and every object of `scene` (the scene `file` was baked
+    /// from, validated against it) where it was loaded. `Err` when there are more than
     /// [`MOVING_MAX_CSMS`] or a buffer exceeds the device's limits.
-    pub fn new(gpu: &Gpu, query: &MovingQuery) -> Result<Self, RuntimeError> {
-        let device = &gpu.device;
-        let csms = query.csms();
+    pub fn new(
+        device: &wgpu::Device,
+        file: &CssmFile,
+        scene: &Scene,
+    ) -> Result<Self, RuntimeError> {
+        let csms: Vec<&cssm_formats::csm::CsmData> = file.csms.iter().collect();
         if csms.len() > MOVING_MAX_CSMS {
             return Err(RuntimeError::Unsupported(format!(
                 "{} moving objects: the GPU query tests at most {MOVING_MAX_CSMS}",
                 csms.len()
             )));
         }
+        let allowed = device.limits().max_storage_buffers_per_shader_stage;
+        let needed =
+            crate::required_limits().max_storage_buffers_per_shader_stage + MOVING_STORAGE_BUFFERS;
+        if !csms.is_empty() && allowed < needed {
+            return Err(RuntimeError::Unsupported(format!(
+                "moving objects need {needed} storage buffers per shader stage; this device \
+                 allows {allowed}"
+            )));
+        }
+        let groups = object_groups(&scene.objects);
+        let baked: Vec<Affine3A> = scene.objects.iter().map(|o| o.transform).collect();
         let (mut cells, mut offsets, mut runs) = (Vec::new(), Vec::new(), Vec::new());
         let mut gpu_csms = Vec::with_capacity(csms.len());
-        for c in csms {
+        for c in &csms {
             gpu_csms.push(GpuCsm {
                 center: c.center,
                 radius: c.radius,
@@ -137,8 +165,11 @@ impl MovingGpu {
             // No directions: the placeholder the shader skips.
             gpu_csms.push(GpuCsm::default());
         }
-        let placements: Vec<GpuPlacement> =
-            query.placements().iter().map(GpuPlacement::from).collect();
+        let placements: Vec<GpuPlacement> = baked
+            .iter()
+            .zip(&groups)
+            .map(|(&t, &group)| GpuPlacement::from(&Placement::new(t, t, group)))
+            .collect();
         let buffer = |label: &'static str, bytes: &[u8], usage| -> Result<wgpu::Buffer, _> {
             limit_check(device, label, bytes.len() as u64)?;
             Ok::<_, RuntimeError>(
@@ -195,19 +226,46 @@ impl MovingGpu {
             placements: placements_buffer,
             bind_group_layout,
             bind_group,
-            object_count: placements.len(),
+            baked,
+            groups,
+            csm_count: csms.len() as u32,
         })
     }
 
-    /// Writes `query`'s current placements (after [`MovingQuery::set_poses`]).
+    /// `layouts` followed by this group's layout when the file has moving objects: the
+    /// pipeline layout of a pass whose module imports `cssm::moving` (composed for
+    /// [`Self::csm_count`]; a static scene's module reads none of the group, and leaving it out
+    /// keeps the pass within [`crate::required_limits`]).
+    pub fn with_layout<'a>(
+        &'a self,
+        layouts: &[&'a wgpu::BindGroupLayout],
+    ) -> Vec<&'a wgpu::BindGroupLayout> {
+        let mut all = layouts.to_vec();
+        if self.csm_count > 0 {
+            all.push(&self.bind_group_layout);
+        }
+        all
+    }
+
+    /// Binds the group at `index` of `pass` when [`Self::with_layout`] added it.
+    pub fn bind(&self, pass: &mut wgpu::ComputePass, index: u32) {
+        if self.csm_count > 0 {
+            pass.set_bind_group(index, &self.bind_group, &[]);
+        }
+    }
+
+    /// Places object `index` at `pose` (object to world), as
+    /// `cssm_formats::moving::MovingQuery::set_poses` does.
     ///
     /// # Panics
-    /// If `query` has another number of objects than the one this was built from.
-    pub fn set_placements(&self, queue: &wgpu::Queue, query: &MovingQuery) {
-        assert_eq!(query.placements().len(), self.object_count);
-        let placements: Vec<GpuPlacement> =
-            query.placements().iter().map(GpuPlacement::from).collect();
-        queue.write_buffer(&self.placements, 0, bytemuck::cast_slice(&placements));
+    /// If `index` is not an object of the scene this was built for.
+    pub fn set_pose(&self, queue: &wgpu::Queue, index: usize, pose: Affine3A) {
+        let placement = Placement::new(self.baked[index], pose, self.groups[index]);
+        queue.write_buffer(
+            &self.placements,
+            (index * std::mem::size_of::<GpuPlacement>()) as u64,
+            bytemuck::bytes_of(&GpuPlacement::from(&placement)),
+        );
     }
 }
 
@@ -264,7 +322,11 @@ impl MovingQueryKernel {
     /// Builds the kernel for `cssm`'s and `moving`'s layouts.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu, moving: &MovingGpu) -> Self {
         let device = &gpu.device;
-        let module = crate::shaders::Shader::MovingQuery.create_for(device, cssm.run_bindings);
+        let module = crate::shaders::Shader::MovingQuery.create_for_scene(
+            device,
+            cssm.run_bindings,
+            moving.csm_count,
+        );
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,
@@ -275,11 +337,7 @@ impl MovingQueryKernel {
             device,
             "moving query",
             &module,
-            &[
-                &io_layout,
-                &cssm.bind_group_layout,
-                &moving.bind_group_layout,
-            ],
+            &moving.with_layout(&[&io_layout, &cssm.bind_group_layout]),
         );
         Self {
             pipeline,
@@ -316,11 +374,15 @@ impl MovingQueryKernel {
             &self.layout,
             &[input.as_entire_binding(), output.as_entire_binding()],
         );
+        let mut groups = vec![&io, &cssm.bind_group];
+        if moving.csm_count > 0 {
+            groups.push(&moving.bind_group);
+        }
         let bytes = super::dispatch_and_read(
             gpu,
             "moving query",
             &self.pipeline,
-            &[&io, &cssm.bind_group, &moving.bind_group],
+            &groups,
             pairs.len(),
             &output,
             None,

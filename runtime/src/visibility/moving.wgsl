@@ -1,6 +1,6 @@
 #define_import_path cssm::moving
 
-#import cssm::visibility::{CssmSenders, cssm_visibility_between, cssm_visibility_senders}
+#import cssm::visibility::{CSSM_FLAG_BOTH_ENDS, CssmSenders, cssm, cssm_visibility_between, cssm_visibility_senders}
 
 // Visibility among moving rigid objects (Ritschel et al. 2008, §3.3) in WGSL: the same
 // computation, step for step, as the CPU reference `cssm_formats::moving::MovingQuery` and,
@@ -52,8 +52,6 @@ struct Csm {
 @group(#{MOVING_GROUP}) @binding(4) var<storage, read> csm_runs: array<u32>;
 
 const CSM_DEPTH_MAX: u32 = 65535u;
-// Rigid objects with a CSM the GPU query tests (load::MOVING_MAX_CSMS).
-const MOVING_MAX_CSMS: u32 = 8u;
 
 fn moving_affine(r0: vec4f, r1: vec4f, r2: vec4f, p: vec3f) -> vec3f {
     let h = vec4f(p, 1.0);
@@ -221,14 +219,21 @@ fn csm_visibility(c: Csm, light: vec3f, receiver: vec3f) -> f32 {
             + wx * csm_map_visibility(c, y1 * k + x1, light, receiver));
 }
 
-// MovingQuery::to_baked: a point and its normal in the frame `object` was baked in.
+// MovingQuery::to_baked: a point and its normal in the frame `object` was baked in; the static
+// part (group 0) never moves, its points pass unchanged.
 fn moving_to_baked(object: u32, p: vec3f) -> vec3f {
     let o = moving_objects[object];
+    if o.group == 0u {
+        return p;
+    }
     return moving_affine(o.to_baked_x, o.to_baked_y, o.to_baked_z, p);
 }
 
 fn moving_normal_to_baked(object: u32, n: vec3f) -> vec3f {
     let o = moving_objects[object];
+    if o.group == 0u {
+        return n;
+    }
     let m = vec3f(dot(o.normal_x.xyz, n), dot(o.normal_y.xyz, n), dot(o.normal_z.xyz, n));
     let len = length(m);
     if len > 0.0 {
@@ -244,22 +249,32 @@ fn moving_visibility_between(
     a: CssmSenders, p_a: vec3f, n_a: vec3f, object_a: u32,
     b: CssmSenders, p_b: vec3f, n_b: vec3f, object_b: u32,
 ) -> f32 {
+#if MOVING_CSMS == 0
+    // No moving object (each has a CSM): every point lies on the static part, and the query is
+    // the CSSM's alone; a static scene's modules carry only its code.
+    return cssm_visibility_between(a, p_a, n_a, b, p_b, n_b);
+#else
     let group_a = moving_objects[object_a].group;
     let group_b = moving_objects[object_b].group;
+    // Each end's maps answer for the other end, in the end's own baked frame (one frame when
+    // both lie on one object).
+    let forward = cssm_visibility_senders(a, moving_to_baked(object_a, p_b), moving_normal_to_baked(object_a, n_b));
+    let backward = cssm_visibility_senders(b, moving_to_baked(object_b, p_a), moving_normal_to_baked(object_b, n_a));
     var own: f32;
     if group_a == group_b {
-        own = cssm_visibility_between(
-            a, moving_to_baked(object_a, p_a), moving_normal_to_baked(object_a, n_a),
-            b, moving_to_baked(object_a, p_b), moving_normal_to_baked(object_a, n_b),
-        );
-    } else {
-        let forward = cssm_visibility_senders(a, moving_to_baked(object_a, p_b), moving_normal_to_baked(object_a, n_b));
-        let backward = cssm_visibility_senders(b, moving_to_baked(object_b, p_a), moving_normal_to_baked(object_b, n_a));
-        if forward >= 0.0 && backward >= 0.0 {
-            own = forward * backward;
+        // cssm_visibility_between's combination: the mean (CSSM_FLAG_BOTH_ENDS), else the
+        // sender's alone; one end's when the other has no texels.
+        if forward < 0.0 {
+            own = backward;
+        } else if backward < 0.0 || (cssm.flags & CSSM_FLAG_BOTH_ENDS) == 0u {
+            own = forward;
         } else {
-            own = max(forward, backward);
+            own = 0.5 * (forward + backward);
         }
+    } else if forward >= 0.0 && backward >= 0.0 {
+        own = forward * backward;
+    } else {
+        own = max(forward, backward);
     }
     if own < 0.0 {
         return -1.0;
@@ -267,18 +282,37 @@ fn moving_visibility_between(
     let groups = vec2u(group_a, group_b);
     let count = arrayLength(&moving_csms);
     var clear = own;
+    // One step per CSM of the file (MOVING_CSMS, a composition constant): a static scene's
+    // modules carry none of this code.
+#if MOVING_CSMS > 0
     clear = moving_csm_step(0u, count, groups, p_a, p_b, clear);
+#endif
+#if MOVING_CSMS > 1
     clear = moving_csm_step(1u, count, groups, p_a, p_b, clear);
+#endif
+#if MOVING_CSMS > 2
     clear = moving_csm_step(2u, count, groups, p_a, p_b, clear);
+#endif
+#if MOVING_CSMS > 3
     clear = moving_csm_step(3u, count, groups, p_a, p_b, clear);
+#endif
+#if MOVING_CSMS > 4
     clear = moving_csm_step(4u, count, groups, p_a, p_b, clear);
+#endif
+#if MOVING_CSMS > 5
     clear = moving_csm_step(5u, count, groups, p_a, p_b, clear);
+#endif
+#if MOVING_CSMS > 6
     clear = moving_csm_step(6u, count, groups, p_a, p_b, clear);
+#endif
+#if MOVING_CSMS > 7
     clear = moving_csm_step(7u, count, groups, p_a, p_b, clear);
+#endif
     return clear;
+#endif
 }
 
-// One rigid object of moving_visibility_between's second step (unrolled to MOVING_MAX_CSMS):
+// One rigid object of moving_visibility_between's second step (one copy per CSM):
 // `clear` times CSM `i`'s answer, unless it is one of the ends' objects or past the last.
 fn moving_csm_step(i: u32, count: u32, groups: vec2u, p_a: vec3f, p_b: vec3f, clear: f32) -> f32 {
     if i >= count || clear <= 0.0 {
