@@ -1402,6 +1402,27 @@ mod tests {
         assert!(super::parse_pose("1,2,3,4,5,6,7").is_err());
     }
 
+    #[test]
+    fn place_takes_a_name_and_three_or_six_numbers() {
+        let p = super::parse_place("bunny=1,2,3").unwrap();
+        assert_eq!(p.name, "bunny");
+        assert_eq!(p.translation, glam::Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(p.rotation_deg, glam::Vec3::ZERO);
+        let p = super::parse_place("a=b=1,-2,3,0,90,-45").unwrap_err();
+        assert!(p.contains("'a=b=1,-2,3,0,90,-45'"), "{p}");
+        let p = super::parse_place("box=1,-2,3,0,90,-45").unwrap();
+        assert_eq!(p.rotation_deg, glam::Vec3::new(0.0, 90.0, -45.0));
+        for bad in [
+            "bunny",
+            "=1,2,3",
+            "bunny=1,2",
+            "bunny=1,2,3,4",
+            "bunny=1,2,nan",
+        ] {
+            assert!(super::parse_place(bad).is_err(), "{bad}");
+        }
+    }
+
     fn bake_config(args: &[&str]) -> Result<super::BakeConfig, String> {
         let cli = Cli::try_parse_from([&["cssm", "bake"], args].concat()).unwrap();
         let Command::Bake(args) = cli.command else {
