@@ -219,7 +219,9 @@ pub fn measure(
 
 /// [`measure`], calling `progress(done, pairs)` after every block of 65,536 pairs. A scene with
 /// rigid objects is measured with them where it placed them, through the moving-objects query
-/// ([`measure_posed`]).
+/// ([`measure_posed`]); a file that lacks a rigid object's CSM (none `cssm bake` writes) is
+/// measured with its CSSM alone, which misses occlusion between objects: call
+/// [`measure_posed`] to have that refused instead (`cssm check` does).
 pub fn measure_with_progress(
     scene: &Scene,
     file: &CssmFile,
