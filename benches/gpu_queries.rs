@@ -7,6 +7,7 @@
 //! ```text
 //! cargo bench --bench gpu_queries -- [--scenes DIR] [--atlas 128] [--cube 32]
 //!     [--pairs 4194304] [--receivers 65536] [--senders 256] [--reps 5] [--csv FILE]
+//!     [--only cornell-box,heads,church3700,sibenik]
 //! ```
 //!
 //! Each scene bakes at `--atlas`, or at the next power of two that holds its charts (the
@@ -129,6 +130,11 @@ fn main() {
     let asked_receivers = arg(&args, "--receivers", 1usize << 16);
     let senders = arg(&args, "--senders", 256u32);
     let reps = arg(&args, "--reps", 5u32);
+    let only: Option<String> = args
+        .iter()
+        .position(|a| a == "--only")
+        .and_then(|i| args.get(i + 1))
+        .cloned();
     let csv: Option<PathBuf> = args
         .iter()
         .position(|a| a == "--csv")
@@ -162,6 +168,12 @@ fn main() {
         "| scene | atlas | pattern | queries | GPU ms | queries/s |\n| --- | --- | --- | --- | --- | --- |"
     );
     for (name, dir) in scenes(&scenes_dir, work.path()) {
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|n| n == name))
+        {
+            continue;
+        }
         let skipped = |why: &str| println!("| {name} | | skipped: {why} | | | |");
         let dir = match dir {
             Ok(dir) => dir,

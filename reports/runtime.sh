@@ -3,7 +3,9 @@
 # Here: build, then carry .gl and .carry. There: run this script from the repository root.
 #
 #   Here:   reports/runtime.sh prepare
-#   Device: reports/runtime.sh measure      (writes $OUT/runtime-*.txt, *.md and CSV)
+#   Device: reports/runtime.sh measure      (writes $OUT/runtime.tar.gz: runtime-*.txt, *.md,
+#                                            CSV and images, packed again after every step, since
+#                                            the device tool returns at most 8 files)
 #
 #   Anywhere: reports/runtime.sh smoke      (the whole harness at small sizes on this machine's
 #                                            device, lavapipe included, into a temporary carry
@@ -14,14 +16,21 @@
 # `prepare --small` and `measure --small` are the two halves of `smoke`. CSSM_CARRY names the
 # carry folder (default .carry). Every step of `measure` runs even when one before it failed
 # (the device's time is short: whatever worked comes back); the failed ones are listed in
-# $OUT/runtime-failures.txt and the script exits non-zero.
+# runtime-failures.txt and the script exits non-zero). MEASURE_BUDGET (seconds, default none)
+# skips the steps that would start after it and cuts the one running at it; STEP_LIMIT (seconds)
+# cuts any single step; both so that one device call returns whatever fitted. The steps run in
+# order of what the reports lack most. The first renders one small image and stops everything
+# when no GPU answers (or, where nvidia-smi exists, when the adapter is not NVIDIA's).
+#
+# What travels must stay under 64 MiB: `prepare` strips the executables and packs them with the
+# scenes into $carry/pack.tar.xz (xz, or Python's lzma where the device lacks xz).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 carry=${CSSM_CARRY:-.carry}
 small=0
 [ "${2:-}" = "--small" ] && small=1
-benches="gpu_queries frame_time rsm_time vct_time ssil_time vf_time"
+benches="gpu_queries moving_queries frame_time rsm_time vct_time ssil_time vf_time"
 gpu_limit=../shared/tools/gpu-limit
 shared_scenes=../shared/scenes
 
@@ -31,6 +40,9 @@ if [ $small = 1 ]; then
     bake_table1="--atlas 128 --cube 8"
     bake_sibenik="--atlas 256 --cube 8"
     queries="--atlas 128 --cube 8 --pairs 4096 --receivers 1024 --senders 16 --reps 2"
+    moving="--atlas 32 --cube 8 --pairs 4096 --objects 1 --reps 2"
+    bake_bunny="--atlas 32 --cube 8"
+    xz_level=1
     limit_args="--small"
     frames=2
     one_shots=1
@@ -47,6 +59,9 @@ else
     bake_table1="--atlas 128 --cube 32"
     bake_sibenik="--atlas 256 --cube 32"
     queries="--atlas 128 --cube 32"
+    moving="--atlas 64 --cube 32"
+    bake_bunny="--atlas 128 --cube 32"
+    xz_level=9
     limit_args="--sizes-mb 8,512 --r 64,256 --qlog2 26 --reps 20"
     frames=20
     one_shots=5
@@ -56,7 +71,9 @@ else
     shadow=""
     vct_cornell=64,128,256
     vct_sibenik=128,256,512
-    compare="--size 640x480 --samples 512"
+    # GPU ms per pass of every method at 640x480; the error figures of reports/compare.md come
+    # from 1024 paths per pixel, these references only need to exist.
+    compare="--size 640x480 --samples 64"
     gi_size=640x480
 fi
 
@@ -85,6 +102,17 @@ prepare() {
             echo "no $shared_scenes/$scene: its rows will be skipped" >&2
         fi
     done
+    if [ -d "$carry/scenes/bunny" ]; then
+        # The Cornell box with the bunny as a moving object (issue 21), its paths made to reach
+        # the carried meshes.
+        mkdir -p "$carry/scenes/cornell-bunny" "$carry/scenes/cornell-box"
+        cp scenes/cornell-box/cornell-box.* "$carry/scenes/cornell-box/"
+        sed -e 's|mesh *= *"[./]*/shared/scenes/bunny/|mesh = "../bunny/|' \
+            -e 's|mesh *= *"[./]*/scenes/cornell-box/|mesh = "../cornell-box/|' \
+            reports/scenes/cornell-bunny/scene.toml > "$carry/scenes/cornell-bunny/scene.toml"
+        # shellcheck disable=SC2086
+        "$carry/cssm" bake "$carry/scenes/cornell-bunny" -o "$carry/bunny.cssm" $bake_bunny
+    fi
     if [ -d "$carry/scenes/sibenik" ]; then
         mkdir -p "$carry/scenes/sibenik-view"
         cp reports/scenes/sibenik/scene.toml "$carry/scenes/sibenik-view/"
@@ -105,7 +133,30 @@ prepare() {
         # shellcheck disable=SC2086
         "$carry/cssm" bake "$carry/scenes/church" -o "$carry/church.cssm" $bake_table1
     fi
+    # Pack what is large: the executables stripped (their line tables are for profiling here),
+    # the scenes; the .cssm files are compressed already.
+    local packed=()
+    for exe in cssm gpu-limit $benches; do
+        if [ -f "$carry/$exe" ]; then
+            strip "$carry/$exe"
+            packed+=("$exe")
+        fi
+    done
+    XZ_OPT="-$xz_level -T0" tar -C "$carry" -cJf "$carry/pack.tar.xz" "${packed[@]}" scenes
+    (cd "$carry" && rm -rf "${packed[@]}" scenes)
     du -sh "$carry"
+}
+
+# Unpacks $carry/pack.tar.xz where it is (once).
+unpack() {
+    [ -f "$carry/pack.tar.xz" ] || return 0
+    if command -v xz > /dev/null; then
+        tar -C "$carry" -xJf "$carry/pack.tar.xz"
+    else
+        python3 -c 'import sys, tarfile; tarfile.open(sys.argv[1]).extractall(sys.argv[2])' \
+            "$carry/pack.tar.xz" "$carry"
+    fi
+    rm "$carry/pack.tar.xz"
 }
 
 measure() {
@@ -115,38 +166,87 @@ measure() {
         export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
         export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
     fi
-    out=${OUT:-/tmp/out}
+    unpack
     work=$(mktemp -d)
-    mkdir -p "$out"
+    # Results gather in $out and are packed into $OUT/runtime.tar.gz after every step.
+    local back=${OUT:-/tmp/out}
+    out=$work/runtime
+    mkdir -p "$back" "$out"
+    local budget=${MEASURE_BUDGET:-0} step_limit=${STEP_LIMIT:-0}
     failures=()
     # run NAME COMMAND...: the command's output into $out/runtime-NAME.txt; a failure is noted,
     # and every step's wall time goes to $out/runtime-steps.txt (to plan the next device call).
     run() {
-        local name=$1 start=$SECONDS status=ok
+        local name=$1 start=$SECONDS status=ok limit=$step_limit
         shift
+        if [ "$budget" -gt 0 ]; then
+            local left=$((budget - SECONDS))
+            if [ $left -le 0 ]; then
+                echo "$name 0 s SKIPPED (budget)" >> "$out/runtime-steps.txt"
+                return 0
+            fi
+            if [ "$limit" -eq 0 ] || [ $left -lt "$limit" ]; then limit=$left; fi
+        fi
         echo "== $name: $*"
-        if ! "$@" 2>&1 | tee "$out/runtime-$name.txt"; then
+        local cut=()
+        [ "$limit" -gt 0 ] && cut=(timeout "$limit")
+        if ! "${cut[@]}" "$@" 2>&1 | tee "$out/runtime-$name.txt"; then
             echo "== $name FAILED" | tee -a "$out/runtime-$name.txt"
             failures+=("$name")
             status=FAILED
         fi
         echo "$name $((SECONDS - start)) s $status" >> "$out/runtime-steps.txt"
+        tar -C "$work" -czf "$back/runtime.tar.gz.part" runtime && mv "$back/runtime.tar.gz.part" "$back/runtime.tar.gz"
     }
     local c=$carry
     local sibenik=$c/scenes/sibenik-view
     nvidia-smi -L > "$out/runtime-device.txt" 2>&1 || true
+    # Does a GPU answer? One small image; nothing else runs if not.
+    run adapter "$c/cssm" render --size 64x48 --timings --out "$out/adapter.png"
+    if [ ${#failures[@]} -gt 0 ] ||
+        { command -v nvidia-smi > /dev/null && ! grep -q NVIDIA "$out/runtime-adapter.txt"; }; then
+        echo "no GPU adapter (or not the NVIDIA one): nothing measured" | tee "$out/runtime-failures.txt" >&2
+        tar -C "$work" -czf "$back/runtime.tar.gz" runtime
+        return 1
+    fi
+    # shellcheck disable=SC2086
+    run queries "$c/gpu_queries" --scenes "$c/scenes" $queries --csv "$out/runtime-queries.csv"
     if [ -x "$c/gpu-limit" ]; then
         # shellcheck disable=SC2086
         run gpu-limit "$c/gpu-limit" $limit_args
     fi
+    # Moving objects' query throughput against the static query (issue 21, §3.3).
     # shellcheck disable=SC2086
-    run queries "$c/gpu_queries" --scenes "$c/scenes" $queries --csv "$out/runtime-queries.csv"
+    run moving-queries "$c/moving_queries" $moving --csv "$out/runtime-moving-queries.csv"
     # The persistent renderer's frame against a one-shot render (issue 16), with GPU ms per pass.
     run frame-time "$c/frame_time" --size $frame_size --frames $frames --one-shots $one_shots \
         --out "$out/runtime-frame-time.md"
+    # Every method of the table in one persistent renderer at 1280x720: the frame time a window
+    # of that size shows (issue 26), without the presentation.
+    run frame-time-all "$c/frame_time" --size $wide --frames $frames --one-shots 1 \
+        --methods direct,hrc,lightmap,lightcuts,rsm,vct,ssil,vf --out "$out/runtime-frame-time-all.md"
     for size in $view_sizes; do
         run "direct-$size" "$c/cssm" render --size "$size" --timings --out "$out/direct-$size.png"
     done
+    # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
+    # lightmap, 1 and 2 bounces; the bunny in the Cornell box as a moving object (issue 21),
+    # its radiosity and final gather through the moving objects' query.
+    gi() {
+        local scene=$1 dir=$2 cssm=$3
+        [ -f "$cssm" ] || { echo "no $scene: its GI rows are skipped"; return 0; }
+        for method in lightcuts lightmap; do
+            for bounces in 1 2; do
+                local name=gi-$scene-$method-$bounces
+                # shellcheck disable=SC2086
+                run "$name" "$c/cssm" render $dir --cssm "$cssm" --method $method \
+                    --bounces $bounces --size $gi_size --timings --out "$out/$name.png"
+            done
+        done
+    }
+    gi cornell "" "$c/cornell.cssm"
+    gi bunny "$c/scenes/cornell-bunny" "$c/bunny.cssm"
+    gi heads "$c/scenes/heads" "$c/heads.cssm"
+    gi church "$c/scenes/church" "$c/church.cssm"
     # RSM with and without the micro linear buffer (issue 17; target: 1 ms at 1280x720 with
     # visibility), static and moving light, GPU ms per pass.
     # shellcheck disable=SC2086
@@ -187,41 +287,26 @@ measure() {
         run vf-sibenik "$c/vf_time" --scene "$sibenik" --size $wide --frames $frames $shadow \
             --out "$out/runtime-vf-sibenik.md"
     fi
+    if [ -d "$c/scenes/sibenik" ]; then
+        # shellcheck disable=SC2086
+        run sibenik-bake "$c/cssm" bake "$c/scenes/sibenik" -o "$work/sibenik.cssm" $bake_sibenik
+    fi
+    gi sibenik "$c/scenes/sibenik" "$work/sibenik.cssm"
     # Every method side by side (issue 27): `cssm compare` on the built-in boxes, GPU ms per
-    # pass and memory on the real GPU, the references path traced on the device's cores; the
-    # page stays in $work, its figures come back.
+    # pass and memory on the real GPU, the references path traced on the device's cores (the
+    # longest step: last); the page stays in $work, its figures come back.
     # shellcheck disable=SC2086
     run compare "$c/cssm" compare $compare --out "$work/compare"
     for f in compare.md compare.csv compare.json chart.svg; do
         if [ -f "$work/compare/$f" ]; then cp "$work/compare/$f" "$out/"; fi
     done
-    # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
-    # lightmap, 1 and 2 bounces.
-    if [ -d "$c/scenes/sibenik" ]; then
-        # shellcheck disable=SC2086
-        run sibenik-bake "$c/cssm" bake "$c/scenes/sibenik" -o "$work/sibenik.cssm" $bake_sibenik
-    fi
-    for scene in cornell heads church sibenik; do
-        case $scene in
-        cornell) dir="" cssm=$c/cornell.cssm ;;
-        heads) dir=$c/scenes/heads cssm=$c/heads.cssm ;;
-        church) dir=$c/scenes/church cssm=$c/church.cssm ;;
-        sibenik) dir=$c/scenes/sibenik cssm=$work/sibenik.cssm ;;
-        esac
-        [ -f "$cssm" ] || { echo "no $scene: its GI rows are skipped"; continue; }
-        for method in lightcuts lightmap; do
-            for bounces in 1 2; do
-                name=gi-$scene-$method-$bounces
-                # shellcheck disable=SC2086
-                run "$name" "$c/cssm" render $dir --cssm "$cssm" --method $method \
-                    --bounces $bounces --size $gi_size --timings --out "$out/$name.png"
-            done
-        done
-    done
-    rm -rf "$work"
     if [ ${#failures[@]} -gt 0 ]; then
         printf '%s\n' "${failures[@]}" > "$out/runtime-failures.txt"
-        echo "failed: ${failures[*]} (their output: $out/runtime-NAME.txt)" >&2
+    fi
+    tar -C "$work" -czf "$back/runtime.tar.gz" runtime
+    rm -rf "$work"
+    if [ ${#failures[@]} -gt 0 ]; then
+        echo "failed: ${failures[*]} (their output: runtime-NAME.txt in $back/runtime.tar.gz)" >&2
         return 1
     fi
 }
@@ -235,8 +320,9 @@ smoke)
     trap 'rm -rf "$smoke"' EXIT
     CSSM_CARRY="$smoke/carry" OUT="$smoke/out" "$0" prepare --small
     CSSM_CARRY="$smoke/carry" OUT="$smoke/out" "$0" measure --small
-    cat "$smoke/out/runtime-steps.txt"
-    echo "runtime harness: every step ran ($(find "$smoke/out" -type f | wc -l) files)"
+    tar -C "$smoke" -xzf "$smoke/out/runtime.tar.gz"
+    cat "$smoke/runtime/runtime-steps.txt"
+    echo "runtime harness: every step ran ($(find "$smoke/runtime" -type f | wc -l) files)"
     ;;
 *)
     echo "usage: $0 prepare|measure [--small] | smoke" >&2

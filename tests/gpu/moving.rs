@@ -80,7 +80,7 @@ fn gpu_moving_query_matches_cpu_reference() {
             .collect();
         let pairs: Vec<MovingPair> = ends.iter().map(|&(a, b)| MovingPair { a, b }).collect();
         let answers = kernel
-            .run(gpu, &cssm, &moving, &pairs)
+            .run(gpu, &cssm, &moving, &pairs, None)
             .expect("GPU queries");
         let (mut differ, mut worst, mut across, mut shadowed_by_csm) = (0, 0.0f32, 0, 0);
         for (pair, &gpu_answer) in pairs.iter().zip(&answers) {

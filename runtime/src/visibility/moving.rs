@@ -345,13 +345,15 @@ impl MovingQueryKernel {
         }
     }
 
-    /// Answers `pairs` on the GPU and reads the answers back.
+    /// Answers `pairs` on the GPU and reads the answers back; `timer`, when given, times the
+    /// pass (the throughput benchmark, `benches/moving_queries.rs`).
     pub fn run(
         &self,
         gpu: &Gpu,
         cssm: &CssmGpu,
         moving: &MovingGpu,
         pairs: &[MovingPair],
+        timer: Option<&mut crate::common::timestamps::PassTimer>,
     ) -> Result<Vec<f32>, RuntimeError> {
         if pairs.is_empty() {
             return Ok(Vec::new());
@@ -385,7 +387,7 @@ impl MovingQueryKernel {
             &groups,
             pairs.len(),
             &output,
-            None,
+            timer,
         )?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
