@@ -126,6 +126,16 @@ impl Motion {
     }
 }
 
+/// `cssm render --time SECONDS`: every object of `scene`, each at its pose after `time` seconds
+/// of the scene's motion ([`Motion::of`]; the objects that do not move at their loaded pose).
+pub fn poses_at_time(scene: &Scene, time: f32) -> Result<Vec<Affine3A>, String> {
+    let mut poses: Vec<Affine3A> = scene.objects.iter().map(|o| o.transform).collect();
+    for (object, pose) in Motion::of(scene)?.poses_at(scene, time) {
+        poses[object] = pose;
+    }
+    Ok(poses)
+}
+
 /// The file of frame `index`.
 pub fn frame_name(index: u32) -> String {
     format!("frame-{index:04}.png")

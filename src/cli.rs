@@ -900,6 +900,8 @@ fn view_after_help() -> String {
      Tab / shift + Tab    next / previous method of the table (`cssm render --help` lists them; \
      those needing a .cssm are skipped when none is loaded)\n  \
      C                    cycle the component: direct, indirect, full\n  \
+     P                    play / pause the objects' animation ([objects.animation], else each \
+     rigid object turning about the vertical, as `cssm render --animate`), at the frame time\n  \
      [ / ]                one bounce fewer / more (methods with a `bounces` option)\n  \
      - / =                halve / double the oracle threshold (methods with `threshold`)\n  \
      F12                  write a screenshot, cssm-view-NNNN.png in the current directory \
@@ -918,6 +920,8 @@ fn view_after_help() -> String {
      Tab, F12, Escape; shift+KEY holds shift\n  \
      hold KEY N           press KEY, let N frames render, release it (W A S D Q E fly)\n  \
      wait N               let N frames render before the next step (they accumulate)\n  \
+     animate SECONDS      move the objects' animation SECONDS on (exactly; P plays it at the \
+     frame time)\n  \
      screenshot PATH      write the last frame: PNG, or with .exr the linear radiance; print \
      the `cssm render` flags of the same image\n  \
      quit                 close the window (at the end of the file it stays open)\n\n\
@@ -1062,6 +1066,7 @@ impl ViewArgs {
                 camera: self.camera,
                 light: self.light,
                 animate: None,
+                time: None,
             },
             screenshot: self.screenshot,
             script: self.script,
@@ -1152,6 +1157,11 @@ pub struct RenderArgs {
     /// --animate: write the PNG frames only, no animation.gif.
     #[arg(long, requires = "animate")]
     no_gif: bool,
+    /// Place the moving objects where the animation has them after SECONDS (the scene's
+    /// [objects.animation], else the default spin of --animate) and render that one image;
+    /// `cssm view` prints it once its animation has moved.
+    #[arg(long, value_name = "SECONDS", conflicts_with = "animate", allow_negative_numbers = true, value_parser = finite_f32)]
+    time: Option<f32>,
     /// Which light the image holds: direct, indirect or full.
     #[arg(long, default_value = "full")]
     component: Component,
@@ -1314,6 +1324,8 @@ pub struct RenderConfig {
     pub light: Option<Pose>,
     /// `--animate`: render the scene's animation into the directory `out`.
     pub animate: Option<AnimateOptions>,
+    /// `--time SECONDS`: the moving objects placed where the animation has them then.
+    pub time: Option<f32>,
 }
 
 /// `cssm render --animate`'s options, as given: the frame count, rate and duration are resolved
@@ -1429,6 +1441,7 @@ impl RenderArgs {
             camera: self.camera,
             light: self.light,
             animate,
+            time: self.time,
         })
     }
 

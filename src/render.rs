@@ -44,8 +44,11 @@ pub fn run_render(config: RenderConfig) -> CliResult {
     let (camera, light) = posed(&config, &scene)?;
     let image = match method.backend {
         Backend::Cpu(run) => {
-            // The path tracer reads the camera and lights from the scene.
-            let mut posed_scene = scene.clone();
+            // The path tracer reads the camera, lights and objects from the scene.
+            let mut posed_scene = match config.time {
+                Some(time) => scene.posed(&crate::animate::poses_at_time(&scene, time)?)?,
+                None => scene.clone(),
+            };
             posed_scene.camera = camera;
             if let Some(light) = light {
                 posed_scene.lights[0] = light;
@@ -138,6 +141,16 @@ pub(crate) fn gpu_renderer(
         && Some(light) != scene.lights.first()
     {
         renderer.set_light(0, light).map_err(gpu_error)?;
+    }
+    if let Some(time) = config.time {
+        let poses = crate::animate::poses_at_time(scene, time)?;
+        for (object, pose) in poses.into_iter().enumerate() {
+            if scene.objects[object].kind == formats::ObjectKind::Rigid {
+                renderer
+                    .set_object_transform(object, pose)
+                    .map_err(gpu_error)?;
+            }
+        }
     }
     Ok((gpu, renderer))
 }

@@ -408,3 +408,158 @@ fn bad_animations_and_flags_are_clear_errors() {
     assert_fails(&render(&good, &["--frames", "1"]), "this is a file");
     assert_eq!(std::fs::read(&out).unwrap(), b"not a directory");
 }
+
+/// `cssm render --time T` is frame `T / (duration / frames)` of `--animate`: the same poses,
+/// the same pixels.
+#[test]
+fn render_at_a_time_is_that_frame_of_the_animation() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene_dir = tmp.path().join("scene");
+    std::fs::create_dir(&scene_dir).unwrap();
+    let scene = block_scene(&scene_dir, [100.0, 0.0, 150.0], 30.0, SLIDE);
+    let s = scene.to_str().unwrap();
+    let common = ["--method", "direct", "--shadow-resolution", "256"];
+    let frames = tmp.path().join("frames");
+    let o = cssm(
+        &[
+            &["render", s, "--animate", "--frames", "3", "--no-gif"][..],
+            &common,
+            &["--out", frames.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let at = tmp.path().join("at-2.png");
+    let o = cssm(
+        &[
+            &["render", s, "--time", "2"][..],
+            &common,
+            &["--out", at.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frame = rgba(&frames.join("frame-0002.png"));
+    assert!(differing(&rgba(&at), &frame, 0).is_empty());
+    assert!(!differing(&rgba(&frames.join("frame-0000.png")), &frame, 8).is_empty());
+    let o = cssm(&["render", s, "--time", "2", "--animate", "--out", "x"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// Runs `command` to its end, or kills it after two minutes and fails.
+fn run_bounded(mut command: Command) -> Output {
+    use std::process::Stdio;
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run cssm");
+    let start = std::time::Instant::now();
+    while child.try_wait().expect("wait for cssm").is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(120) {
+            let _ = child.kill();
+            let out = child.wait_with_output().expect("wait for cssm");
+            panic!("{command:?} did not end within 2 minutes: {}", stderr(&out));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().expect("wait for cssm")
+}
+
+/// The `cssm render` flags `cssm view` printed for its screenshot `shot`, less `--out SHOT`.
+fn printed_render_flags(stderr: &str, shot: &Path) -> Vec<String> {
+    let prefix = format!("render flags for {}: ", shot.display());
+    let line = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix(&prefix))
+        .unwrap_or_else(|| panic!("no '{prefix}' line in:\n{stderr}"));
+    let mut flags: Vec<String> = line.split_whitespace().map(str::to_string).collect();
+    assert_eq!(flags.pop().as_deref(), shot.to_str(), "{line}");
+    assert_eq!(flags.pop().as_deref(), Some("--out"), "{line}");
+    flags
+}
+
+/// `cssm view` under Xvfb (`apt-get install xvfb xauth`; fails without it): a script steps the
+/// animation exactly (`animate 1`), and P plays and pauses it at the frame time; each
+/// screenshot is what `cssm render` writes with the flags the window printed (`--time`).
+#[test]
+fn view_plays_and_steps_the_animation() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let scene_dir = d.join("scene");
+    std::fs::create_dir(&scene_dir).unwrap();
+    let scene = block_scene(&scene_dir, [100.0, 0.0, 150.0], 30.0, SLIDE);
+    let (stepped, played) = (d.join("stepped.png"), d.join("played.png"));
+    let script = d.join("play.txt");
+    std::fs::write(
+        &script,
+        format!(
+            "screenshot {still}\nanimate 1\nscreenshot {stepped}\nkey p\nwait 3\nkey p\n\
+             screenshot {played}\nquit\n",
+            still = d.join("still.png").display(),
+            stepped = stepped.display(),
+            played = played.display(),
+        ),
+    )
+    .unwrap();
+    let mut view = Command::new("xvfb-run");
+    view.arg("-a")
+        .arg(env!("CARGO_BIN_EXE_cssm"))
+        .arg("view")
+        .arg(&scene)
+        .args([
+            "--method",
+            "direct",
+            "--size",
+            "32x24",
+            "--shadow-resolution",
+            "256",
+            "--script",
+        ])
+        .arg(&script);
+    let out = run_bounded(view);
+    let text = stderr(&out);
+    assert!(out.status.success(), "cssm view: {text}");
+    assert!(
+        text.contains("playing (P pauses)") && text.contains("paused (P plays)"),
+        "{text}"
+    );
+    let still_flags = printed_render_flags(&text, &d.join("still.png"));
+    assert!(
+        !still_flags.iter().any(|f| f.starts_with("--time")),
+        "{still_flags:?}"
+    );
+    let flags = printed_render_flags(&text, &stepped);
+    assert!(flags.contains(&"--time=1".to_string()), "{flags:?}");
+    let played_flags = printed_render_flags(&text, &played);
+    let time: f32 = played_flags
+        .iter()
+        .find_map(|f| f.strip_prefix("--time="))
+        .unwrap_or_else(|| panic!("{played_flags:?}"))
+        .parse()
+        .unwrap();
+    assert!(time > 1.0, "playing did not move the time on: {time}");
+    for (shot, flags, name) in [
+        (&stepped, &flags, "render-stepped.png"),
+        (&played, &played_flags, "render-played.png"),
+    ] {
+        let rendered = d.join(name);
+        let o = cssm(
+            &[
+                &["render", scene.to_str().unwrap()][..],
+                &flags.iter().map(String::as_str).collect::<Vec<_>>(),
+                &["--out", rendered.to_str().unwrap()],
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            differing(&rgba(shot), &rgba(&rendered), 0).is_empty(),
+            "{}: cssm view's screenshot is not cssm render {flags:?}",
+            shot.display()
+        );
+    }
+    // The step moved the block: the image changed.
+    let moved = differing(&rgba(&d.join("still.png")), &rgba(&stepped), 8);
+    assert!(moved.len() >= 10, "animate 1 changed only {moved:?}");
+}
