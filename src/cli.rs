@@ -1128,18 +1128,21 @@ pub struct RenderArgs {
     /// its senders over their nodes' surfaces, §4.5, so the average converges for glossy
     /// scenes; ssil: every frame draws new samples and its temporal filter blends them into the
     /// history). With --animate: the number of animation frames, 1 to 4096 (default: --fps
-    /// times the duration), each one rendered frame.
+    /// times the duration).
     #[arg(long)]
     frames: Option<u32>,
     /// Render the scene's animation (scene.toml's [objects.animation], docs/scene-format.md)
     /// into the directory --out: frame-0000.png, frame-0001.png, ... and animation.gif, with one
     /// renderer that moves the objects between frames (set_object_transform; nothing is
     /// reloaded). Frame i shows the time i x duration / frames, so a looping animation's last
-    /// frame leads back into its first. A scene whose objects have no animation gets each
-    /// rigid [[objects]] entry spun one full turn about the vertical axis (the camera's up)
-    /// through the centre of its bounding box, over --duration (default 4 s). Existing frames
-    /// are not overwritten without --overwrite; every file is written under a temporary name
-    /// and renamed, so none is ever half-written.
+    /// frame leads back into its first; each frame is rendered once (no averaging). Where
+    /// some objects have an animation, the others stand still; a scene whose objects have none
+    /// gets each rigid [[objects]] entry spun one full turn about the vertical axis (the
+    /// camera's up) through the centre of its bounding box, over --duration (default 4 s).
+    /// The objects' shadows and visibility follow them; the light a moving object itself
+    /// receives is still computed where it was baked. Existing frames are not overwritten
+    /// without --overwrite; every file is written under a temporary name and renamed, so none
+    /// is ever half-written.
     #[arg(long)]
     animate: bool,
     /// --animate: frames per second, default 24 (sets the frame count from the duration, or,

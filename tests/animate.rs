@@ -403,6 +403,19 @@ fn bad_animations_and_flags_are_clear_errors() {
     assert_fails(&reference, "--animate renders on the GPU");
     assert!(!out.exists(), "a failed render created {}", out.display());
 
+    // A script that steps the animation of a scene with nothing to move: refused before a
+    // window opens, naming the script's line.
+    let script = tmp.path().join("step.txt");
+    std::fs::write(&script, "wait 1\nanimate 0.5\n").unwrap();
+    let o = cssm(&[
+        "view",
+        cornell.to_str().unwrap(),
+        "--script",
+        script.to_str().unwrap(),
+    ]);
+    assert_fails(&o, &format!("{}:2: ", script.display()));
+    assert_fails(&o, "no [[objects]] entry to move");
+
     // --out naming a file.
     std::fs::write(&out, b"not a directory").unwrap();
     assert_fails(&render(&good, &["--frames", "1"]), "this is a file");
