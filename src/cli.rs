@@ -882,7 +882,8 @@ fn render_after_help() -> String {
          cssm render scenes/cornell-glossy --method vct --set resolution=64 --out vct.png\n  \
          cssm render --method ssil --frames 16 --set visibility=none --out ssil.png\n  \
          cssm render scenes/cornell-glossy --method direct --out glossy.png --exr glossy.exr --size 1280x720 --timings\n  \
-         cssm render --camera=400,300,-700,278,273,0 --light=278,540,279.5,0.2,-1,0 --out moved.png   # cssm view prints these",
+         cssm render --camera=400,300,-700,278,273,0 --light=278,540,279.5,0.2,-1,0 --out moved.png   # cssm view prints these\n  \
+         cssm render scenes/my-scene --cssm my-scene.cssm --method lightcuts --animate --frames 48 --out frames/   # frames/frame-0000.png ... and frames/animation.gif",
         runtime::method::describe_methods()
     )
 }
@@ -899,6 +900,8 @@ fn view_after_help() -> String {
      Tab / shift + Tab    next / previous method of the table (`cssm render --help` lists them; \
      those needing a .cssm are skipped when none is loaded)\n  \
      C                    cycle the component: direct, indirect, full\n  \
+     P                    play / pause the objects' animation ([objects.animation], else each \
+     rigid object turning about the vertical, as `cssm render --animate`), at the frame time\n  \
      [ / ]                one bounce fewer / more (methods with a `bounces` option)\n  \
      - / =                halve / double the oracle threshold (methods with `threshold`)\n  \
      F12                  write a screenshot, cssm-view-NNNN.png in the current directory \
@@ -917,6 +920,8 @@ fn view_after_help() -> String {
      Tab, F12, Escape; shift+KEY holds shift\n  \
      hold KEY N           press KEY, let N frames render, release it (W A S D Q E fly)\n  \
      wait N               let N frames render before the next step (they accumulate)\n  \
+     animate SECONDS      move the objects' animation SECONDS on (exactly; P plays it at the \
+     frame time)\n  \
      screenshot PATH      write the last frame: PNG, or with .exr the linear radiance; print \
      the `cssm render` flags of the same image\n  \
      quit                 close the window (at the end of the file it stays open)\n\n\
@@ -1060,6 +1065,8 @@ impl ViewArgs {
                 component: self.component,
                 camera: self.camera,
                 light: self.light,
+                animate: None,
+                time: None,
             },
             screenshot: self.screenshot,
             script: self.script,
@@ -1075,9 +1082,10 @@ pub struct RenderArgs {
     /// Rendering method (see the list below).
     #[arg(long, default_value = "direct", value_parser = parse_method)]
     method: &'static MethodEntry,
-    /// Output PNG (tone-mapped sRGB).
-    #[arg(long, default_value = "render.png")]
-    out: PathBuf,
+    /// Output PNG (tone-mapped sRGB), default render.png. With --animate: the directory the
+    /// frames go into (created if missing; required).
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Also write linear radiance to this OpenEXR file.
     #[arg(long)]
     exr: Option<PathBuf>,
@@ -1116,11 +1124,47 @@ pub struct RenderArgs {
     /// Set a method option, NAME=VALUE (see the list below); repeatable.
     #[arg(long = "set", value_name = "NAME=VALUE")]
     set: Vec<String>,
-    /// Frames to render and average, 1 to 4096 (lightcuts: every frame jitters its senders
-    /// over their nodes' surfaces, §4.5, so the average converges for glossy scenes; ssil:
-    /// every frame draws new samples and its temporal filter blends them into the history).
-    #[arg(long, default_value_t = 1)]
-    frames: u32,
+    /// Frames to render and average, 1 to 4096, default 1 (lightcuts: every frame jitters
+    /// its senders over their nodes' surfaces, §4.5, so the average converges for glossy
+    /// scenes; ssil: every frame draws new samples and its temporal filter blends them into the
+    /// history). With --animate: the number of animation frames, 1 to 4096 (default: --fps
+    /// times the duration).
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Render the scene's animation (scene.toml's [objects.animation], docs/scene-format.md)
+    /// into the directory --out: frame-0000.png, frame-0001.png, ... and animation.gif, with one
+    /// renderer that moves the objects between frames (set_object_transform; nothing is
+    /// reloaded). Frame i shows the time i x duration / frames, so a looping animation's last
+    /// frame leads back into its first; each frame is rendered once (no averaging). Where
+    /// some objects have an animation, the others stand still; a scene whose objects have none
+    /// gets each rigid [[objects]] entry spun one full turn about the vertical axis (the
+    /// camera's up) through the centre of its bounding box, over --duration (default 4 s).
+    /// The objects' shadows and visibility follow them; the light a moving object itself
+    /// receives is still computed where it was baked. Existing frames are not overwritten
+    /// without --overwrite; every file is written under a temporary name and renamed, so none
+    /// is ever half-written.
+    #[arg(long)]
+    animate: bool,
+    /// --animate: frames per second, default 24 (sets the frame count from the duration, or,
+    /// with --frames, the duration from the frame count; the GIF plays at this rate).
+    #[arg(long, requires = "animate", value_parser = positive_f32)]
+    fps: Option<f32>,
+    /// --animate: seconds of animation to render from time 0. Default: the scene's animation's
+    /// duration (its longest object's: the last keyframe's time, twice that for ping-pong, or
+    /// one full spin), 4 s for the default spin. At most two of --frames, --fps and --duration.
+    #[arg(long, requires = "animate", value_parser = positive_f32)]
+    duration: Option<f32>,
+    /// --animate: replace the frames and animation.gif already in --out.
+    #[arg(long, requires = "animate")]
+    overwrite: bool,
+    /// --animate: write the PNG frames only, no animation.gif.
+    #[arg(long, requires = "animate")]
+    no_gif: bool,
+    /// Place the moving objects where the animation has them after SECONDS (the scene's
+    /// [objects.animation], else the default spin of --animate) and render that one image;
+    /// `cssm view` prints it once its animation has moved.
+    #[arg(long, value_name = "SECONDS", conflicts_with = "animate", allow_negative_numbers = true, value_parser = finite_f32)]
+    time: Option<f32>,
     /// Which light the image holds: direct, indirect or full.
     #[arg(long, default_value = "full")]
     component: Component,
@@ -1150,6 +1194,14 @@ fn finite_f32(s: &str) -> Result<f32, String> {
         Ok(v)
     } else {
         Err(format!("'{s}' is not a finite number"))
+    }
+}
+
+/// A finite number above 0 (`--fps`, `--duration`).
+fn positive_f32(s: &str) -> Result<f32, String> {
+    match finite_f32(s)? {
+        v if v > 0.0 => Ok(v),
+        v => Err(format!("{v} is not above 0")),
     }
 }
 
@@ -1273,26 +1325,110 @@ pub struct RenderConfig {
     /// `--light POSITION,DIRECTION`: the first spot light's instead of the scene's (its cone
     /// and intensity stay).
     pub light: Option<Pose>,
+    /// `--animate`: render the scene's animation into the directory `out`.
+    pub animate: Option<AnimateOptions>,
+    /// `--time SECONDS`: the moving objects placed where the animation has them then.
+    pub time: Option<f32>,
+}
+
+/// `cssm render --animate`'s options, as given: the frame count, rate and duration are resolved
+/// against the scene's animation by [`AnimateOptions::plan`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct AnimateOptions {
+    /// `--frames`.
+    pub frames: Option<u32>,
+    /// `--fps`, finite and above 0.
+    pub fps: Option<f32>,
+    /// `--duration` in seconds, finite and above 0.
+    pub duration: Option<f32>,
+    /// `--overwrite`.
+    pub overwrite: bool,
+    /// Write `animation.gif` (no `--no-gif`).
+    pub gif: bool,
+}
+
+/// Frames per second of `--animate` without `--fps`.
+pub const DEFAULT_FPS: f32 = 24.0;
+
+impl AnimateOptions {
+    /// The frame count and the seconds they span, for an animation of `scene_duration` seconds
+    /// (the scene's, or the default spin's): at most two of `--frames`, `--fps` and `--duration`
+    /// are given, the others follow (`--fps` defaults to [`DEFAULT_FPS`], `--duration` to
+    /// `scene_duration`), and the count is 1 to [`MAX_FRAMES`].
+    pub fn plan(&self, scene_duration: f32) -> Result<(u32, f32), String> {
+        let (frames, duration) = match (self.frames, self.fps, self.duration) {
+            (Some(_), Some(_), Some(_)) => {
+                return Err(
+                    "--animate takes at most two of --frames, --fps and --duration \
+                            (the third follows from them)"
+                        .into(),
+                );
+            }
+            (Some(n), Some(fps), None) => (n as f64, n as f64 / fps as f64),
+            (Some(n), None, duration) => (n as f64, duration.unwrap_or(scene_duration) as f64),
+            (None, fps, duration) => {
+                let duration = duration.unwrap_or(scene_duration) as f64;
+                let fps = fps.unwrap_or(DEFAULT_FPS) as f64;
+                ((duration * fps).round().max(1.0), duration)
+            }
+        };
+        if !(1.0..=MAX_FRAMES as f64).contains(&frames) {
+            return Err(format!(
+                "--animate: {frames} frames is out of range 1..={MAX_FRAMES} (lower --fps or \
+                 --duration, or give --frames)"
+            ));
+        }
+        if !(duration.is_finite() && duration > 0.0 && duration <= f32::MAX as f64) {
+            return Err(format!(
+                "--animate: the animation lasts {duration} s; give --duration"
+            ));
+        }
+        Ok((frames as u32, duration as f32))
+    }
 }
 
 impl RenderArgs {
     /// The method's options from the flags, resolved by the runtime's method table, and the
     /// frame count checked.
     pub fn config(self) -> Result<RenderConfig, String> {
-        if !(1..=MAX_FRAMES).contains(&self.frames) {
-            return Err(format!(
-                "--frames {} is out of range 1..={MAX_FRAMES}",
-                self.frames
-            ));
+        // With --animate, --frames counts the animation's frames, each rendered once.
+        let frames = if self.animate {
+            1
+        } else {
+            self.frames.unwrap_or(1)
+        };
+        if let Some(n) = self.frames
+            && !(1..=MAX_FRAMES).contains(&n)
+        {
+            return Err(format!("--frames {n} is out of range 1..={MAX_FRAMES}"));
         }
-        let values = self.option_values()?;
+        let animate = self.animate.then_some(AnimateOptions {
+            frames: self.frames,
+            fps: self.fps,
+            duration: self.duration,
+            overwrite: self.overwrite,
+            gif: !self.no_gif,
+        });
+        if animate.is_some() {
+            if self.out.is_none() {
+                return Err("--animate writes its frames into a directory: give --out DIR".into());
+            }
+            for (given, flag) in [(self.exr.is_some(), "--exr"), (self.timings, "--timings")] {
+                if given {
+                    return Err(format!(
+                        "{flag} is for one image and does not go with --animate"
+                    ));
+                }
+            }
+        }
+        let values = self.option_values(frames)?;
         let resolved = self.method.resolve(&values).map_err(|e| e.to_string())?;
         Ok(RenderConfig {
             scene: self.scene,
             method: self.method,
             values,
             resolved,
-            out: self.out,
+            out: self.out.unwrap_or_else(|| PathBuf::from("render.png")),
             exr: self.exr,
             size: self.size,
             exposure: self.exposure,
@@ -1303,17 +1439,19 @@ impl RenderArgs {
             },
             timings: self.timings,
             cssm: self.cssm,
-            frames: self.frames,
+            frames,
             component: self.component,
             camera: self.camera,
             light: self.light,
+            animate,
+            time: self.time,
         })
     }
 
     /// The method options the user gave: the short flags, then `--set` in order. A short flag
     /// for an option the method does not have is ignored with a warning (`--bounces` with
     /// `direct`); `--set` of an unknown option is an error, from the method table.
-    fn option_values(&self) -> Result<OptionValues, String> {
+    fn option_values(&self, frames: u32) -> Result<OptionValues, String> {
         option_values(
             self.method,
             [
@@ -1321,7 +1459,7 @@ impl RenderArgs {
                 ("threshold", self.threshold.map(OptionValue::Number)),
                 ("samples", self.samples.map(OptionValue::Count)),
             ],
-            self.frames,
+            frames,
             &self.set,
         )
     }

@@ -13,6 +13,7 @@ use std::{
     process::ExitCode,
 };
 
+mod animate;
 mod bake_cmd;
 mod check_cmd;
 mod cli;

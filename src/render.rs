@@ -19,6 +19,9 @@ use crate::{
 };
 
 pub fn run_render(config: RenderConfig) -> CliResult {
+    if let Some(options) = &config.animate {
+        return crate::animate::run_animate(&config, options);
+    }
     let dir = scene_dir(config.scene.clone())?;
     let method = config.method;
     let scene = load_scene(&dir)?;
@@ -41,8 +44,11 @@ pub fn run_render(config: RenderConfig) -> CliResult {
     let (camera, light) = posed(&config, &scene)?;
     let image = match method.backend {
         Backend::Cpu(run) => {
-            // The path tracer reads the camera and lights from the scene.
-            let mut posed_scene = scene.clone();
+            // The path tracer reads the camera, lights and objects from the scene.
+            let mut posed_scene = match config.time {
+                Some(time) => scene.posed(&crate::animate::poses_at_time(&scene, time)?)?,
+                None => scene.clone(),
+            };
             posed_scene.camera = camera;
             if let Some(light) = light {
                 posed_scene.lights[0] = light;
@@ -50,38 +56,8 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             render_on_cpu(&config, &posed_scene, &settings, run)?
         }
         Backend::Gpu(_) => {
-            let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
+            let (gpu, mut renderer) = gpu_renderer(&config, &scene, &dir, &settings)?;
             let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
-            // The device's limits before the .cssm is read or baked.
-            settings
-                .frame
-                .check_limits(&gpu.device.limits(), scene.lights.len())
-                .map_err(gpu_error)?;
-            let file = if method.needs_cssm {
-                Some(render_cssm(&config, &scene)?)
-            } else {
-                None
-            };
-            let mut renderer = Renderer::new(
-                &gpu.device,
-                &gpu.queue,
-                &scene,
-                file.as_ref(),
-                method,
-                &config.values,
-                &settings,
-            )
-            .map_err(gpu_error)?;
-            // Set after construction, as `cssm view` sets what its controls moved, so that the
-            // two render the same bytes; nothing is set where nothing was given.
-            if camera != scene.camera {
-                renderer.set_camera(&camera).map_err(gpu_error)?;
-            }
-            if let Some(light) = &light
-                && Some(light) != scene.lights.first()
-            {
-                renderer.set_light(0, light).map_err(gpu_error)?;
-            }
             let frames = config.frames + u32::from(config.timings);
             // The GPU works in one go (a lightmap's radiosity takes minutes on lavapipe): a
             // spinner with the time so far, on a terminal.
@@ -122,6 +98,61 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             .unwrap_or_default()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// A headless GPU and a [`Renderer`] of `config`'s GPU method on `scene` (its `.cssm` read or
+/// baked where the method needs one), with `config`'s camera and light set after construction:
+/// what `cssm render` and `cssm render --animate` draw with. Errors name the scene.
+pub(crate) fn gpu_renderer(
+    config: &RenderConfig,
+    scene: &Scene,
+    dir: &Path,
+    settings: &RendererSettings,
+) -> Result<(runtime::Gpu, Renderer), String> {
+    let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
+    let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
+    // The device's limits before the .cssm is read or baked.
+    settings
+        .frame
+        .check_limits(&gpu.device.limits(), scene.lights.len())
+        .map_err(gpu_error)?;
+    let file = if config.method.needs_cssm {
+        Some(render_cssm(config, scene)?)
+    } else {
+        None
+    };
+    let mut renderer = Renderer::new(
+        &gpu.device,
+        &gpu.queue,
+        scene,
+        file.as_ref(),
+        config.method,
+        &config.values,
+        settings,
+    )
+    .map_err(gpu_error)?;
+    // Set after construction, as `cssm view` sets what its controls moved, so that the two
+    // render the same bytes; nothing is set where nothing was given.
+    let (camera, light) = posed(config, scene)?;
+    if camera != scene.camera {
+        renderer.set_camera(&camera).map_err(gpu_error)?;
+    }
+    if let Some(light) = &light
+        && Some(light) != scene.lights.first()
+    {
+        renderer.set_light(0, light).map_err(gpu_error)?;
+    }
+    if let Some(time) = config.time {
+        let poses = crate::animate::poses_at_time(scene, time)?;
+        for (object, pose) in poses.into_iter().enumerate() {
+            if scene.objects[object].kind == formats::ObjectKind::Rigid {
+                renderer
+                    .set_object_transform(object, pose)
+                    .map_err(gpu_error)?;
+            }
+        }
+    }
+    Ok((gpu, renderer))
 }
 
 fn print_timings(device: &str, image: &readback::Image) {

@@ -81,6 +81,9 @@ pub fn run_view(config: ViewConfig) -> CliResult {
                     } if scene.lights.is_empty() => {
                         return Err(at(format!("{} has no spot light to drag", scene.name)));
                     }
+                    script::Step::Animate(_) => {
+                        crate::animate::Motion::of(&scene).map_err(at)?;
+                    }
                     _ => {}
                 }
             }
@@ -204,6 +207,65 @@ struct ViewState {
     /// When the last frame started, and the CPU wall milliseconds between the last two.
     last_frame: Option<Instant>,
     cpu_ms: f64,
+    /// The objects' animation: P plays and pauses it, a script's `animate SECONDS` steps it.
+    pub(crate) playback: Playback,
+}
+
+/// The window's place in the scene's animation (`[objects.animation]`, or `cssm render
+/// --animate`'s default spin): the time, whether it plays, and whether the renderer holds the
+/// poses of that time.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Playback {
+    /// How the objects move; `None` when the scene has no rigid object to move.
+    pub(crate) motion: Option<crate::animate::Motion>,
+    /// Seconds into the animation.
+    pub(crate) time: f32,
+    /// P toggled it on: the time advances by the frame time.
+    pub(crate) playing: bool,
+    /// The objects stand at their poses of `time` (false until the animation first plays or
+    /// steps: the scene as loaded, the image `cssm render` writes).
+    pub(crate) applied: bool,
+    /// The poses must be set on the renderer before the next frame.
+    moved: bool,
+}
+
+impl Playback {
+    /// The playback of `scene`'s motion, paused at 0 s, nothing applied.
+    fn of(scene: &Scene) -> Playback {
+        Playback {
+            motion: crate::animate::Motion::of(scene).ok(),
+            time: 0.0,
+            playing: false,
+            applied: false,
+            moved: false,
+        }
+    }
+
+    /// Moves the animation `seconds` on (back, when negative); nothing without a motion.
+    pub(crate) fn advance(&mut self, seconds: f32) {
+        if self.motion.is_some() {
+            self.time += seconds;
+            self.applied = true;
+            self.moved = true;
+        }
+    }
+
+    /// The moving objects' poses now, as `cssm render --animate` places them at this time.
+    fn poses(&self, scene: &Scene) -> Vec<(usize, glam::Affine3A)> {
+        match (&self.motion, self.applied) {
+            (Some(motion), true) => motion.poses_at(scene, self.time),
+            _ => Vec::new(),
+        }
+    }
+
+    /// What the overlay and the messages say about it.
+    pub(crate) fn describe(&self) -> String {
+        match (&self.motion, self.playing) {
+            (None, _) => "animation: nothing to move (no [[objects]] entry)".into(),
+            (Some(_), true) => format!("animation {:.2} s, playing (P pauses)", self.time),
+            (Some(_), false) => format!("animation {:.2} s, paused (P plays)", self.time),
+        }
+    }
 }
 
 impl ViewState {
@@ -227,7 +289,6 @@ impl ViewState {
             scripted: false,
             shot_exr: false,
             fixed_flags: Vec::new(),
-            scene,
             rebuild: false,
             shot_requested: false,
             camera_moved: false,
@@ -242,6 +303,8 @@ impl ViewState {
             last_print: Instant::now(),
             last_frame: None,
             cpu_ms: 0.0,
+            playback: Playback::of(&scene),
+            scene,
         }
     }
 
@@ -269,7 +332,25 @@ impl ViewState {
         {
             renderer.set_light(0, light).map_err(fail)?;
         }
+        for (object, pose) in self.playback.poses(scene) {
+            renderer.set_object_transform(object, pose).map_err(fail)?;
+        }
         Ok(renderer)
+    }
+
+    /// P: plays or pauses the animation.
+    fn toggle_playing(&mut self) {
+        let playback = &mut self.playback;
+        if playback.motion.is_none() {
+            eprintln!("P: {} has no [[objects]] entry to move", self.scene.name);
+            return;
+        }
+        playback.playing = !playback.playing;
+        if playback.playing {
+            // Playing from the start shows the animation's first pose at once.
+            playback.advance(0.0);
+        }
+        eprintln!("{}", playback.describe());
     }
 
     /// "scene, method (options), component": the title's and the messages' description.
@@ -323,6 +404,9 @@ impl ViewState {
                     aim: light.direction,
                 }
             ));
+        }
+        if self.playback.applied {
+            flags.push(format!("--time={}", self.playback.time));
         }
         flags.join(" ")
     }
@@ -719,6 +803,8 @@ impl App {
             || view.rebuild
             || view.camera_moved
             || view.light_moved
+            || view.playback.moved
+            || view.playback.playing
             || !view.held.is_empty()
             || gfx.renderer.frames_accumulated() < frames
     }
@@ -823,6 +909,7 @@ impl App {
                         .unwrap_or(0);
                     view.set_component(all[(here + 1) % all.len()]);
                 }
+                "p" | "P" if !event.repeat => view.toggle_playing(),
                 "h" | "H" if !event.repeat => {
                     if let Some(gfx) = &mut self.state {
                         gfx.overlay.visible = !gfx.overlay.visible;
@@ -865,8 +952,12 @@ impl App {
         if let Some(elapsed) = since_last {
             self.view.cpu_ms = elapsed.as_secs_f64() * 1e3;
             // A long pause (a window at rest) is no flight time: at most a tenth of a second.
-            self.view
-                .fly_held(elapsed.min(Duration::from_millis(100)).as_secs_f32());
+            let seconds = elapsed.min(Duration::from_millis(100)).as_secs_f32();
+            self.view.fly_held(seconds);
+            // The animation plays at the frame time, as slowly as the renderer draws.
+            if self.view.playback.playing {
+                self.view.playback.advance(seconds);
+            }
         }
         let render_scene = self.scene_frame_needed();
         let view = &mut self.view;
@@ -903,6 +994,13 @@ impl App {
         }
         if std::mem::take(&mut view.camera_moved) {
             gfx.renderer.set_camera(&view.camera).map_err(fail)?;
+        }
+        if std::mem::take(&mut view.playback.moved) {
+            for (object, pose) in view.playback.poses(&view.scene) {
+                gfx.renderer
+                    .set_object_transform(object, pose)
+                    .map_err(fail)?;
+            }
         }
         if std::mem::take(&mut view.light_moved)
             && let Some(light) = &view.light
@@ -1084,6 +1182,10 @@ impl App {
             }
             script::Step::Wait(n) => {
                 script.waiting = n;
+                Vec::new()
+            }
+            script::Step::Animate(seconds) => {
+                self.view.playback.advance(seconds);
                 Vec::new()
             }
             script::Step::Screenshot(path) => {

@@ -274,6 +274,7 @@ fn panel(ui: &mut egui::Ui, view: &ViewState, stats: &Stats, actions: &mut Vec<A
         )),
         None => ui.label("no spot light"),
     };
+    ui.label(view.playback.describe());
     ui.separator();
     ui.label(format!(
         "frame {:.2} ms (CPU wall), {} frames accumulated",
@@ -366,6 +367,7 @@ mod tests {
             "16.50 ms (CPU wall), 7 frames",
             "camera ",
             "light ",
+            "animation: nothing to move",
         ] {
             assert!(shown.contains(expected), "'{expected}' not in:\n{shown}");
         }

@@ -12,6 +12,7 @@
 //! key KEY              press and release KEY (c, [, Tab, F12, shift+Tab, ...)
 //! hold KEY N           press KEY, let N frames render, release it (a held fly key)
 //! wait N               let N frames render
+//! animate SECONDS      move the objects' animation SECONDS on (as P plays it, but exactly)
 //! screenshot PATH      write the last frame (PNG, or .exr: linear radiance)
 //! quit                 close the window
 //! ```
@@ -59,6 +60,8 @@ pub enum Step {
     Hold(ScriptKey, u32),
     /// This many frames before the next step.
     Wait(u32),
+    /// The objects' animation moved this many seconds on (back, when negative).
+    Animate(f32),
     /// The last frame written here.
     Screenshot(PathBuf),
     /// The window closed.
@@ -146,6 +149,10 @@ fn parse_step(line: &str) -> Result<Step, String> {
             count(1)?;
             Ok(Step::Wait(frames(command, args[0])?))
         }
+        "animate" => {
+            count(1)?;
+            Ok(Step::Animate(number(args[0])? as f32))
+        }
         "screenshot" => {
             // The rest of the line: a path may hold spaces.
             let path = line["screenshot".len()..].trim();
@@ -160,7 +167,7 @@ fn parse_step(line: &str) -> Result<Step, String> {
         }
         other => Err(format!(
             "unknown step '{other}' (the steps: orbit, drag-light, move-light, dolly, key, \
-             hold, wait, screenshot, quit; `cssm view --help` describes them)"
+             hold, wait, animate, screenshot, quit; `cssm view --help` describes them)"
         )),
     }
 }
@@ -246,10 +253,11 @@ mod tests {
     fn a_script_parses_to_its_steps_with_line_numbers() {
         let text = "# a tour\norbit 40 -10\n\n  drag-light 5 0 # aim\nmove-light 1.5 2\n\
                     dolly -1\nkey shift+Tab\nkey =\nkey shift+=\nwait 3\nscreenshot a b.png\nquit\n\
-                    hold w 5\n";
+                    hold w 5\nanimate -0.25\n";
         let lines = parse(text).unwrap();
         let numbers: Vec<usize> = lines.iter().map(|l| l.number).collect();
-        assert_eq!(numbers, [2, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13]);
+        assert_eq!(numbers, [2, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14]);
+        assert_eq!(lines[11].step, Step::Animate(-0.25));
         assert_eq!(
             lines[0].step,
             Step::Drag {
@@ -300,6 +308,8 @@ mod tests {
             ("hold w\n", 1, "'hold' takes 2 arguments"),
             ("hold w 0\n", 1, "hold takes a whole number of frames"),
             ("dolly inf\n", 1, "'inf' is not a finite number"),
+            ("wait 1\nanimate nan\n", 2, "'nan' is not a finite number"),
+            ("animate\n", 1, "'animate' takes 1 argument, not 0"),
         ] {
             let (n, message) = parse(text).unwrap_err();
             assert_eq!(n, line, "{text:?}: {message}");

@@ -7,6 +7,7 @@
 //! each rigid `[[objects]]` entry as a [`SceneObject`], a contiguous range of the merged
 //! triangles with its object-to-world transform (the bake still treats all of it as static).
 
+mod animation;
 mod default_view;
 mod gltf;
 mod obj;
@@ -19,6 +20,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Affine3A, Mat3, Vec3};
 
+pub use self::animation::{Animation, Keyframe, Repeat, Spin, euler_rotation, turned_about};
 pub use self::objects::{ObjectKind, STATIC_OBJECT_NAME, SceneObject, placement};
 use self::toml::{SceneToml, mesh_path};
 use validate::{check_camera, check_light, object_transform};
@@ -527,6 +529,7 @@ impl Builder {
             kind,
             triangles: start as u32..end,
             transform,
+            animation: None,
         });
         Ok(())
     }
@@ -723,6 +726,7 @@ impl Builder {
         name: &str,
         path: &Path,
         (m, t): (Mat3, Vec3),
+        animation: Option<animation::Animation>,
         hasher: &mut Hasher,
     ) -> Result<(), SceneError> {
         let start = self.triangles.len();
@@ -740,6 +744,9 @@ impl Builder {
             self.add_obj(path, Some((m, t)), hasher)?;
         }
         self.push_object(name.into(), ObjectKind::Rigid, start, transform, path)?;
+        if let Some(object) = self.objects.last_mut() {
+            object.animation = animation;
+        }
         self.warnings.push(format!(
             "object `{name}`: a moving object's atlas texels do not follow it in the renderer \
              yet: the light it receives and sends is computed where it was loaded (its \
@@ -847,6 +854,19 @@ impl Scene {
                 .iter()
                 .map(|o| object_transform(o, &toml_path))
                 .collect::<Result<Vec<_>, _>>()?;
+            let animations = desc
+                .objects
+                .iter()
+                .map(|o| {
+                    o.animation
+                        .as_ref()
+                        .map(|a| {
+                            let pose = (o.translation.into(), o.rotation_deg.into(), o.scale);
+                            animation::check_animation(a, &o.name, pose, &toml_path)
+                        })
+                        .transpose()
+                })
+                .collect::<Result<Vec<_>, _>>()?;
             let mut names = HashSet::new();
             for o in &desc.objects {
                 if !names.insert(o.name.as_str()) {
@@ -858,14 +878,14 @@ impl Scene {
             }
             let main = mesh_path(&dir, &toml_path, "mesh", &desc.mesh)?;
             b.add_static(&[main], &mut hasher, &mut extras)?;
-            for (o, t) in desc.objects.iter().zip(transforms) {
+            for ((o, t), a) in desc.objects.iter().zip(transforms).zip(animations) {
                 let p = mesh_path(
                     &dir,
                     &toml_path,
                     &format!("object `{}`: mesh", o.name),
                     &o.mesh,
                 )?;
-                b.add_rigid(&o.name, &p, t, &mut hasher)?;
+                b.add_rigid(&o.name, &p, t, a, &mut hasher)?;
             }
             (desc.name.unwrap_or(default_name), camera, lights)
         } else {

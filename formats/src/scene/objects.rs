@@ -7,6 +7,7 @@ use std::ops::Range;
 use glam::Affine3A;
 
 use super::Scene;
+use super::animation::Animation;
 
 /// What a [`SceneObject`] is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -38,6 +39,9 @@ pub struct SceneObject {
     /// Object space to world space as loaded: scale, then rotation (X, then Y, then Z), then
     /// translation, from the `[[objects]]` entry; the identity for the static part.
     pub transform: Affine3A,
+    /// How a rigid object moves over time (`[objects.animation]`), if it does; `None` for the
+    /// static part and for an entry without one. [`SceneObject::pose_at`] applies it.
+    pub animation: Option<Animation>,
 }
 
 /// The object-to-world transform of an `[[objects]]` entry: `scale`, then the rotation by the
@@ -73,7 +77,16 @@ impl SceneObject {
             kind: ObjectKind::Static,
             triangles: 0..end,
             transform: Affine3A::IDENTITY,
+            animation: None,
         }
+    }
+
+    /// Object space to world space at `time` seconds of the scene's animation: its
+    /// [`Animation::pose_at`], or [`SceneObject::transform`] for an object that does not move.
+    pub fn pose_at(&self, time: f32) -> Affine3A {
+        self.animation
+            .as_ref()
+            .map_or(self.transform, |a| a.pose_at(time))
     }
 }
 
@@ -160,6 +173,39 @@ impl Scene {
             posed.objects[i].transform = *pose;
         }
         Ok(posed)
+    }
+
+    /// Every object's [`SceneObject::pose_at`] `time`, in the order of [`Scene::objects`] (what
+    /// [`Scene::posed`] and the renderer's `set_object_transform` take).
+    pub fn poses_at(&self, time: f32) -> Vec<Affine3A> {
+        self.objects.iter().map(|o| o.pose_at(time)).collect()
+    }
+
+    /// The longest [`Animation::duration`] of the scene's objects, in seconds; `None` when no
+    /// object has an animation.
+    pub fn animation_duration(&self) -> Option<f32> {
+        self.objects
+            .iter()
+            .filter_map(|o| o.animation.as_ref())
+            .map(Animation::duration)
+            .reduce(f32::max)
+    }
+
+    /// The centre of object `object`'s bounding box as it stands in [`Scene::positions`]
+    /// (world space, at [`SceneObject::transform`]).
+    ///
+    /// # Panics
+    /// If `object` is not an index into [`Scene::objects`].
+    pub fn object_centre(&self, object: usize) -> glam::Vec3 {
+        let (lo, hi) = self.objects[object].triangles.clone().fold(
+            (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY),
+            |(lo, hi), t| {
+                self.triangle(t as usize)
+                    .iter()
+                    .fold((lo, hi), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+            },
+        );
+        (lo + hi) / 2.0
     }
 
     /// Checks the invariants of [`Scene::objects`]: at least one object; ranges non-empty,
@@ -295,6 +341,7 @@ mod tests {
             kind: ObjectKind::Rigid,
             triangles,
             transform: Affine3A::IDENTITY,
+            animation: None,
         }
     }
 

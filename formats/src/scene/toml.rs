@@ -57,6 +57,8 @@ pub(super) struct ObjectToml {
     pub(super) rotation_deg: [f32; 3],
     #[serde(default = "one")]
     pub(super) scale: f32,
+    /// `[objects.animation]`: keyframes and/or a spin (`animation.rs`).
+    pub(super) animation: Option<super::animation::AnimationToml>,
 }
 
 fn one() -> f32 {
