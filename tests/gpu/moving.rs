@@ -138,9 +138,10 @@ fn gpu_moving_query_matches_cpu_reference() {
 }
 
 /// The block scene lit from above, its block three times as large and wound outwards, baked
-/// small, with the block's pose that turns it upside down and lifts it into the air (turned 180
-/// degrees about x, its far corner 200 units up): the face lit as loaded (its top) faces the
-/// floor, and the face that lay on the floor faces the light.
+/// small, with the block's pose that turns it upside down, lifts it into the air and shrinks it
+/// (turned 180 degrees about x, its far corner 200 units up, scale 2.5 instead of 3: its texels'
+/// areas shrink by (5/6)^2): the face lit as loaded (its top) faces the floor, and the face
+/// that lay on the floor faces the light.
 struct FlippedBlock {
     scene: Scene,
     file: cssm_formats::CssmFile,
@@ -171,7 +172,7 @@ fn flipped_block() -> &'static FlippedBlock {
             .position(|o| o.kind == ObjectKind::Rigid)
             .unwrap();
         let pose = Affine3A::from_scale_rotation_translation(
-            Vec3::splat(3.0),
+            Vec3::splat(2.5),
             Quat::from_rotation_x(std::f32::consts::PI) * Quat::from_rotation_y(30f32.to_radians()),
             Vec3::new(250.0, 200.0, 250.0),
         );
@@ -469,8 +470,8 @@ fn moved_object_final_gather_matches_cpu_twin() {
 
 /// Placing an object refits the hierarchy the GPU traverses (`FrameContext::place_object`,
 /// `radiosity::MovingTexels`): its nodes read back are the CPU refit over the posed texels, no
-/// longer the baked ones, and every texel of the moved block lies in the root's sphere (§4.3:
-/// the oracle's bounds hold where the texels are now).
+/// longer the baked ones, the root's area is the shrunk block's, and every texel of the moved
+/// block lies in the root's sphere (§4.3: the oracle's bounds hold where the texels are now).
 #[test]
 fn placing_an_object_refits_the_gpu_hierarchy() {
     use cssm_runtime::{
@@ -505,6 +506,18 @@ fn placing_an_object_refits_the_gpu_hierarchy() {
     assert_eq!(nodes, refitted.nodes.as_slice());
     assert_ne!(nodes, file.hierarchy.nodes.as_slice());
     let root = &nodes[0];
+    // The block shrank from scale 3 to 2.5: its texels' areas by (5/6)^2.
+    let block = fixture.block as u32;
+    let expected_area: f64 = file
+        .texels
+        .iter()
+        .map(|t| f64::from(t.area) * if t.object == block { 25.0 / 36.0 } else { 1.0 })
+        .sum();
+    assert!(
+        (f64::from(root.area) - expected_area).abs() < 1e-4 * expected_area,
+        "root area {} against {expected_area}",
+        root.area
+    );
     for t in posed.iter().filter(|t| t.object == fixture.block as u32) {
         let outside = t.pos().distance(Vec3::from(root.center)) - root.radius;
         assert!(outside <= 1e-3, "texel {t:?} outside the root by {outside}");
