@@ -314,6 +314,8 @@ impl Renderer {
     /// atlas) and sends and receives in the bounces (radiosity, final gather) are computed where
     /// it stands, over a hierarchy refitted around it. The CPU references render the scene as
     /// loaded, or posed as the caller poses it (`Scene::posed`, `radiosity::cpu::TwinScene`).
+    /// A static object moved this way moves in the raster passes and the atlas, but its maps
+    /// were baked with the whole static part and its visibility stays the baked scene's.
     ///
     /// # Errors
     /// An index past the scene's objects, or a transform that is not finite or not invertible.
