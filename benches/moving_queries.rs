@@ -209,7 +209,10 @@ fn main() {
     // The baseline: the renderer's static query between two surface points (both ends' maps,
     // `cssm_visibility_between`), which is what the moving objects' kernel composes to without
     // CSMs; the same pairs as the rows below.
-    let static_moving = MovingGpu::new(&gpu.device, &file, &scene).expect("no CSMs to upload");
+    let scene_gpu = runtime::load::SceneGpu::new(&gpu.device, &gpu.queue, &scene, Some(&file))
+        .expect("upload the scene");
+    let static_moving =
+        MovingGpu::new(&gpu.device, &file, &scene, &scene_gpu.motion).expect("no CSMs to upload");
     let static_kernel = MovingQueryKernel::new(&gpu, &cssm, &static_moving);
     let static_pairs = moving_pairs(&scene, pairs);
     let baseline = best_ms(&gpu, reps, |t| {
@@ -244,7 +247,10 @@ fn main() {
             .file;
         let cssm = CssmGpu::new(&gpu.device, &gpu.queue, &file, QueryOptions::default())
             .expect("upload the CSSM");
-        let moving = MovingGpu::new(&gpu.device, &file, &scene).expect("upload the CSMs");
+        let scene_gpu = runtime::load::SceneGpu::new(&gpu.device, &gpu.queue, &scene, Some(&file))
+            .expect("upload the scene");
+        let moving =
+            MovingGpu::new(&gpu.device, &file, &scene, &scene_gpu.motion).expect("upload the CSMs");
         let kernel = MovingQueryKernel::new(&gpu, &cssm, &moving);
         let moving_pairs = moving_pairs(&scene, pairs);
         let ms = best_ms(&gpu, reps, |t| {

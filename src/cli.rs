@@ -1139,8 +1139,8 @@ pub struct RenderArgs {
     /// some objects have an animation, the others stand still; a scene whose objects have none
     /// gets each rigid [[objects]] entry spun one full turn about the vertical axis (the
     /// camera's up) through the centre of its bounding box, over --duration (default 4 s).
-    /// The objects' shadows and visibility follow them; the light a moving object itself
-    /// receives is still computed where it was baked. Existing frames are not overwritten
+    /// The objects' shadows, visibility and atlas texels follow them, so the light they
+    /// receive and send moves with them. Existing frames are not overwritten
     /// without --overwrite; every file is written under a temporary name and renamed, so none
     /// is ever half-written.
     #[arg(long)]

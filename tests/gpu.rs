@@ -487,7 +487,8 @@ fn atlas_direct_light_matches_cpu_reference() {
         cssm_runtime::radiosity::render_atlas_direct(&gpu.device, &gpu.queue, scene, file, 2048)
             .expect("atlas pass");
     let bvh = cssm_raycast::SceneBvh::new(scene);
-    let cpu_texels = cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh);
+    let cpu_texels =
+        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), &file.texels, &bvh);
     assert_eq!(gpu_texels.len(), cpu_texels.len());
     // Away from shadow and cone edges: texels whose atlas neighbours in the same chart agree
     // with them on lit or not.
@@ -863,7 +864,7 @@ fn radiosity_error(threshold: f32) -> (f64, u64) {
     let (scene, file) = cornell32();
     let bvh = cssm_raycast::SceneBvh::new(scene);
     let exact_direct =
-        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh);
+        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), &file.texels, &bvh);
     let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     static BRUTE: OnceLock<Vec<glam::Vec3>> = OnceLock::new();
     let brute = BRUTE
@@ -904,7 +905,7 @@ fn radiosity_matches_brute_force() {
     let (scene, file) = cornell32();
     let bvh = cssm_raycast::SceneBvh::new(scene);
     let exact_direct =
-        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh);
+        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), &file.texels, &bvh);
     let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
     let brute = cpu::brute_force(file, &bvh, scene.diameter(), &exact_direct, &albedo, 2);
     let query = VisibilityQuery::new(file, QueryOptions::default());
@@ -1060,8 +1061,8 @@ fn final_gather_vs_twin(
     )
     .expect("radiosity");
     let radiance = vec3s(&atlas.node_radiance);
-    let nodes = &file.hierarchy.nodes;
     let query = VisibilityQuery::new(file, QueryOptions::default());
+    let twin_scene = cssm_runtime::radiosity::cpu::TwinScene::baked(&query);
     let seen = cpu_receivers(scene, file, w, h);
     let keep = interior(scene, &seen, w, h);
     let twin: Vec<glam::Vec3> = seen
@@ -1077,9 +1078,7 @@ fn final_gather_vs_twin(
                     ..Default::default()
                 };
                 cssm_runtime::lightcuts::cpu::gather_pixel(
-                    &query,
-                    nodes,
-                    &file.hierarchy.leaf_texels,
+                    &twin_scene,
                     &radiance,
                     options.threshold,
                     options.exposure,
@@ -1324,6 +1323,18 @@ fn image_difference(a: &Image, b: &Image) -> (f64, f32) {
 /// The Cornell box with a white block as a rigid `[[objects]]` entry at `translation`, lit by
 /// `light` (position, direction), written to `dir`.
 fn block_scene(dir: &std::path::Path, translation: [f32; 3], light: ([f32; 3], [f32; 3])) -> Scene {
+    block_scene_of(dir, translation, light, 1.0, false)
+}
+
+/// [`block_scene`] with the block scaled by `scale` and its faces wound outwards when
+/// `outward` (their normals pointing out of the block; [`block_scene`]'s point in).
+fn block_scene_of(
+    dir: &std::path::Path,
+    translation: [f32; 3],
+    light: ([f32; 3], [f32; 3]),
+    scale: f32,
+    outward: bool,
+) -> Scene {
     let box_dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box");
     for f in ["cornell-box.obj", "cornell-box.mtl"] {
         std::fs::copy(box_dir.join(f), dir.join(f)).unwrap();
@@ -1342,7 +1353,8 @@ fn block_scene(dir: &std::path::Path, translation: [f32; 3], light: ([f32; 3], [
         [3, 7, 8, 4],
         [4, 8, 5, 1],
     ] {
-        obj += &format!("f {} {} {} {}\n", f[0], f[1], f[2], f[3]);
+        let [a, b, c, d] = if outward { [f[3], f[2], f[1], f[0]] } else { f };
+        obj += &format!("f {a} {b} {c} {d}\n");
     }
     std::fs::write(dir.join("block.obj"), obj).unwrap();
     let ([px, py, pz], [dx, dy, dz]) = light;
@@ -1357,7 +1369,7 @@ fn block_scene(dir: &std::path::Path, translation: [f32; 3], light: ([f32; 3], [
              direction = [{dx}, {dy}, {dz}]\ncutoff_deg = 60.0\n\
              intensity = [500000.0, 500000.0, 500000.0]\n\n\
              [[objects]]\nname = \"block\"\nmesh = \"block.obj\"\n\
-             translation = [{tx}, {ty}, {tz}]\nrotation_deg = [0.0, 30.0, 0.0]\nscale = 1.0\n"
+             translation = [{tx}, {ty}, {tz}]\nrotation_deg = [0.0, 30.0, 0.0]\nscale = {scale:?}\n"
         ),
     )
     .unwrap();

@@ -150,76 +150,36 @@ impl Hierarchy {
             stack.push((i + 1, first, left));
         }
 
-        // Bottom-up (children come after their parent in pre-order): bounds, sums, cones.
-        let mut sums = vec![Sums::default(); m];
-        for i in (0..m).rev() {
-            let (first, count) = (nodes[i].first as usize, nodes[i].count as usize);
-            if count == 1 {
-                let t = &texels[order[first].1 as usize];
-                let nrm = dvec(t.normal);
-                sums[i] = Sums {
-                    area: f64::from(t.area),
-                    area_normal: f64::from(t.area) * nrm,
-                    normal: nrm,
-                    // A normal without a direction has no cone to merge.
-                    half_angle: if nrm.length() > MIN_AXIS_LEN {
-                        0.0
-                    } else {
-                        f64::INFINITY
-                    },
-                };
-                let node = &mut nodes[i];
-                node.center = t.position;
-                node.radius = (t.area / std::f32::consts::PI).sqrt();
-                node.normal = t.normal;
-                node.cone_cos = 1.0;
-                node.area = t.area;
-                node.representative = order[first].1;
-                continue;
-            }
-            let (l, r) = (i + 1, nodes[i + 1].skip as usize);
-            let (a, b) = (nodes[l], nodes[r]);
-            let (sa, sb) = (sums[l], sums[r]);
-            let area = sa.area + sb.area;
-            let area_normal = sa.area_normal + sb.area_normal;
-            let normal_sum = sa.normal + sb.normal;
-            let mean = if area > 0.0 {
-                area_normal / area
-            } else {
-                normal_sum / count as f64
-            };
-            let normal = mean.as_vec3().to_array();
-            // The cone around the normal as stored, so that it holds for what the GPU reads.
-            let half_angle = merge_cones(dvec(normal), [(&a, sa), (&b, sb)]);
-            sums[i] = Sums {
-                area,
-                area_normal,
-                normal: normal_sum,
-                half_angle,
-            };
-            let center = enclosing_center(&a, &b).as_vec3().to_array();
-            // The radius around the f32 centre, rounded up: the children's spheres stay inside.
-            let radius = [&a, &b]
-                .iter()
-                .map(|c| dvec(center).distance(dvec(c.center)) + f64::from(c.radius))
-                .fold(0.0, f64::max);
-            let leaves = &order[first..first + count];
-            let node = &mut nodes[i];
-            node.center = center;
-            node.radius = f32_up(radius);
-            node.normal = normal;
-            node.cone_cos = if half_angle < std::f64::consts::PI {
-                f32_down(half_angle.cos()).clamp(-1.0, 1.0)
-            } else {
-                -1.0
-            };
-            node.area = area as f32;
-            node.representative = nearest(leaves, dvec(center));
-        }
+        fit_bounds(&mut nodes, &order, texels);
         Hierarchy {
             nodes,
             leaf_texels: order.into_iter().map(|(_, t)| t).collect(),
         }
+    }
+
+    /// Recomputes every node's bounds (sphere, mean normal, normal cone, area, representative)
+    /// for `texels` placed anew since the build, keeping the tree (leaf order, counts, skips):
+    /// what rigid objects need when they move (§3.3), so that the oracle's bounds (§4.3) stay
+    /// conservative around the texels where they are now. `texels` are the build's, each moved
+    /// (same count, same order); refitting the build's own texels gives the build's nodes
+    /// exactly. The median cut is not redone: a moved object's texels keep their subtrees,
+    /// whose spheres grow where the objects drift apart (looser bounds refine more, never less).
+    ///
+    /// # Panics
+    ///
+    /// If `texels` is not as long as the hierarchy's leaf table.
+    pub fn refit(&mut self, texels: &[Texel]) {
+        assert_eq!(
+            texels.len(),
+            self.leaf_texels.len(),
+            "refit with another texel count"
+        );
+        let order: Vec<([f32; 3], u32)> = self
+            .leaf_texels
+            .iter()
+            .map(|&t| (texels[t as usize].position, t))
+            .collect();
+        fit_bounds(&mut self.nodes, &order, texels);
     }
 
     /// Checks the hierarchy for a file of `texel_count` texels: `2 * texel_count - 1` nodes,
@@ -427,6 +387,78 @@ impl Hierarchy {
             }
         }
         out
+    }
+}
+
+/// The bottom-up half of [`Hierarchy::build`] (children come after their parent in pre-order):
+/// bounds, sums and cones of every node of `nodes`, whose leaf ranges and skips are set, over
+/// `order`, the leaves' (position, texel index) in leaf order.
+fn fit_bounds(nodes: &mut [HierarchyNode], order: &[([f32; 3], u32)], texels: &[Texel]) {
+    let m = nodes.len();
+    let mut sums = vec![Sums::default(); m];
+    for i in (0..m).rev() {
+        let (first, count) = (nodes[i].first as usize, nodes[i].count as usize);
+        if count == 1 {
+            let t = &texels[order[first].1 as usize];
+            let nrm = dvec(t.normal);
+            sums[i] = Sums {
+                area: f64::from(t.area),
+                area_normal: f64::from(t.area) * nrm,
+                normal: nrm,
+                // A normal without a direction has no cone to merge.
+                half_angle: if nrm.length() > MIN_AXIS_LEN {
+                    0.0
+                } else {
+                    f64::INFINITY
+                },
+            };
+            let node = &mut nodes[i];
+            node.center = t.position;
+            node.radius = (t.area / std::f32::consts::PI).sqrt();
+            node.normal = t.normal;
+            node.cone_cos = 1.0;
+            node.area = t.area;
+            node.representative = order[first].1;
+            continue;
+        }
+        let (l, r) = (i + 1, nodes[i + 1].skip as usize);
+        let (a, b) = (nodes[l], nodes[r]);
+        let (sa, sb) = (sums[l], sums[r]);
+        let area = sa.area + sb.area;
+        let area_normal = sa.area_normal + sb.area_normal;
+        let normal_sum = sa.normal + sb.normal;
+        let mean = if area > 0.0 {
+            area_normal / area
+        } else {
+            normal_sum / count as f64
+        };
+        let normal = mean.as_vec3().to_array();
+        // The cone around the normal as stored, so that it holds for what the GPU reads.
+        let half_angle = merge_cones(dvec(normal), [(&a, sa), (&b, sb)]);
+        sums[i] = Sums {
+            area,
+            area_normal,
+            normal: normal_sum,
+            half_angle,
+        };
+        let center = enclosing_center(&a, &b).as_vec3().to_array();
+        // The radius around the f32 centre, rounded up: the children's spheres stay inside.
+        let radius = [&a, &b]
+            .iter()
+            .map(|c| dvec(center).distance(dvec(c.center)) + f64::from(c.radius))
+            .fold(0.0, f64::max);
+        let leaves = &order[first..first + count];
+        let node = &mut nodes[i];
+        node.center = center;
+        node.radius = f32_up(radius);
+        node.normal = normal;
+        node.cone_cos = if half_angle < std::f64::consts::PI {
+            f32_down(half_angle.cos()).clamp(-1.0, 1.0)
+        } else {
+            -1.0
+        };
+        node.area = area as f32;
+        node.representative = nearest(leaves, dvec(center));
     }
 }
 
@@ -682,6 +714,37 @@ mod tests {
         fn normal_len(&self) -> f32 {
             glam::Vec3::from(self.normal).length()
         }
+    }
+
+    #[test]
+    fn refit_of_the_build_texels_is_the_build_and_moved_texels_keep_every_property() {
+        let texels = random_texels(500, 7, false);
+        let built = Hierarchy::build(&texels);
+        let mut refitted = built.clone();
+        refitted.refit(&texels);
+        assert_eq!(refitted, built);
+        // Half of the texels carried away and turned (a rigid object moving, §3.3): the same
+        // tree, every bound recomputed around the texels where they are now.
+        let turn = glam::Quat::from_rotation_z(1.0);
+        let moved: Vec<Texel> = texels
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let mut m = *t;
+                if i % 2 == 0 {
+                    m.position = (turn * t.pos() + glam::Vec3::new(5.0, -3.0, 2.0)).to_array();
+                    m.normal = (turn * t.nrm()).to_array();
+                }
+                m
+            })
+            .collect();
+        refitted.refit(&moved);
+        assert_eq!(refitted.leaf_texels, built.leaf_texels);
+        for (a, b) in refitted.nodes.iter().zip(&built.nodes) {
+            assert_eq!((a.skip, a.first, a.count), (b.skip, b.first, b.count));
+        }
+        assert_ne!(refitted.nodes[0].center, built.nodes[0].center);
+        check(&refitted, &moved);
     }
 
     /// Leaf ranges of a cut partition `0..n` in order.
@@ -954,9 +1017,10 @@ mod tests {
         }
     }
 
-    /// Timing on 200,000 random texels (run with `--ignored --nocapture` in release): wall
-    /// time, and on Linux the time the thread was on a CPU (`/proc/thread-self/schedstat`),
-    /// which a busy machine does not inflate.
+    /// Timing on 200,000 random texels (run with `--ignored --nocapture` in release) of the
+    /// build, the validation and a refit over the texels moved (what a moving object costs the
+    /// runtime per move): wall time, and on Linux the time the thread was on a CPU
+    /// (`/proc/thread-self/schedstat`), which a busy machine does not inflate.
     #[test]
     #[ignore]
     fn build_time_200k() {
@@ -970,14 +1034,30 @@ mod tests {
         let (built, c1) = (t0.elapsed(), on_cpu_ns());
         let t0 = std::time::Instant::now();
         h.validate(texels.len()).unwrap();
-        let cpu = match (c0, c1) {
+        let validated = t0.elapsed();
+        // What a moving object costs the runtime per move (§3.3): the refit over moved texels.
+        let moved: Vec<Texel> = texels
+            .iter()
+            .map(|t| Texel {
+                position: (t.pos() + glam::Vec3::ONE).to_array(),
+                ..*t
+            })
+            .collect();
+        let mut refitted = h.clone();
+        let (t0, c2) = (std::time::Instant::now(), on_cpu_ns());
+        refitted.refit(&moved);
+        let (refit, c3) = (t0.elapsed(), on_cpu_ns());
+        let cpu = |a: Option<u64>, b: Option<u64>| match (a, b) {
             (Some(a), Some(b)) => format!(", {:.1} ms on the CPU", (b - a) as f64 / 1e6),
             _ => String::new(),
         };
         println!(
-            "build of 200,000 texels: {:.1} ms{cpu}; validate: {:.1} ms",
+            "build of 200,000 texels: {:.1} ms{}; validate: {:.1} ms; refit: {:.1} ms{}",
             built.as_secs_f64() * 1e3,
-            t0.elapsed().as_secs_f64() * 1e3
+            cpu(c0, c1),
+            validated.as_secs_f64() * 1e3,
+            refit.as_secs_f64() * 1e3,
+            cpu(c2, c3)
         );
     }
 }

@@ -25,6 +25,7 @@ use glam::{Affine3A, Vec3};
 use crate::{
     CssmFile, ObjectKind,
     csm::CsmData,
+    texel::Texel,
     visibility::{QueryOptions, VisibilityQuery},
 };
 
@@ -76,6 +77,33 @@ impl Placement {
     pub fn normal(&self, n: Vec3) -> Vec3 {
         Vec3::from(self.normal_to_baked() * glam::Vec3A::from(n)).normalize_or(n)
     }
+}
+
+/// Texel `t` where its object's motion `motion` (object `t.object`'s transform now times the
+/// inverse of its transform as loaded: baked frame to world now) puts it (§3.3: a rigid object's
+/// atlas moves with it): position and normal carried, area scaled by the square of the
+/// motion's uniform scale (`|det|^(2/3)`; the objects move rigidly, with at most a uniform
+/// scale). The runtime's WGSL twin is `visibility/posed.wgsl::posed_texel`.
+pub fn posed_texel(t: &Texel, motion: &Affine3A) -> Texel {
+    let mut posed = *t;
+    posed.position = motion.transform_point3(t.pos()).to_array();
+    posed.normal = motion
+        .transform_vector3(t.nrm())
+        .normalize_or(t.nrm())
+        .to_array();
+    posed.area = t.area * motion.matrix3.determinant().abs().powf(2.0 / 3.0);
+    posed
+}
+
+/// Every texel of `texels` where [`posed_texel`] puts it, `motions[o]` the motion of object `o`.
+///
+/// # Panics
+/// If a texel's object has no motion.
+pub fn posed_texels(texels: &[Texel], motions: &[Affine3A]) -> Vec<Texel> {
+    texels
+        .iter()
+        .map(|t| posed_texel(t, &motions[t.object as usize]))
+        .collect()
 }
 
 /// The group of every object of `objects` (a scene's, in order): 0 for the static ones, which
@@ -264,5 +292,37 @@ impl<'a> MovingQuery<'a> {
             );
         }
         Some(clear)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+
+    #[test]
+    fn posed_texels_move_turn_and_scale_with_their_object() {
+        let texel = Texel {
+            position: [1.0, 2.0, 3.0],
+            normal: [0.0, 0.0, 1.0],
+            area: 0.5,
+            material: 0,
+            chart: 0,
+            object: 1,
+            x: 0,
+            y: 0,
+        };
+        let still = Texel { object: 0, ..texel };
+        let motion = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(2.0),
+            Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
+            Vec3::new(10.0, 0.0, 0.0),
+        );
+        let posed = posed_texels(&[texel, still], &[Affine3A::IDENTITY, motion]);
+        // Rotated a quarter turn about x: (1, 2, 3) -> (1, -3, 2), scaled 2, moved by 10 in x.
+        assert!(posed[0].pos().abs_diff_eq(Vec3::new(12.0, -6.0, 4.0), 1e-5));
+        assert!(posed[0].nrm().abs_diff_eq(Vec3::new(0.0, -1.0, 0.0), 1e-6));
+        assert!((posed[0].area - 2.0).abs() < 1e-5);
+        assert_eq!(posed[1], still, "the static part stays");
     }
 }

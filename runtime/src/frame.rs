@@ -204,6 +204,9 @@ pub struct CssmResources {
     pub moving: crate::visibility::moving::MovingGpu,
     /// The median-cut hierarchy (§4.2).
     pub hierarchy: HierarchyGpu,
+    /// With moving objects, the texels and the hierarchy on the CPU, refitted when an object
+    /// moves (`Renderer::set_object_transform`); `None` in a file without moving objects.
+    pub moving_texels: Option<crate::radiosity::MovingTexels>,
 }
 
 /// Settings of a frame that are not a method's own.
@@ -361,6 +364,50 @@ pub struct FrameContext {
 }
 
 impl FrameContext {
+    /// Places object `index` of the scene's objects at `transform` (object to world; rigid,
+    /// with a uniform scale): writes its motion since loading (`SceneGpu::motion`, which the
+    /// raster passes and, with moving objects, the atlas texels read: `posed.wgsl`), its
+    /// placement for the moving objects' query (§3.3) and refits the hierarchy around the
+    /// texels where they are now (`radiosity::MovingTexels`). The caller runs the prepare
+    /// passes again (`Renderer::set_object_transform` does).
+    ///
+    /// # Errors
+    /// An index past the scene's objects, or a transform that is not finite or not invertible.
+    pub fn place_object(
+        &mut self,
+        index: usize,
+        transform: glam::Affine3A,
+    ) -> Result<(), RuntimeError> {
+        let scene = &self.scene;
+        let Some(loaded) = scene.load_transforms.get(index) else {
+            return Err(RuntimeError::Unsupported(format!(
+                "object {index}: the scene has {} objects",
+                scene.load_transforms.len()
+            )));
+        };
+        let determinant = transform.matrix3.determinant();
+        if !(transform.is_finite() && determinant.is_finite() && determinant.abs() > 1e-12) {
+            return Err(RuntimeError::Unsupported(format!(
+                "object {index}: transform {transform:?} is not finite and invertible"
+            )));
+        }
+        let motion = transform * loaded.inverse();
+        self.queue.write_buffer(
+            &scene.motion,
+            (index * size_of::<[f32; 16]>()) as u64,
+            bytemuck::cast_slice(&glam::Mat4::from(motion).to_cols_array()),
+        );
+        if let Some(cssm) = &mut self.cssm {
+            cssm.moving.set_pose(&self.queue, index, transform);
+            // Its texels follow it through the motion above (posed.wgsl); the hierarchy's
+            // bounds are refitted around them (§3.3, §4.3).
+            if let Some(texels) = &mut cssm.moving_texels {
+                texels.place(&self.queue, &cssm.hierarchy, index, motion);
+            }
+        }
+        Ok(())
+    }
+
     /// Uploads `scene` (and `cssm`, if given) and creates the shared resources; the shadow
     /// maps' raster also writes the reflective shadow map when `rsm` (a method reads
     /// [`Slot::Rsm`]).
@@ -390,8 +437,14 @@ impl FrameContext {
         let cssm = match cssm {
             Some(file) => Some(CssmResources {
                 query: CssmGpu::new(device, queue, file, settings.visibility)?,
-                moving: crate::visibility::moving::MovingGpu::new(device, file, scene)?,
+                moving: crate::visibility::moving::MovingGpu::new(
+                    device,
+                    file,
+                    scene,
+                    &scene_gpu.motion,
+                )?,
                 hierarchy: HierarchyGpu::new(device, &file.hierarchy)?,
+                moving_texels: crate::radiosity::MovingTexels::new(file, scene.objects.len()),
             }),
             None => None,
         };

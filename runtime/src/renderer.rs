@@ -307,10 +307,15 @@ impl Renderer {
     /// G-buffer) draw it there from the next frame on, the shadow maps and the method's
     /// view-independent passes run again, and accumulation restarts.
     ///
-    /// With a `.cssm`, visibility follows a rigid object (§3.3): its own maps test it in its
-    /// baked frame and its coherent shadow map tests it for everything else. Not yet: its atlas
-    /// texels stay where they were baked, so the light it receives and sends is computed there
-    /// (issue 21), and the CPU references render the scene as loaded.
+    /// With a `.cssm` that has moving objects, a rigid object moves with everything the
+    /// renderer knows of it (§3.3; [`FrameContext::place_object`]): its own maps test its
+    /// visibility in its baked frame and its coherent shadow map tests it for everything else,
+    /// and its atlas texels move with it, so the light it receives (direct light into the
+    /// atlas) and sends and receives in the bounces (radiosity, final gather) are computed where
+    /// it stands, over a hierarchy refitted around it. The CPU references render the scene as
+    /// loaded, or posed as the caller poses it (`Scene::posed`, `radiosity::cpu::TwinScene`).
+    /// A static object moved this way moves in the raster passes and the atlas, but its maps
+    /// were baked with the whole static part and its visibility stays the baked scene's.
     ///
     /// # Errors
     /// An index past the scene's objects, or a transform that is not finite or not invertible.
@@ -319,28 +324,7 @@ impl Renderer {
         index: usize,
         transform: glam::Affine3A,
     ) -> Result<(), RuntimeError> {
-        let scene = &self.ctx.scene;
-        let Some(loaded) = scene.load_transforms.get(index) else {
-            return Err(RuntimeError::Unsupported(format!(
-                "object {index}: the scene has {} objects",
-                scene.load_transforms.len()
-            )));
-        };
-        let determinant = transform.matrix3.determinant();
-        if !(transform.is_finite() && determinant.is_finite() && determinant.abs() > 1e-12) {
-            return Err(RuntimeError::Unsupported(format!(
-                "object {index}: transform {transform:?} is not finite and invertible"
-            )));
-        }
-        let motion = glam::Mat4::from(transform * loaded.inverse());
-        self.ctx.queue.write_buffer(
-            &scene.motion,
-            (index * size_of::<[f32; 16]>()) as u64,
-            bytemuck::cast_slice(&motion.to_cols_array()),
-        );
-        if let Some(cssm) = &self.ctx.cssm {
-            cssm.moving.set_pose(&self.ctx.queue, index, transform);
-        }
+        self.ctx.place_object(index, transform)?;
         self.needs_prepare = true;
         self.accumulated = 0;
         Ok(())

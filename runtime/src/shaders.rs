@@ -35,8 +35,9 @@ pub const WORKGROUP_2D: u32 = 8;
 /// the shadow lookup, the light model, the CSSM visibility query, the moving objects' query
 /// (§3.3), the light transfer, the
 /// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads,
-/// the joint bilateral weight, the point proxy and its voxel grid, the sample patterns' hash.
-const LIBRARIES: [(&str, &str); 13] = [
+/// the joint bilateral weight, the point proxy and its voxel grid, the sample patterns' hash,
+/// the atlas texels where their objects' motion puts them (§3.3).
+const LIBRARIES: [(&str, &str); 14] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -79,6 +80,10 @@ const LIBRARIES: [(&str, &str); 13] = [
     (
         "runtime/src/common/random.wgsl",
         include_str!("common/random.wgsl"),
+    ),
+    (
+        "runtime/src/visibility/posed.wgsl",
+        include_str!("visibility/posed.wgsl"),
     ),
 ];
 
@@ -551,6 +556,34 @@ pub(crate) mod tests {
             );
         }
     }
+
+    /// The passes that read texel geometry read the objects' motion (`posed.wgsl`, §3.3) only
+    /// when composed for moving objects, and validate so composed.
+    #[test]
+    fn texels_read_the_motion_only_in_scenes_with_moving_objects() {
+        for shader in [
+            Shader::DirectAtlas,
+            Shader::RadiosityGather,
+            Shader::FinalGather,
+        ] {
+            for csms in [0, 1, MOVING_MAX_CSMS_FOR_TEST] {
+                let module = shader
+                    .module_for_scene(1, csms)
+                    .unwrap_or_else(|e| panic!("{}: {e}", shader.label()));
+                naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
+                    .validate(&module)
+                    .unwrap_or_else(|e| panic!("{} ({csms} CSMs): {e:?}", shader.label()));
+                let reads_motion = module.global_variables.iter().any(|(_, g)| {
+                    g.name
+                        .as_deref()
+                        .is_some_and(|n| n.contains("texel_motion"))
+                });
+                assert_eq!(reads_motion, csms > 0, "{} ({csms} CSMs)", shader.label());
+            }
+        }
+    }
+
+    const MOVING_MAX_CSMS_FOR_TEST: u32 = crate::visibility::moving::MOVING_MAX_CSMS as u32;
 
     /// Every kernel's workgroup size is one of the Rust constants the passes dispatch with.
     #[test]

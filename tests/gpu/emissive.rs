@@ -327,7 +327,8 @@ fn atlas_emission_and_radiosity_match_cpu_twins() {
     let options = RadiosityOptions::default();
     let solved = super::solve_atlas(scene, file, 2, options).expect("radiosity");
     let bvh = cssm_raycast::SceneBvh::new(scene);
-    let exact = cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh);
+    let exact =
+        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), &file.texels, &bvh);
     let direct = super::vec3s(&solved.direct);
     let mut emitting = [0usize; 3];
     for (i, (g, c)) in direct.iter().zip(&exact).enumerate() {
@@ -380,8 +381,12 @@ fn atlas_emission_and_radiosity_match_cpu_twins() {
         1024,
     )
     .expect("atlas pass");
-    let exact =
-        cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), file, &bvh_of(scene));
+    let exact = cssm_runtime::direct::cpu::render_atlas(
+        scene,
+        &materials(scene),
+        &file.texels,
+        &bvh_of(scene),
+    );
     let rmse = relative_rmse(&super::vec3s(&gpu_texels), &exact, &vec![true; exact.len()]);
     eprintln!(
         "atlas source with a spot light: relative RMSE {:.4}%",

@@ -207,9 +207,22 @@ pub fn compute_pipeline_entry(
     layouts: &[&wgpu::BindGroupLayout],
 ) -> wgpu::ComputePipeline {
     let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
+    compute_pipeline_with_gaps(device, label, module, entry, &layouts)
+}
+
+/// [`compute_pipeline_entry`] where some groups are unused (`None`: the module reads none of
+/// its bindings and the pass binds nothing there), e.g. a pass reading the moving objects'
+/// group (`shaders::MOVING_GROUP`) without the CSSM library's before it.
+pub fn compute_pipeline_with_gaps(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+) -> wgpu::ComputePipeline {
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
-        bind_group_layouts: &layouts,
+        bind_group_layouts: layouts,
         immediate_size: 0,
     });
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

@@ -7,7 +7,7 @@
 //! with the path tracer, [`crate::reference`], so the two see the same scene. The atlas
 //! ([`render_atlas`]) keeps the geometric normals, as the bake's texels do.
 
-use cssm_formats::{CssmFile, Scene};
+use cssm_formats::{Scene, texel::Texel};
 use cssm_raycast::SceneBvh;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -279,17 +279,19 @@ pub fn barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3] {
     [1.0 - v - w, v, w]
 }
 
-/// Diffuse radiance leaving every texel of `file` (front side), in texel order: Kd/pi times the
-/// exact irradiance, plus the radiance its material emits (`emission_mean` of `materials`, the
-/// scene's as [`crate::load::cpu_materials`] makes them): the source of the radiosity (§4.7).
+/// Diffuse radiance leaving every texel of `texels` (front side), in texel order: Kd/pi times
+/// the exact irradiance, plus the radiance its material emits (`emission_mean` of `materials`,
+/// the scene's as [`crate::load::cpu_materials`] makes them): the source of the radiosity
+/// (§4.7). `texels` are a file's, each where its object stands in `scene` and `bvh` (the file's
+/// own as baked, or `cssm_formats::moving::posed_texels` of them in the posed scene, §3.3).
 pub fn render_atlas(
     scene: &Scene,
     materials: &[GpuMaterial],
-    file: &CssmFile,
+    texels: &[Texel],
     bvh: &SceneBvh,
 ) -> Vec<Vec3> {
     let eps = ray_epsilon(scene);
-    file.texels
+    texels
         .par_iter()
         .map(|t| {
             let (p, n) = (t.pos(), t.nrm());

@@ -27,6 +27,7 @@ use crate::{
     shaders::{self, Shader},
     load::{CssmGpu, SceneGpu},
     method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup},
+    visibility::moving::MovingGpu,
 };
 
 /// `--method direct`: the shared passes alone (shadow maps, G-buffer, direct light); no
@@ -173,8 +174,9 @@ pub struct AtlasDirect {
 }
 
 impl AtlasDirect {
-    /// The pass over the texels of `cssm`, lit by the context's lights.
-    pub fn new(ctx: &FrameContext, cssm: &CssmGpu) -> Self {
+    /// The pass over the texels of `cssm`, lit by the context's lights, each texel of a moving
+    /// object where `moving`'s motion puts it (§3.3).
+    pub fn new(ctx: &FrameContext, cssm: &CssmGpu, moving: &MovingGpu) -> Self {
         let (device, view, scene, shadows) = (&ctx.device, &ctx.view, &ctx.scene, &ctx.shadows);
         let texel_count = cssm.params.map_count;
         let texel_radiance = device.create_buffer(&wgpu::BufferDescriptor {
@@ -183,12 +185,21 @@ impl AtlasDirect {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let module = Shader::DirectAtlas.create(device);
+        // Composed for the file's moving objects: a static scene's texels read no motion.
+        let module = Shader::DirectAtlas.create_for_scene(device, 1, moving.csm_count);
         let c = wgpu::ShaderStages::COMPUTE;
         let mut entries = light_entries().to_vec();
         entries.extend([layout::storage(5, true, c), layout::storage(6, false, c)]);
         let bind_layout = layout::bind_group_layout(device, "direct atlas", &entries);
-        let pipeline = layout::compute_pipeline(device, "direct atlas", &module, &[&bind_layout]);
+        // Group 0 its own; with moving objects their group at MOVING_GROUP (no CSSM query in
+        // between).
+        let mut layouts = vec![Some(&bind_layout)];
+        if moving.csm_count > 0 {
+            layouts.resize(shaders::MOVING_GROUP as usize, None);
+            layouts.push(Some(&moving.bind_group_layout));
+        }
+        let pipeline =
+            layout::compute_pipeline_with_gaps(device, "direct atlas", &module, "main", &layouts);
         let mut resources = light_resources(view, scene, shadows).to_vec();
         resources.extend([
             cssm.texels.as_entire_binding(),
@@ -203,11 +214,12 @@ impl AtlasDirect {
         }
     }
 
-    /// Records the pass.
-    pub fn run(&self, frame: &mut FrameEncoder) {
+    /// Records the pass (`moving`: the group [`Self::new`] was built with).
+    pub fn run(&self, frame: &mut FrameEncoder, moving: &MovingGpu) {
         let mut pass = frame.compute_pass("direct light into atlas");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
+        moving.bind(&mut pass, shaders::MOVING_GROUP);
         pass.dispatch_workgroups(shaders::groups_1d(self.texel_count), 1, 1);
     }
 }

@@ -1,11 +1,13 @@
 //! CPU twin of `final_gather.wgsl`: the same traversal, oracle and transfer per receiver
-//! point, with the CPU visibility query.
+//! point, with the CPU visibility query, over a [`TwinScene`] (whose rigid objects may have
+//! moved, §3.3: senders where their objects stand now).
 
-use cssm_formats::visibility::VisibilityQuery;
+use cssm_formats::moving::ObjectPoint;
 use glam::{Vec2, Vec3};
 
 use crate::{
-    gpu_types::{GpuMaterial, GpuNode},
+    gpu_types::GpuMaterial,
+    radiosity::cpu::TwinScene,
     radiosity::transfer::{
         brdf, brdf_bound, in_near_field, irradiance_bound, irradiance_from,
         irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped,
@@ -29,12 +31,11 @@ pub struct Receiver {
 
 /// `final_gather.wgsl::gather_pixel`: indirect radiance leaving the receiver towards the eye
 /// and the cut size, gathering from the node radiance `radiance` (`jitter`: the seed when
-/// senders are random texels of their node, and the receiver's id).
+/// senders are random texels of their node, and the receiver's id), over `scene`'s texels and
+/// hierarchy.
 #[allow(clippy::too_many_arguments)]
 pub fn gather_pixel(
-    query: &VisibilityQuery,
-    nodes: &[GpuNode],
-    leaf_texels: &[u32],
+    scene: &TwinScene,
     radiance: &[Vec3],
     threshold: f32,
     exposure: f32,
@@ -42,11 +43,17 @@ pub fn gather_pixel(
     r: &Receiver,
     material: &GpuMaterial,
 ) -> (Vec3, u32) {
-    let texels = &query.file().texels;
+    let (texels, nodes) = (&scene.texels, &scene.hierarchy.nodes);
+    let leaf_texels = &scene.hierarchy.leaf_texels;
     let (ks, ns) = (Vec3::from(material.ks), material.ns);
     let (p, n, v) = (r.position, r.normal, r.view);
-    // The receiver's own texels, found once for all its senders (as the kernel does).
-    let senders = query.sender_texels_at(r.atlas);
+    // The receiver's own texels, found once for all its senders (as the kernel does), and the
+    // object they lie on (a point without texels: the static part, answered unshadowed).
+    let senders = scene.visibility.cssm().sender_texels_at(r.atlas);
+    let object = senders
+        .first()
+        .filter(|s| s.1 > 0.0)
+        .map_or(0, |s| texels[s.0 as usize].object);
     let mut out = Vec3::ZERO;
     let mut cut = 0;
     let mut s = 0usize;
@@ -85,9 +92,24 @@ pub fn gather_pixel(
                 irradiance_from(p, n, position, Vec3::from(node.normal), node.area, l)
             };
             if e.cmpgt(Vec3::ZERO).any() {
-                // The pixel's texels and the sender's (both ends, when the options ask).
-                let visibility = query
-                    .visibility_between(&senders, p, n, &[(sender, 1.0)], position, y.nrm())
+                // The pixel's texels and the sender's (both ends, when the options ask), each
+                // object's own and the other moving objects' CSMs (§3.3).
+                let visibility = scene
+                    .visibility
+                    .between(
+                        &ObjectPoint {
+                            senders: &senders,
+                            position: p,
+                            normal: n,
+                            object,
+                        },
+                        &ObjectPoint {
+                            senders: &[(sender, 1.0)],
+                            position,
+                            normal: y.nrm(),
+                            object: y.object,
+                        },
+                    )
                     .unwrap_or(1.0);
                 out += brdf(n, v, w, r.albedo, ks, ns) * e * visibility;
             }

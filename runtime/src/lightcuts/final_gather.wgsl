@@ -1,6 +1,7 @@
 #import cssm::types::{Material, Node, TraversalParams, View}
 #import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
+#import cssm::posed::posed_texel
 #import cssm::transfer::{brdf, brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
 
 // Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
@@ -8,6 +9,7 @@
 // surfaces refine towards their highlight; each node of the cut is a VPL holding the direct
 // light and the diffuse bounces of the radiosity iteration. With jittering (§4.5) every sender
 // is a random point of a random texel of its node and frames are averaged progressively.
+// Senders on moving objects send from where their objects stand now (posed.wgsl, §3.3).
 // CPU twin: lightcuts/cpu.rs::gather_pixel. Needs types.wgsl, transfer.wgsl, the CSSM library
 // at group 1 and the moving objects' (moving.wgsl) at group 2.
 
@@ -56,7 +58,7 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                 sender = leaves[jitter_leaf(params.seed, receiver, s, node)].x;
             }
             if any(l > vec3f(0.0)) {
-                let y = cssm_texels[sender];
+                let y = posed_texel(cssm_texels[sender]);
                 var y_position = y.position;
                 var e: vec3f;
                 if node.count == 1u && in_near_field(p, y.position, node.area) {

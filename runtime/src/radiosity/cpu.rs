@@ -1,20 +1,101 @@
 //! CPU references of the radiosity iteration.
 //!
 //! - [`radiosity`]: the GPU iteration step for step (`gather.wgsl`, `pull.wgsl`) with the CPU
-//!   visibility query, its twin.
+//!   visibility query, its twin; [`radiosity_over`] the same over a [`TwinScene`] whose rigid
+//!   objects have moved (§3.3: their texels where they stand now, the hierarchy refitted, the
+//!   moving objects' query).
 //! - [`brute_force`]: radiosity over the same texels with no hierarchy (every texel gathers
 //!   from every other) and exact ray-cast visibility: the ground truth the hierarchy and the
 //!   CSSM approximate.
 
-use cssm_formats::{CssmFile, visibility::VisibilityQuery};
+use std::borrow::Cow;
+
+use cssm_formats::{
+    CssmFile,
+    hierarchy::Hierarchy,
+    moving::{MovingQuery, ObjectPoint, posed_texels},
+    texel::Texel,
+    visibility::VisibilityQuery,
+};
 use cssm_raycast::SceneBvh;
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::transfer::{irradiance_bound, irradiance_from, irradiance_from_texel, tone_mapped};
 use crate::gpu_types::GpuNode;
 
 const PI: f32 = std::f32::consts::PI;
+
+/// The visibility a twin gathers with: the CSSM query of a scene as baked, or the moving
+/// objects' query (§3.3), whose objects stand where its poses put them (the GPU's
+/// `moving_visibility_between`).
+#[derive(Clone, Copy)]
+pub enum TwinVisibility<'q, 'a> {
+    /// Every object where it was baked: `VisibilityQuery::visibility_between`.
+    Baked(&'q VisibilityQuery<'a>),
+    /// Objects posed: `MovingQuery::visibility_between`.
+    Moving(&'q MovingQuery<'a>),
+}
+
+impl<'a> TwinVisibility<'_, 'a> {
+    /// The CSSM query (texels, atlas, sender filter).
+    pub fn cssm(&self) -> &VisibilityQuery<'a> {
+        match self {
+            TwinVisibility::Baked(q) => q,
+            TwinVisibility::Moving(q) => q.cssm(),
+        }
+    }
+
+    /// Clear fraction between `a` (its texels, position, normal, object) and `b`, both where
+    /// the objects stand now; `None` where neither end has texels.
+    pub fn between(&self, a: &ObjectPoint, b: &ObjectPoint) -> Option<f32> {
+        match self {
+            TwinVisibility::Baked(q) => q.visibility_between(
+                a.senders, a.position, a.normal, b.senders, b.position, b.normal,
+            ),
+            TwinVisibility::Moving(q) => q.visibility_between(a, b),
+        }
+    }
+}
+
+/// What the CPU twins gather over: the visibility, the texels where their objects stand now
+/// and the hierarchy fitted to them (the GPU's `posed.wgsl` and `MovingTexels`).
+pub struct TwinScene<'q, 'a> {
+    /// The visibility query.
+    pub visibility: TwinVisibility<'q, 'a>,
+    /// Every texel where its object stands now.
+    pub texels: Cow<'q, [Texel]>,
+    /// The hierarchy over them.
+    pub hierarchy: Cow<'q, Hierarchy>,
+}
+
+impl<'q, 'a> TwinScene<'q, 'a> {
+    /// The scene as baked: the file's texels and hierarchy, the CSSM query.
+    pub fn baked(query: &'q VisibilityQuery<'a>) -> Self {
+        let file = query.file();
+        Self {
+            visibility: TwinVisibility::Baked(query),
+            texels: Cow::Borrowed(&file.texels),
+            hierarchy: Cow::Borrowed(&file.hierarchy),
+        }
+    }
+
+    /// The objects of `query`'s file moved by `motions` (per object, its transform now times
+    /// the inverse of its transform as loaded; `query`'s poses the same transforms): texels
+    /// carried (`moving::posed_texels`), hierarchy refitted ([`Hierarchy::refit`]), the moving
+    /// objects' query.
+    pub fn moving(query: &'q MovingQuery<'a>, motions: &[Affine3A]) -> Self {
+        let file = query.cssm().file();
+        let texels = posed_texels(&file.texels, motions);
+        let mut hierarchy = file.hierarchy.clone();
+        hierarchy.refit(&texels);
+        Self {
+            visibility: TwinVisibility::Moving(query),
+            texels: Cow::Owned(texels),
+            hierarchy: Cow::Owned(hierarchy),
+        }
+    }
+}
 
 /// The result of an iteration.
 #[derive(Clone, Debug, PartialEq)]
@@ -41,7 +122,7 @@ pub struct Traversal {
 /// largest albedo channel `rho`), and the number of nodes gathered from (the cut size).
 #[allow(clippy::too_many_arguments)]
 pub fn gather_texel(
-    query: &VisibilityQuery,
+    scene: &TwinScene,
     nodes: &[GpuNode],
     radiance: &[Vec3],
     traversal: &Traversal,
@@ -50,7 +131,7 @@ pub fn gather_texel(
     n: Vec3,
     rho: f32,
 ) -> (Vec3, u32) {
-    let texels = &query.file().texels;
+    let texels = &scene.texels;
     let mut e = Vec3::ZERO;
     let mut cut = 0;
     let mut s = 0usize;
@@ -77,15 +158,23 @@ pub fn gather_texel(
                 irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l)
             };
             if unoccluded.cmpgt(Vec3::ZERO).any() {
-                // Both ends' cube maps when the options ask (QueryOptions::both_ends).
-                let visibility = query
-                    .visibility_between(
-                        &[(receiver, 1.0)],
-                        p,
-                        n,
-                        &[(sender, 1.0)],
-                        y.pos(),
-                        y.nrm(),
+                // Both ends' cube maps when the options ask (QueryOptions::both_ends), each
+                // object's own and the other moving objects' CSMs (§3.3).
+                let visibility = scene
+                    .visibility
+                    .between(
+                        &ObjectPoint {
+                            senders: &[(receiver, 1.0)],
+                            position: p,
+                            normal: n,
+                            object: texels[receiver as usize].object,
+                        },
+                        &ObjectPoint {
+                            senders: &[(sender, 1.0)],
+                            position: y.pos(),
+                            normal: y.nrm(),
+                            object: y.object,
+                        },
                     )
                     .unwrap_or(1.0);
                 e += unoccluded * visibility;
@@ -114,7 +203,7 @@ pub fn pull(nodes: &[GpuNode], radiance: &mut [Vec3]) {
 }
 
 /// The GPU iteration on the CPU: the direct light `direct` (radiance per texel) pulled into
-/// the tree, then `iterations` bounces of gather and pull.
+/// the tree, then `iterations` bounces of gather and pull; every object where it was baked.
 pub fn radiosity(
     query: &VisibilityQuery,
     direct: &[Vec3],
@@ -122,9 +211,25 @@ pub fn radiosity(
     traversal: &Traversal,
     iterations: u32,
 ) -> CpuRadiosity {
-    let file = query.file();
-    let nodes = &file.hierarchy.nodes;
-    let leaf_texels = &file.hierarchy.leaf_texels;
+    radiosity_over(
+        &TwinScene::baked(query),
+        direct,
+        albedo,
+        traversal,
+        iterations,
+    )
+}
+
+/// [`radiosity`] over `scene`, whose objects may have moved (§3.3).
+pub fn radiosity_over(
+    scene: &TwinScene,
+    direct: &[Vec3],
+    albedo: &[Vec3],
+    traversal: &Traversal,
+    iterations: u32,
+) -> CpuRadiosity {
+    let nodes = &scene.hierarchy.nodes;
+    let leaf_texels = &scene.hierarchy.leaf_texels;
     let leaf_nodes: Vec<(u32, usize)> = nodes
         .iter()
         .enumerate()
@@ -136,16 +241,16 @@ pub fn radiosity(
         radiance[i] = direct[t as usize];
     }
     pull(nodes, &mut radiance);
-    let mut irradiance = vec![Vec3::ZERO; file.texels.len()];
+    let mut irradiance = vec![Vec3::ZERO; scene.texels.len()];
     let mut gathered_total = 0;
     for _ in 0..iterations {
         let gathered: Vec<(u32, usize, Vec3, u32)> = leaf_nodes
             .par_iter()
             .map(|&(t, i)| {
-                let texel = &file.texels[t as usize];
+                let texel = &scene.texels[t as usize];
                 let a = albedo[t as usize];
                 let (e, cut) = gather_texel(
-                    query,
+                    scene,
                     nodes,
                     &radiance,
                     traversal,

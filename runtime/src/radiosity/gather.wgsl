@@ -1,6 +1,7 @@
 #import cssm::types::{Node, TraversalParams}
 #import cssm::visibility::{cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
+#import cssm::posed::posed_texel
 #import cssm::transfer::{TRANSFER_PI, irradiance_bound, irradiance_from, irradiance_from_texel, tone_mapped}
 
 // GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
@@ -9,7 +10,9 @@
 // footprint's exact form factor) and CSSM visibility, then
 // skipping its subtree (Fig. 10). Writes the texel's indirect irradiance and its leaf node's
 // new radiance (direct + reflected indirect); the pull pass (pull.wgsl) then rebuilds the
-// inner nodes. CPU twin: radiosity/cpu.rs::gather_texel.
+// inner nodes. Texels of moving objects transfer light where their objects stand now
+// (posed.wgsl; the nodes' bounds refitted around them, radiosity::MovingTexels, §3.3).
+// CPU twin: radiosity/cpu.rs::gather_texel.
 // Needs types.wgsl, transfer.wgsl and the CSSM library at group 1.
 
 @group(0) @binding(0) var<uniform> params: TraversalParams;
@@ -45,7 +48,7 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
         // Gather from the node, then skip its subtree.
         let sender = node.representative;
         if sender != receiver && any(radiance > vec3f(0.0)) {
-            let y = cssm_texels[sender];
+            let y = posed_texel(cssm_texels[sender]);
             // A single texel's footprint is integrated in its near field (transfer.rs).
             var unoccluded: vec3f;
             if node.count == 1u {
@@ -73,7 +76,7 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     }
     let ln = leaves[leaf];
     let texel = ln.x;
-    let t = cssm_texels[texel];
+    let t = posed_texel(cssm_texels[texel]);
     let albedo = texel_albedo[texel].rgb;
     var e = vec3f(0.0);
     if params.gather != 0u {

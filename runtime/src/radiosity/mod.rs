@@ -21,7 +21,8 @@
 pub mod cpu;
 pub mod transfer;
 
-use cssm_formats::hierarchy::Hierarchy;
+use cssm_formats::{hierarchy::Hierarchy, moving::posed_texels, texel::Texel};
+use glam::Affine3A;
 use wgpu::util::DeviceExt;
 
 use cssm_formats::{CssmFile, Scene};
@@ -118,8 +119,16 @@ impl HierarchyGpu {
                 start = k;
             }
         }
+        // COPY_DST: moving objects refit the nodes ([`MovingTexels::place`]).
+        let nodes_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("hierarchy nodes"),
+            contents: bytemuck::cast_slice(nodes),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+        });
         Ok(Self {
-            nodes: storage_buffer(device, "hierarchy nodes", bytemuck::cast_slice(nodes)),
+            nodes: nodes_buffer,
             leaves: storage_buffer(device, "hierarchy leaves", bytemuck::cast_slice(&leaves)),
             pull_order: storage_buffer(
                 device,
@@ -130,6 +139,56 @@ impl HierarchyGpu {
             node_count: nodes.len() as u32,
             leaf_count: leaves.len() as u32,
         })
+    }
+}
+
+/// The texels of a file with moving objects and the hierarchy over them, kept on the CPU so
+/// that the hierarchy follows the objects (§3.3): when an object moves, its texels move with it
+/// (`posed.wgsl` on the GPU; [`cssm_formats::moving::posed_texels`] here) and every node's
+/// bounds are refitted around them ([`Hierarchy::refit`]), so the oracle's bounds (§4.3) and
+/// the nodes' mean normals and areas are those of the texels where they are now.
+pub struct MovingTexels {
+    /// The texels as baked.
+    baked: Vec<Texel>,
+    /// The hierarchy, refitted to the texels where they are now.
+    hierarchy: Hierarchy,
+    /// Each object's motion since loading (the `SceneGpu::motion` matrices).
+    motions: Vec<Affine3A>,
+}
+
+impl MovingTexels {
+    /// The texels and hierarchy of `file` (baked from a scene of `object_count` objects), every
+    /// object where it was loaded; `None` for a file without moving objects (no CSM), whose
+    /// texels never move.
+    pub fn new(file: &CssmFile, object_count: usize) -> Option<Self> {
+        (!file.csms.is_empty()).then(|| Self {
+            baked: file.texels.clone(),
+            hierarchy: file.hierarchy.clone(),
+            motions: vec![Affine3A::IDENTITY; object_count],
+        })
+    }
+
+    /// Object `index` moved by `motion` since loading: refits the hierarchy to the texels where
+    /// the objects are now and writes its nodes into `gpu`'s.
+    ///
+    /// # Panics
+    /// If `index` is not one of the objects.
+    pub fn place(
+        &mut self,
+        queue: &wgpu::Queue,
+        gpu: &HierarchyGpu,
+        index: usize,
+        motion: Affine3A,
+    ) {
+        self.motions[index] = motion;
+        self.hierarchy
+            .refit(&posed_texels(&self.baked, &self.motions));
+        queue.write_buffer(&gpu.nodes, 0, bytemuck::cast_slice(&self.hierarchy.nodes));
+    }
+
+    /// The hierarchy as refitted (what the GPU's nodes hold).
+    pub fn hierarchy(&self) -> &Hierarchy {
+        &self.hierarchy
     }
 }
 
@@ -410,7 +469,7 @@ impl AtlasGi {
         options: RadiosityOptions,
     ) -> Result<Self, RuntimeError> {
         let cssm = ctx.cssm()?;
-        let atlas = AtlasDirect::new(ctx, &cssm.query);
+        let atlas = AtlasDirect::new(ctx, &cssm.query, &cssm.moving);
         let radiosity = Radiosity::new(
             &ctx.device,
             &cssm.query,
@@ -426,7 +485,7 @@ impl AtlasGi {
     /// Records the direct light into the atlas and `iterations` bounces.
     pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder, iterations: u32) {
         let Some(cssm) = &ctx.cssm else { return };
-        self.atlas.run(frame);
+        self.atlas.run(frame, &cssm.moving);
         self.radiosity.run(frame, cssm, iterations);
     }
 }
@@ -476,6 +535,35 @@ pub fn atlas_radiosity(
     iterations: u32,
     options: RadiosityOptions,
 ) -> Result<AtlasRadiosity, RuntimeError> {
+    atlas_radiosity_posed(
+        device,
+        queue,
+        scene,
+        file,
+        shadow_resolution,
+        iterations,
+        options,
+        &[],
+    )
+}
+
+/// [`atlas_radiosity`] with objects moved first: each `(index, transform)` of `placed` puts
+/// object `index` at `transform` (object to world, [`FrameContext::place_object`]), so its
+/// texels receive, send and gather where it stands (§3.3).
+///
+/// # Errors
+/// As [`atlas_radiosity`], and a placement [`FrameContext::place_object`] refuses.
+#[allow(clippy::too_many_arguments)]
+pub fn atlas_radiosity_posed(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    scene: &Scene,
+    file: &CssmFile,
+    shadow_resolution: u32,
+    iterations: u32,
+    options: RadiosityOptions,
+    placed: &[(usize, Affine3A)],
+) -> Result<AtlasRadiosity, RuntimeError> {
     let settings = FrameSettings {
         width: 1,
         height: 1,
@@ -483,7 +571,10 @@ pub fn atlas_radiosity(
         shadow_resolution,
         ..FrameSettings::default()
     };
-    let ctx = FrameContext::new(device, queue, scene, Some(file), settings, false)?;
+    let mut ctx = FrameContext::new(device, queue, scene, Some(file), settings, false)?;
+    for &(index, transform) in placed {
+        ctx.place_object(index, transform)?;
+    }
     let gi = AtlasGi::new(&ctx, scene, file, options)?;
     let mut timer = PassTimer::new(device, queue);
     let mut encoder = device.create_command_encoder(&Default::default());

@@ -7,6 +7,10 @@
 //! test `gpu_matches_cpu_reference` holds the two together on 100,000 random pairs. They can
 //! differ only where floating-point rounding of the GPU (fused multiply-adds, its division)
 //! moves a depth comparison across its threshold.
+//!
+//! Moving rigid objects (§3.3): [`moving`] holds their query (`moving.wgsl`) and bind group;
+//! `posed.wgsl` (`cssm::posed::posed_texel`) puts an atlas texel where its object's motion
+//! puts it, for the passes that read texel geometry.
 
 pub mod bvh;
 pub mod gather;

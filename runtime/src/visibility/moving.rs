@@ -23,9 +23,10 @@ use crate::{
 pub const MOVING_MAX_CSMS: usize = 8;
 
 /// Storage buffers per shader stage the moving objects' bind group adds to a pass's (the
-/// placements, CSMs, cells, offsets, runs). A scene with moving objects needs the device to
-/// allow [`crate::required_limits`]' 12 and these; a static scene's passes leave the group out.
-pub const MOVING_STORAGE_BUFFERS: u32 = 5;
+/// placements, CSMs, cells, offsets, runs, and the objects' motion that moves their texels,
+/// `posed.wgsl`). A scene with moving objects needs the device to allow
+/// [`crate::required_limits`]' 12 and these; a static scene's passes leave the group out.
+pub const MOVING_STORAGE_BUFFERS: u32 = 6;
 
 /// One object's placement as `moving.wgsl` reads it: the rows of its affine transforms.
 #[repr(C)]
@@ -85,8 +86,11 @@ pub struct GpuCsm {
     pub _pad: [u32; 2],
 }
 
-/// The moving objects' bind group (`MOVING_GROUP` in the modules that import `cssm::moving`):
-/// placements (written by [`MovingGpu::set_pose`]), CSMs and their run data.
+/// The moving objects' bind group (`MOVING_GROUP` in the modules that import `cssm::moving` or
+/// `cssm::posed`): placements (written by [`MovingGpu::set_pose`]), CSMs and their run data,
+/// and at binding 5 the objects' motion since loading (`SceneGpu::motion`, the raster passes'
+/// matrices, written by `Renderer::set_object_transform`), which moves their atlas texels
+/// (`posed.wgsl`, §3.3).
 pub struct MovingGpu {
     /// One [`GpuPlacement`] per object (binding 0).
     pub placements: wgpu::Buffer,
@@ -106,18 +110,20 @@ pub struct MovingGpu {
 impl MovingGpu {
     /// The layout's entries (every binding read-only storage).
     pub fn layout_entries(visibility: wgpu::ShaderStages) -> Vec<wgpu::BindGroupLayoutEntry> {
-        (0..5)
+        (0..MOVING_STORAGE_BUFFERS)
             .map(|b| layout::storage(b, true, visibility))
             .collect()
     }
 
     /// Uploads the CSMs of `file` and every object of `scene` (the scene `file` was baked
-    /// from, validated against it) where it was loaded. `Err` when there are more than
-    /// [`MOVING_MAX_CSMS`] or a buffer exceeds the device's limits.
+    /// from, validated against it) where it was loaded; `motion` is the objects' motion since
+    /// loading (`SceneGpu::motion`: one `mat4x4f` per object), bound for `posed.wgsl`. `Err`
+    /// when there are more than [`MOVING_MAX_CSMS`] or a buffer exceeds the device's limits.
     pub fn new(
         device: &wgpu::Device,
         file: &CssmFile,
         scene: &Scene,
+        motion: &wgpu::Buffer,
     ) -> Result<Self, RuntimeError> {
         let csms: Vec<&cssm_formats::csm::CsmData> = file.csms.iter().collect();
         if csms.len() > MOVING_MAX_CSMS {
@@ -220,6 +226,7 @@ impl MovingGpu {
                 cells_buffer.as_entire_binding(),
                 offsets_buffer.as_entire_binding(),
                 runs_buffer.as_entire_binding(),
+                motion.as_entire_binding(),
             ],
         );
         Ok(Self {
