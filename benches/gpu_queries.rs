@@ -28,33 +28,14 @@ use std::{
 use cssm::{bake, formats, report, runtime};
 use runtime::{
     Gpu,
-    common::timestamps::PassTimer,
     load::CssmGpu,
     visibility::{QueryKernel, QueryPair, bvh::BvhKernel, gather::GatherKernel, gather::Receiver},
 };
 
-fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
+#[path = "common/mod.rs"]
+mod common;
 
-/// Best GPU milliseconds of `reps` runs of `work` (which records one timed pass).
-fn best_ms(gpu: &Gpu, reps: u32, mut work: impl FnMut(&mut PassTimer)) -> Option<f64> {
-    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-    let mut best: Option<f64> = None;
-    for _ in 0..reps {
-        work(&mut timer);
-        let t = timer.read(&gpu.device, &gpu.queue).expect("timestamps");
-        let ms: f64 = t.iter().map(|(_, ms)| ms).sum();
-        if !t.is_empty() {
-            best = Some(best.map_or(ms, |b: f64| b.min(ms)));
-        }
-    }
-    best
-}
+use common::{best_ms, parsed as arg};
 
 /// The largest atlas a scene is tried at before its rows are skipped.
 const LARGEST_ATLAS: u32 = 1024;

@@ -23,7 +23,6 @@ use cssm::{bake, formats, raycast, runtime};
 use formats::{Scene, scene::SceneObject, visibility::QueryOptions};
 use runtime::{
     Gpu,
-    common::timestamps::PassTimer,
     load::CssmGpu,
     visibility::{
         QueryKernel,
@@ -31,28 +30,10 @@ use runtime::{
     },
 };
 
-fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
+#[path = "common/mod.rs"]
+mod common;
 
-/// Best GPU milliseconds of `reps` runs of `work` (which records one timed pass).
-fn best_ms(gpu: &Gpu, reps: u32, mut work: impl FnMut(&mut PassTimer)) -> Option<f64> {
-    let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
-    let mut best: Option<f64> = None;
-    for _ in 0..reps {
-        work(&mut timer);
-        let t = timer.read(&gpu.device, &gpu.queue).expect("timestamps");
-        let ms: f64 = t.iter().map(|(_, ms)| ms).sum();
-        if !t.is_empty() {
-            best = Some(best.map_or(ms, |b: f64| b.min(ms)));
-        }
-    }
-    best
-}
+use common::{best_ms, parsed as arg};
 
 /// Where the four blocks stand (corner, mm), clear of the box's own blocks and of each other.
 const BLOCKS: [[f32; 3]; 4] = [
@@ -61,33 +42,6 @@ const BLOCKS: [[f32; 3]; 4] = [
     [100.0, 200.0, 420.0],
     [420.0, 200.0, 100.0],
 ];
-
-/// A 60 mm cube's eight corners at `at` and its six quads (1-based, after `base` vertices).
-fn block_obj(at: [f32; 3], base: usize) -> String {
-    let mut obj = String::new();
-    for z in [0.0, 60.0] {
-        for (x, y) in [(0.0, 0.0), (60.0, 0.0), (60.0, 60.0), (0.0, 60.0)] {
-            obj += &format!("v {} {} {}\n", at[0] + x, at[1] + y, at[2] + z);
-        }
-    }
-    for f in [
-        [1, 2, 3, 4],
-        [8, 7, 6, 5],
-        [1, 5, 6, 2],
-        [2, 6, 7, 3],
-        [3, 7, 8, 4],
-        [4, 8, 5, 1],
-    ] {
-        obj += &format!(
-            "f {} {} {} {}\n",
-            f[0] + base,
-            f[1] + base,
-            f[2] + base,
-            f[3] + base
-        );
-    }
-    obj
-}
 
 /// The Cornell box with the four blocks, the first `rigid` of them `[[objects]]`, in `dir`.
 fn scene_with(dir: &Path, rigid: usize) -> Scene {
@@ -108,12 +62,12 @@ fn scene_with(dir: &Path, rigid: usize) -> Scene {
             let name = format!("block{i}");
             let obj = format!(
                 "mtllib cornell-box.mtl\nusemtl white\n{}",
-                block_obj(*at, 0)
+                cssm::builtin::cube_obj(*at, 60.0, 0, false)
             );
             std::fs::write(dir.join(format!("{name}.obj")), obj).expect("write a block");
             toml += &format!("\n[[objects]]\nname = \"{name}\"\nmesh = \"{name}.obj\"\n");
         } else {
-            static_obj += &block_obj(*at, vertices);
+            static_obj += &cssm::builtin::cube_obj(*at, 60.0, vertices, false);
             vertices += 8;
         }
     }

@@ -72,3 +72,38 @@ fn scene(name: &str, files: &[(&str, &str)]) -> std::io::Result<PathBuf> {
     }
     Ok(dir)
 }
+
+/// An axis-aligned cube of side `size` with its lowest corner at `corner`, as OBJ text: eight
+/// `v` lines and six quads numbered after `first_vertex` earlier vertices (0 for a file of its
+/// own), their normals pointing out of the cube when `outward`, into it otherwise. The rigid
+/// block of the moving-object tests and benchmarks.
+///
+/// ```
+/// let obj = cssm::builtin::cube_obj([0.0, 0.0, 0.0], 60.0, 0, false);
+/// assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), 8);
+/// assert!(obj.contains("f 1 2 3 4"));
+/// let appended = cssm::builtin::cube_obj([100.0, 0.0, 0.0], 60.0, 8, true);
+/// assert!(appended.contains("f 12 11 10 9"));
+/// ```
+pub fn cube_obj(corner: [f32; 3], size: f32, first_vertex: usize, outward: bool) -> String {
+    let mut obj = String::new();
+    for z in [0.0, size] {
+        for (x, y) in [(0.0, 0.0), (size, 0.0), (size, size), (0.0, size)] {
+            obj += &format!("v {} {} {}\n", corner[0] + x, corner[1] + y, corner[2] + z);
+        }
+    }
+    // Counter-clockwise seen from inside the cube: the normals point into it.
+    for f in [
+        [1, 2, 3, 4],
+        [8, 7, 6, 5],
+        [1, 5, 6, 2],
+        [2, 6, 7, 3],
+        [3, 7, 8, 4],
+        [4, 8, 5, 1],
+    ] {
+        let [a, b, c, d] = f.map(|i| i + first_vertex);
+        let [a, b, c, d] = if outward { [d, c, b, a] } else { [a, b, c, d] };
+        obj += &format!("f {a} {b} {c} {d}\n");
+    }
+    obj
+}

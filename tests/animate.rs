@@ -37,22 +37,10 @@ fn block_scene(dir: &Path, translation: [f32; 3], turn_deg: f32, animation: &str
     for f in ["cornell-box.obj", "cornell-box.mtl"] {
         std::fs::copy(box_dir.join(f), dir.join(f)).unwrap();
     }
-    let mut obj = String::from("mtllib cornell-box.mtl\nusemtl white\n");
-    for z in [0.0, 60.0] {
-        for (x, y) in [(0.0, 0.0), (60.0, 0.0), (60.0, 60.0), (0.0, 60.0)] {
-            obj += &format!("v {x} {y} {z}\n");
-        }
-    }
-    for f in [
-        [1, 2, 3, 4],
-        [8, 7, 6, 5],
-        [1, 5, 6, 2],
-        [2, 6, 7, 3],
-        [3, 7, 8, 4],
-        [4, 8, 5, 1],
-    ] {
-        obj += &format!("f {} {} {} {}\n", f[0], f[1], f[2], f[3]);
-    }
+    let obj = format!(
+        "mtllib cornell-box.mtl\nusemtl white\n{}",
+        cssm::builtin::cube_obj([0.0; 3], 60.0, 0, false)
+    );
     std::fs::write(dir.join("block.obj"), obj).unwrap();
     let [tx, ty, tz] = translation;
     let animation = if animation.is_empty() {

@@ -25,6 +25,26 @@ pub fn arg(args: &[String], name: &str) -> Option<String> {
         .cloned()
 }
 
+/// Best GPU milliseconds of `reps` runs of `work`, which records one timed pass (the query
+/// benchmarks); `None` when the adapter timed nothing.
+pub fn best_ms(
+    gpu: &runtime::Gpu,
+    reps: u32,
+    mut work: impl FnMut(&mut runtime::common::timestamps::PassTimer),
+) -> Option<f64> {
+    let mut timer = runtime::common::timestamps::PassTimer::new(&gpu.device, &gpu.queue);
+    let mut best: Option<f64> = None;
+    for _ in 0..reps {
+        work(&mut timer);
+        let t = timer.read(&gpu.device, &gpu.queue).expect("timestamps");
+        let ms: f64 = t.iter().map(|(_, ms)| ms).sum();
+        if !t.is_empty() {
+            best = Some(best.map_or(ms, |b: f64| b.min(ms)));
+        }
+    }
+    best
+}
+
 /// The value of the flag `name` parsed, or `default` when the flag is absent or does not parse.
 pub fn parsed<T: FromStr>(args: &[String], name: &str, default: T) -> T {
     arg(args, name)
