@@ -42,6 +42,8 @@ if [ $small = 1 ]; then
     queries="--atlas 128 --cube 8 --pairs 4096 --receivers 1024 --senders 16 --reps 2"
     moving="--atlas 32 --cube 8 --pairs 4096 --objects 1 --reps 2"
     bake_bunny="--atlas 32 --cube 8"
+    gpu_bakes="cornell-64:--atlas=32,--cube=8"
+    gpu_bakes_scenes="teapot:--atlas=32,--cube=8"
     xz_level=1
     limit_args="--small"
     frames=2
@@ -61,6 +63,11 @@ else
     queries="--atlas 128 --cube 32"
     moving="--atlas 64 --cube 32"
     bake_bunny="--atlas 128 --cube 32"
+    # The bake on the GPU (issue 25): Table 3's two Cornell rows (targets: 1 s at atlas 64 on
+    # two cores, 5 s at atlas 512 on the H200), the teapot, the bunny and the full Sibenik.
+    gpu_bakes="cornell-64:--atlas=64,--cube=64 cornell-512:--atlas=512,--cube=64"
+    gpu_bakes_scenes="teapot:--atlas=256,--cube=64 bunny:--atlas=256,--cube=64"
+    gpu_bakes_scenes+=" sibenik:--atlas=512,--cube=64"
     xz_level=9
     limit_args="--sizes-mb 8,512 --r 64,256 --qlog2 26 --reps 20"
     frames=20
@@ -200,6 +207,24 @@ measure() {
     }
     local c=$carry
     local sibenik=$c/scenes/sibenik-view
+    # The bake on the GPU against the device's cores (issue 25): the same flags, whole process
+    # (`total_seconds` of --json), the two files compared byte for byte. Arguments NAME:FLAGS,
+    # the flags comma-separated; NAME is a carried scene or cornell-* (the built-in box).
+    bakes_on_both() {
+        local spec name flags scene device
+        for spec in "$@"; do
+            name=${spec%%:*} flags=${spec#*:} scene=""
+            [[ $name == cornell-* ]] || scene=$c/scenes/$name
+            if [ -n "$scene" ] && [ ! -d "$scene" ]; then continue; fi
+            for device in gpu cpu; do
+                # shellcheck disable=SC2086
+                run "bake-$name-$device" "$c/cssm" bake $scene ${flags//,/ } --device $device \
+                    -o "$work/bake-$name-$device.cssm" --json
+            done
+            run "bake-$name-same" cmp "$work/bake-$name-gpu.cssm" "$work/bake-$name-cpu.cssm"
+            rm -f "$work/bake-$name-"*.cssm
+        done
+    }
     nvidia-smi -L > "$out/runtime-device.txt" 2>&1 || true
     # Does a GPU answer? One small image; nothing else runs if not.
     run adapter "$c/cssm" render --size 64x48 --timings --out "$out/adapter.png"
@@ -210,6 +235,8 @@ measure() {
         return 1
     fi
     # shellcheck disable=SC2086
+    bakes_on_both $gpu_bakes
+    # shellcheck disable=SC2086
     run queries "$c/gpu_queries" --scenes "$c/scenes" $queries --csv "$out/runtime-queries.csv"
     if [ -x "$c/gpu-limit" ]; then
         # shellcheck disable=SC2086
@@ -218,6 +245,8 @@ measure() {
     # Moving objects' query throughput against the static query (issue 21, §3.3).
     # shellcheck disable=SC2086
     run moving-queries "$c/moving_queries" $moving --csv "$out/runtime-moving-queries.csv"
+    # shellcheck disable=SC2086
+    bakes_on_both $gpu_bakes_scenes
     # The persistent renderer's frame against a one-shot render (issue 16), with GPU ms per pass.
     run frame-time "$c/frame_time" --size $frame_size --frames $frames --one-shots $one_shots \
         --out "$out/runtime-frame-time.md"

@@ -235,6 +235,13 @@ pub struct BakeArgs {
     /// The file is byte-identical either way; only the time differs (reports/bake.md).
     #[arg(long, default_value = "auto")]
     cube_renderer: bake::cubemap::CubeRenderer,
+    /// Where the depth maps' rays are cast: cpu (the default; --cube-renderer picks how), or gpu
+    /// (a BVH traversal in a compute shader on the first GPU wgpu finds, Mesa's lavapipe where
+    /// there is none; the CPU still orders the texels, quantises and compresses). A GPU may round
+    /// a ray through an edge otherwise than the CPU, so a few pixels may differ from the CPU's
+    /// file (reports/bake.md).
+    #[arg(long, default_value = "cpu")]
+    device: bake::BakeDevice,
     /// How the file stores the runs: packed (run lengths and depth differences as varints before
     /// zstd: a smaller file, the same data in memory) or plain (zstd only, the first format).
     #[arg(long, default_value = "packed")]
@@ -285,6 +292,7 @@ impl BakeArgs {
             merge_short_runs: self.merge_short_runs,
             second_layer: self.second_layer,
             cube_renderer: self.cube_renderer,
+            device: self.device,
         };
         options.check().map_err(|e| cssm::flag_error(&e))?;
         Ok(BakeConfig {

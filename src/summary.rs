@@ -112,6 +112,9 @@ pub struct BakeSummary {
     pub rays_per_second: f64,
     /// Cores available.
     pub threads: u64,
+    /// The GPU that cast the depth maps' rays (`--device gpu`), as its driver names it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gpu: Option<String>,
     /// Peak resident memory of the process, where the system reports it.
     pub peak_rss_bytes: Option<u64>,
 }
@@ -162,6 +165,7 @@ impl BakeSummary {
             total_seconds,
             rays_per_second: s.rays as f64 / s.maps_time.as_secs_f64().max(1e-9),
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()) as u64,
+            gpu: s.gpu.clone(),
             peak_rss_bytes: peak_rss_bytes(),
         }
     }
@@ -192,6 +196,9 @@ impl fmt::Display for BakeSummary {
             self.defined_texels as f64 / maps_seconds,
             c = self.cube_resolution
         )?;
+        if let Some(gpu) = &self.gpu {
+            writeln!(f, "  rays cast on   {gpu}")?;
+        }
         writeln!(
             f,
             "  uncompressed   {:>12}",
@@ -707,6 +714,7 @@ mod tests {
             total_seconds: 0.2,
             rays_per_second: 1.9e6,
             threads: 2,
+            gpu: None,
             peak_rss_bytes: Some(12 << 20),
         }
     }

@@ -4,6 +4,8 @@
 
 use std::sync::OnceLock;
 
+#[path = "gpu/depth_maps.rs"]
+mod depth_maps;
 #[path = "gpu/emissive.rs"]
 mod emissive;
 #[path = "gpu/filters.rs"]

@@ -227,10 +227,61 @@ pub fn render(
     second_layer: SecondLayer,
     out: &mut [Interval],
 ) -> u64 {
-    let normal = texel.nrm();
-    let centre = texel.pos() + normal * near;
+    let cast = ray_caster(bvh, near, quantizer, second_layer);
+    render_with(
+        texel,
+        n,
+        near,
+        quantizer,
+        second_layer,
+        out,
+        |_, centre, dir| cast(centre, dir),
+    )
+}
+
+/// The BVH's answer for a pixel's ray from `centre` along `dir`, as [`render`] casts it.
+pub(crate) fn ray_caster<'a>(
+    bvh: &'a SceneBvh,
+    near: f32,
+    quantizer: &DepthQuantizer,
+    second_layer: SecondLayer,
+) -> impl Fn(glam::Vec3, glam::Vec3) -> FrontHit + 'a {
     let separation = separation(quantizer);
     let min_hit = min_hit(near, bvh.magnitude());
+    move |centre, dir| match second_layer {
+        SecondLayer::Any => {
+            let hit = bvh.dual_hit_beyond(centre, dir, min_hit, separation);
+            FrontHit {
+                first: hit.first,
+                first_faces: true,
+                second: hit.second,
+            }
+        }
+        SecondLayer::Facing | SecondLayer::Exchange => {
+            bvh.front_dual_hit_beyond(centre, dir, min_hit, separation)
+        }
+    }
+}
+
+/// The cube centre of `texel`: its position pushed off its surface by the near distance.
+pub(crate) fn centre(texel: &Texel, near: f32) -> glam::Vec3 {
+    texel.pos() + texel.nrm() * near
+}
+
+/// [`render`] with each cast pixel's hits from `hit(pixel, centre, direction)`: the BVH's, or
+/// the GPU's ([`crate::gpu`]). Everything else (which pixels are cast, along which ray, their
+/// intervals, the exchange layer's second pass) is this one code for every renderer.
+pub(crate) fn render_with(
+    texel: &Texel,
+    n: u32,
+    near: f32,
+    quantizer: &DepthQuantizer,
+    second_layer: SecondLayer,
+    out: &mut [Interval],
+    mut hit: impl FnMut(usize, glam::Vec3, glam::Vec3) -> FrontHit,
+) -> u64 {
+    let normal = texel.nrm();
+    let centre = centre(texel, near);
     let exchange = second_layer == SecondLayer::Exchange;
     let mut seen = if exchange {
         vec![Seen::Behind; out.len()]
@@ -250,20 +301,12 @@ pub fn render(
         if depth_scale < 1e-3 {
             continue;
         }
-        let hit = match second_layer {
-            SecondLayer::Any => {
-                let hit = bvh.dual_hit_beyond(centre, dir, min_hit, separation);
-                FrontHit {
-                    first: hit.first,
-                    first_faces: true,
-                    second: hit.second,
-                }
-            }
-            SecondLayer::Facing | SecondLayer::Exchange => {
-                bvh.front_dual_hit_beyond(centre, dir, min_hit, separation)
-            }
-        };
-        let (interval, pixel_seen) = finish_pixel(second_layer, hit, depth_scale, quantizer);
+        let (interval, pixel_seen) = finish_pixel(
+            second_layer,
+            hit(pixel, centre, dir),
+            depth_scale,
+            quantizer,
+        );
         *slot = interval;
         if exchange {
             seen[pixel] = pixel_seen;

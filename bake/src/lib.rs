@@ -20,6 +20,8 @@ pub mod check;
 pub mod compress;
 pub mod csm;
 pub mod cubemap;
+#[cfg_attr(not(feature = "gpu"), path = "no_gpu.rs")]
+mod gpu;
 pub mod raster;
 pub mod traverse;
 
@@ -91,6 +93,50 @@ pub enum BakeError {
     /// The atlas could not be built.
     #[error("atlas: {0}")]
     Atlas(String),
+    /// The GPU could not bake ([`BakeDevice::Gpu`]): none could be opened, this build has no
+    /// GPU support, or the device failed.
+    #[error("GPU: {0}")]
+    Gpu(String),
+}
+
+/// Where the depth cube maps' rays are cast.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BakeDevice {
+    /// On the CPU's cores, by [`BakeOptions::cube_renderer`].
+    #[default]
+    Cpu,
+    /// On the first GPU wgpu finds (Mesa's lavapipe where there is none), by a compute BVH
+    /// traversal; needs the crate's `gpu` feature. The pilot of [`Traversal::Piloted`] stays on
+    /// the CPU. A GPU may round a ray through an edge otherwise than the CPU, so the file may
+    /// differ from the CPU's in a few pixels (reports/bake.md, "The bake on the GPU").
+    Gpu,
+}
+
+impl BakeDevice {
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            BakeDevice::Cpu => "cpu",
+            BakeDevice::Gpu => "gpu",
+        }
+    }
+}
+
+impl std::fmt::Display for BakeDevice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for BakeDevice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "cpu" => Ok(BakeDevice::Cpu),
+            "gpu" => Ok(BakeDevice::Gpu),
+            other => Err(format!("unknown device '{other}': expected cpu or gpu")),
+        }
+    }
 }
 
 /// What to bake.
@@ -118,6 +164,8 @@ pub struct BakeOptions {
     /// Which renderer draws the depth cube maps; the maps are byte-identical either way (see
     /// [`cubemap::CubeRenderer`]).
     pub cube_renderer: cubemap::CubeRenderer,
+    /// Where the depth maps' rays are cast ([`BakeDevice`]).
+    pub device: BakeDevice,
 }
 
 impl Default for BakeOptions {
@@ -137,6 +185,7 @@ impl Default for BakeOptions {
             merge_short_runs: 0,
             second_layer: cubemap::SecondLayer::Exchange,
             cube_renderer: cubemap::CubeRenderer::Auto,
+            device: BakeDevice::Cpu,
         }
     }
 }
@@ -237,6 +286,8 @@ pub struct BakeStats {
     pub csm_gpu_bytes: u64,
     /// Time spent baking them.
     pub csm_time: Duration,
+    /// The GPU that cast the depth maps' rays ([`BakeDevice::Gpu`]), as its driver names it.
+    pub gpu: Option<String>,
 }
 
 impl BakeStats {
@@ -389,6 +440,14 @@ fn bake_slice(
     let t0 = Instant::now();
     let geometry = TexelGeometry::new(scene);
     let renderer = geometry.renderers(options.cube_renderer);
+    let gpu_maps = match options.device {
+        BakeDevice::Cpu => None,
+        BakeDevice::Gpu => {
+            let maps = gpu::GpuMaps::new(&geometry)?;
+            stats.gpu = Some(maps.describe());
+            Some(maps)
+        }
+    };
     let quantizer = DepthQuantizer::new(near, far);
     let bvh_time = t0.elapsed();
 
@@ -445,24 +504,38 @@ fn bake_slice(
                 / f64::from(far - near),
         },
     );
-    // Enough maps per batch to keep every core busy, small enough to stay in cache-sized memory.
-    let batch_maps = (4 * rayon::current_num_threads())
-        .max(8)
-        .min(map_count as usize)
-        .max(1);
+    // On the CPU, enough maps per batch to keep every core busy, small enough to stay in
+    // cache-sized memory; on the GPU, as many as one readback holds.
+    let batch_maps = match &gpu_maps {
+        Some(maps) => maps.batch_maps(n),
+        None => (4 * rayon::current_num_threads()).max(8),
+    }
+    .min(map_count as usize)
+    .max(1);
     let mut batch = vec![cubemap::DONT_CARE; batch_maps * pixel_count as usize];
     for (b, ids) in slice.chunks(batch_maps).enumerate() {
         let slots = &mut batch[..ids.len() * pixel_count as usize];
-        stats.rays += render_maps(
-            &renderer,
-            &atlas.texels,
-            ids,
-            n,
-            near,
-            &quantizer,
-            options.second_layer,
-            slots,
-        );
+        stats.rays += match &gpu_maps {
+            Some(maps) => maps.render_maps(
+                &atlas.texels,
+                ids,
+                n,
+                near,
+                &quantizer,
+                options.second_layer,
+                slots,
+            )?,
+            None => render_maps(
+                &renderer,
+                &atlas.texels,
+                ids,
+                n,
+                near,
+                &quantizer,
+                options.second_layer,
+                slots,
+            ),
+        };
         compressor.push(slots);
         progress(Progress {
             stage: Stage::Maps,

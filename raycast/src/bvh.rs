@@ -377,7 +377,7 @@ impl SceneBvh {
         // widening is far beyond that rounding, so the traversal meets every hit the test
         // reports, as testing every triangle would (the bake's rasteriser does, and its cube
         // maps must be the same).
-        let pad = Vec3A::splat(BOX_PAD * magnitude.max(f32::MIN_POSITIVE));
+        let pad = Vec3A::splat(BOX_PAD * magnitude.max(f32::MIN_POSITIVE)); // `box_padding`
         let boxes: Vec<Aabb> = tris
             .iter()
             .map(|t| {
@@ -513,6 +513,14 @@ impl SceneBvh {
     /// scales with.
     pub fn magnitude(&self) -> f32 {
         self.magnitude
+    }
+
+    /// How far every triangle's box in the BVH is widened on each side (a fraction of
+    /// [`SceneBvh::magnitude`]): another BVH over the same triangles (the bake's on the GPU)
+    /// widens its boxes as much, so that its traversal too meets every hit the watertight test
+    /// reports.
+    pub fn box_padding(&self) -> f32 {
+        BOX_PAD * self.magnitude.max(f32::MIN_POSITIVE)
     }
 
     /// The scene's triangles (corners in the scene's order) and their geometric normals, by

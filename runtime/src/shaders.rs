@@ -36,8 +36,9 @@ pub const WORKGROUP_2D: u32 = 8;
 /// (§3.3), the light transfer, the
 /// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads,
 /// the joint bilateral weight, the point proxy and its voxel grid, the sample patterns' hash,
-/// the atlas texels where their objects' motion puts them (§3.3).
-const LIBRARIES: [(&str, &str); 14] = [
+/// the atlas texels where their objects' motion puts them (§3.3), ray casting through a BVH
+/// (`cssm::bvh`).
+const LIBRARIES: [(&str, &str); 15] = [
     ("runtime/src/types.wgsl", include_str!("types.wgsl")),
     (
         "runtime/src/common/albedo.wgsl",
@@ -84,6 +85,10 @@ const LIBRARIES: [(&str, &str); 14] = [
     (
         "runtime/src/visibility/posed.wgsl",
         include_str!("visibility/posed.wgsl"),
+    ),
+    (
+        "runtime/src/visibility/bvh_trace.wgsl",
+        include_str!("visibility/bvh_trace.wgsl"),
     ),
 ];
 
@@ -189,8 +194,11 @@ pub enum Shader {
     /// `visibility/moving_query.wgsl`, the batch query between posed surface points, with the
     /// CSSM library and `visibility/moving.wgsl` (§3.3).
     MovingQuery,
-    /// `visibility/bvh.wgsl`, the exact ray-cast baseline.
+    /// `visibility/bvh.wgsl`, the exact ray-cast baseline, with `visibility/bvh_trace.wgsl`.
     Bvh,
+    /// `visibility/depth_maps.wgsl`, the bake's depth cube maps by ray casting (§3.2.1), with
+    /// `visibility/bvh_trace.wgsl`.
+    DepthMaps,
     /// `rsm/sample.wgsl`, the RSM gather with the micro linear buffer.
     RsmSampling,
     /// `common/resolve.wgsl`, two planes of gathered light reflected towards the eye (`rsm`,
@@ -235,7 +243,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 31] = [
+    pub const ALL: [Shader; 32] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -251,6 +259,7 @@ impl Shader {
         Shader::Gather,
         Shader::MovingQuery,
         Shader::Bvh,
+        Shader::DepthMaps,
         Shader::RsmSampling,
         Shader::Resolve,
         Shader::Voxelize,
@@ -287,6 +296,7 @@ impl Shader {
             Shader::Gather => "visibility gather",
             Shader::MovingQuery => "moving objects' query",
             Shader::Bvh => "bvh segments",
+            Shader::DepthMaps => "depth cube maps",
             Shader::RsmSampling => "rsm sampling",
             Shader::Resolve => "resolve",
             Shader::Pyramid => "pyramid",
@@ -368,6 +378,10 @@ impl Shader {
             Shader::Bvh => (
                 "runtime/src/visibility/bvh.wgsl",
                 include_str!("visibility/bvh.wgsl"),
+            ),
+            Shader::DepthMaps => (
+                "runtime/src/visibility/depth_maps.wgsl",
+                include_str!("visibility/depth_maps.wgsl"),
             ),
             Shader::RsmSampling => (
                 "runtime/src/rsm/sample.wgsl",

@@ -706,6 +706,7 @@ impl Plan {
             merge_short_runs: v.merge_short_runs,
             second_layer: v.second_layer,
             cube_renderer: Default::default(),
+            device: Default::default(),
         }
     }
 

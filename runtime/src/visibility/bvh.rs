@@ -64,41 +64,10 @@ impl BvhKernel {
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );
-        let nodes: Vec<GpuBvhNode> = bvh
-            .nodes
-            .iter()
-            .map(|n| GpuBvhNode {
-                min: n.aabb.min.to_array(),
-                prim_count: n.prim_count,
-                max: n.aabb.max.to_array(),
-                first_index: n.first_index,
-            })
-            .collect();
-        let depth = depth(&nodes, 0);
-        if depth > MAX_DEPTH {
-            return Err(RuntimeError::Unsupported(format!(
-                "BVH of {} triangles is {depth} levels deep; the GPU traversal holds {MAX_DEPTH}",
-                tris.len()
-            )));
-        }
-        let vertices: Vec<[f32; 4]> = bvh
-            .primitive_indices
-            .iter()
-            .flat_map(|&i| {
-                let t = &tris[i as usize];
-                [t.v0, t.v1, t.v2].map(|v| [v.x, v.y, v.z, 0.0])
-            })
-            .collect();
-        let node_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bvh nodes"),
-            contents: bytemuck::cast_slice(&nodes),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bvh triangles"),
-            contents: bytemuck::cast_slice(&vertices),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+        let (node_buffer, vertex_buffer) = upload(device, &bvh, |i| {
+            let t = &tris[i as usize];
+            [t.v0, t.v1, t.v2].map(|v| [v.x, v.y, v.z])
+        })?;
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,
@@ -172,6 +141,52 @@ impl BvhKernel {
             .map(|&c| c != 0)
             .collect())
     }
+}
+
+/// The nodes of `bvh` and the corners of its triangles in its primitive order
+/// (`corners(i)` of the triangle of input index `i`), in storage buffers as `cssm::bvh`
+/// (`bvh_trace.wgsl`) reads them.
+///
+/// # Errors
+/// [`RuntimeError::Unsupported`] for a BVH deeper than [`MAX_DEPTH`].
+pub(crate) fn upload(
+    device: &wgpu::Device,
+    bvh: &obvhs::bvh2::Bvh2,
+    corners: impl Fn(u32) -> [[f32; 3]; 3],
+) -> Result<(wgpu::Buffer, wgpu::Buffer), RuntimeError> {
+    let nodes: Vec<GpuBvhNode> = bvh
+        .nodes
+        .iter()
+        .map(|n| GpuBvhNode {
+            min: n.aabb.min.to_array(),
+            prim_count: n.prim_count,
+            max: n.aabb.max.to_array(),
+            first_index: n.first_index,
+        })
+        .collect();
+    let depth = depth(&nodes, 0);
+    if depth > MAX_DEPTH {
+        return Err(RuntimeError::Unsupported(format!(
+            "BVH of {} triangles is {depth} levels deep; the GPU traversal holds {MAX_DEPTH}",
+            bvh.primitive_indices.len()
+        )));
+    }
+    let vertices: Vec<[f32; 4]> = bvh
+        .primitive_indices
+        .iter()
+        .flat_map(|&i| corners(i).map(|[x, y, z]| [x, y, z, 0.0]))
+        .collect();
+    let node_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("bvh nodes"),
+        contents: bytemuck::cast_slice(&nodes),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("bvh triangles"),
+        contents: bytemuck::cast_slice(&vertices),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    Ok((node_buffer, vertex_buffer))
 }
 
 /// Levels below `node` (1 for a leaf).

@@ -1,17 +1,7 @@
 // Exact segment visibility by BVH traversal in a compute shader: what a user without CSSMs
-// would run (the H100 has no hardware ray queries). The BVH is obvhs' binary BVH; the triangle
-// test is the watertight test of Woop, Benthin and Wald (JCGT 2013) as in the CPU reference
-// `cssm_bake::raycast` (without its double-precision fallback on exact edge hits: WGSL has no
-// f64 everywhere).
+// would run (the H100 has no hardware ray queries), on the ray casting of `cssm::bvh`.
 
-struct BvhNode {
-    min: vec3f,
-    // 0: inner node, children at first_index and first_index + 1; else a leaf of that many
-    // triangles starting at first_index.
-    prim_count: u32,
-    max: vec3f,
-    first_index: u32,
-}
+#import cssm::bvh::{STACK, nodes, watertight_ray, intersect, hits_box}
 
 struct Segment {
     a: vec3f,
@@ -22,83 +12,6 @@ struct Segment {
 
 @group(0) @binding(0) var<storage, read> segments: array<Segment>;
 @group(0) @binding(1) var<storage, read_write> clear: array<u32>;
-@group(1) @binding(0) var<storage, read> nodes: array<BvhNode>;
-// Three vertices per triangle, in the BVH's primitive order.
-@group(1) @binding(1) var<storage, read> tri_vertices: array<vec4f>;
-
-const STACK: u32 = 64u;
-
-fn axis(v: vec3f, k: u32) -> f32 {
-    if k == 0u {
-        return v.x;
-    } else if k == 1u {
-        return v.y;
-    }
-    return v.z;
-}
-
-struct WatertightRay {
-    origin: vec3f,
-    kx: u32,
-    ky: u32,
-    kz: u32,
-    sx: f32,
-    sy: f32,
-    sz: f32,
-}
-
-fn watertight_ray(origin: vec3f, dir: vec3f) -> WatertightRay {
-    let a = abs(dir);
-    var kz = 2u;
-    if a.x >= a.y && a.x >= a.z {
-        kz = 0u;
-    } else if a.y >= a.z {
-        kz = 1u;
-    }
-    var kx = (kz + 1u) % 3u;
-    var ky = (kx + 1u) % 3u;
-    let dz = axis(dir, kz);
-    if dz < 0.0 {
-        let t = kx;
-        kx = ky;
-        ky = t;
-    }
-    return WatertightRay(origin, kx, ky, kz, axis(dir, kx) / dz, axis(dir, ky) / dz, 1.0 / dz);
-}
-
-fn intersect(r: WatertightRay, i: u32) -> f32 {
-    let a = tri_vertices[3u * i].xyz - r.origin;
-    let b = tri_vertices[3u * i + 1u].xyz - r.origin;
-    let c = tri_vertices[3u * i + 2u].xyz - r.origin;
-    let az = axis(a, r.kz);
-    let bz = axis(b, r.kz);
-    let cz = axis(c, r.kz);
-    let ax = axis(a, r.kx) - r.sx * az;
-    let ay = axis(a, r.ky) - r.sy * az;
-    let bx = axis(b, r.kx) - r.sx * bz;
-    let by = axis(b, r.ky) - r.sy * bz;
-    let cx = axis(c, r.kx) - r.sx * cz;
-    let cy = axis(c, r.ky) - r.sy * cz;
-    let u = cx * by - cy * bx;
-    let v = ax * cy - ay * cx;
-    let w = bx * ay - by * ax;
-    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-        return -1.0;
-    }
-    let det = u + v + w;
-    if det == 0.0 {
-        return -1.0;
-    }
-    return (u * r.sz * az + v * r.sz * bz + w * r.sz * cz) / det;
-}
-
-fn hits_box(n: BvhNode, origin: vec3f, inv_dir: vec3f, tmax: f32) -> bool {
-    let t0 = (n.min - origin) * inv_dir;
-    let t1 = (n.max - origin) * inv_dir;
-    let near = max(max(min(t0.x, t1.x), min(t0.y, t1.y)), max(min(t0.z, t1.z), 0.0));
-    let far = min(min(max(t0.x, t1.x), max(t0.y, t1.y)), min(max(t0.z, t1.z), tmax));
-    return near <= far;
-}
 
 // True when the open segment a..b (parameters 1e-5 to 1 - 1e-5, as SceneBvh::segment_clear)
 // hits no triangle.

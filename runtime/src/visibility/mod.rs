@@ -13,6 +13,7 @@
 //! puts it, for the passes that read texel geometry.
 
 pub mod bvh;
+pub mod depth_maps;
 pub mod gather;
 pub mod moving;
 
@@ -229,8 +230,8 @@ pub(crate) fn answer_buffer(device: &wgpu::Device, label: &str, items: usize) ->
 }
 
 /// Runs a one-thread-per-item kernel (indexing `id.x + id.y * groups.x * 64`) over `items`
-/// with `bind_groups` at groups 0, 1, ..., timed as `label`, and reads back `answers` (4 bytes
-/// per item).
+/// with `bind_groups` at groups 0, 1, ..., timed as `label`, and reads back the whole of
+/// `answers`.
 pub(crate) fn dispatch_and_read(
     gpu: &Gpu,
     label: &'static str,
@@ -258,7 +259,7 @@ pub(crate) fn dispatch_and_read(
         t.resolve(&mut encoder);
     }
     gpu.queue.submit([encoder.finish()]);
-    readback::read_buffer(&gpu.device, &gpu.queue, answers, 0, 4 * items as u64)
+    readback::read_buffer(&gpu.device, &gpu.queue, answers, 0, answers.size())
 }
 
 #[cfg(test)]
@@ -379,9 +380,11 @@ mod tests {
     fn bvh_layouts_match_wgsl() {
         use super::bvh::{GpuBvhNode, Segment};
         let module = crate::shaders::tests::module(Shader::Bvh);
+        // Declared by the library `cssm::bvh`: naga_oil decorates its name.
+        let node = naga_oil::compose::Composer::decorated_name(Some("cssm::bvh"), "BvhNode");
         check_struct(
             &module,
-            "BvhNode",
+            &node,
             size_of::<GpuBvhNode>(),
             &[
                 ("min", offset_of!(GpuBvhNode, min)),

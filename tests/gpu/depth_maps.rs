@@ -1,0 +1,187 @@
+//! The bake's depth cube maps on the GPU (`cssm bake --device gpu`, issue 25) against the CPU's
+//! ray casts: the kernel's hits pixel by pixel, and whole files.
+
+use cssm_bake::{BakeDevice, BakeOptions, cubemap::SecondLayer};
+use cssm_formats::{Scene, cube};
+use cssm_raycast::{SceneBvh, SplitMix64};
+use cssm_runtime::visibility::depth_maps::{
+    DepthMapKernel, DepthMapSettings, DepthMapTexel, decode,
+};
+use glam::Vec3;
+
+use super::gpu;
+
+/// Lavapipe rounds as the CPU does (LLVM, no fused multiply-adds nor approximate division), so
+/// there the GPU's answers must equal the CPU's; a GPU may round a ray through an edge
+/// otherwise, so elsewhere a few may differ.
+fn exact_device() -> bool {
+    gpu().describe().contains("llvmpipe")
+}
+
+/// Random triangles in the unit cube, and one triangle stacked five times over (every ray
+/// through it meets five hits at one distance: more than the kernel's hit list keeps, so it
+/// hands those pixels back to the CPU).
+fn soup() -> Scene {
+    let mut rng = SplitMix64(17);
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    let point = |rng: &mut SplitMix64| {
+        Vec3::new(
+            rng.next_f64() as f32,
+            rng.next_f64() as f32,
+            rng.next_f64() as f32,
+        ) * 2.0
+            - 1.0
+    };
+    for _ in 0..300 {
+        let base = positions.len() as u32;
+        let centre = point(&mut rng);
+        for _ in 0..3 {
+            positions.push(centre + point(&mut rng) * 0.3);
+        }
+        triangles.push([base, base + 1, base + 2]);
+    }
+    let base = positions.len() as u32;
+    positions.extend([
+        Vec3::new(-2.0, -2.0, 1.5),
+        Vec3::new(2.0, -2.0, 1.5),
+        Vec3::new(0.0, 2.0, 1.5),
+    ]);
+    for _ in 0..5 {
+        triangles.push([base, base + 1, base + 2]);
+    }
+    Scene::from_triangles(positions, triangles)
+}
+
+#[test]
+fn depth_map_kernel_matches_cpu_ray_casts() {
+    let gpu = gpu();
+    let scene = soup();
+    let bvh = SceneBvh::new(&scene);
+    let (triangles, normals) = bvh.triangles_by_scene_index();
+    let kernel = DepthMapKernel::new(gpu, &triangles, normals, bvh.box_padding()).expect("kernel");
+    let mut rng = SplitMix64(3);
+    let texels: Vec<DepthMapTexel> = (0..24)
+        .map(|_| {
+            let mut v = || rng.next_f64() as f32 * 2.0 - 1.0;
+            let centre = Vec3::new(v(), v(), v()) * 0.8;
+            let normal = Vec3::new(v(), v(), v()).normalize_or(Vec3::Z);
+            DepthMapTexel {
+                centre: centre.to_array(),
+                normal: normal.to_array(),
+                ..Default::default()
+            }
+        })
+        .collect();
+    let n = 16;
+    let pixels = (6 * n * n) as usize;
+    for every_hit_faces in [false, true] {
+        let settings = DepthMapSettings {
+            resolution: n,
+            min_hit: 1e-4,
+            separation: 1e-3,
+            every_hit_faces,
+        };
+        let answers = kernel.run(gpu, &texels, settings).expect("kernel run");
+        assert_eq!(answers.len(), texels.len() * pixels);
+        let (mut cast, mut handed_back, mut differ, mut second_hits) = (0, 0, 0, 0);
+        for (t, texel) in texels.iter().enumerate() {
+            let normal = Vec3::from(texel.normal);
+            for pixel in 0..pixels {
+                if cube::pixel_is_dont_care(n, pixel as u32, normal)
+                    || cube::cast_direction(n, pixel as u32, normal).1 < 1e-3
+                {
+                    continue;
+                }
+                cast += 1;
+                let (dir, _) = cube::cast_direction(n, pixel as u32, normal);
+                let centre = Vec3::from(texel.centre);
+                let Some(gpu_hit) = decode(answers[t * pixels + pixel]) else {
+                    handed_back += 1;
+                    continue;
+                };
+                let same = if every_hit_faces {
+                    let cpu = bvh.dual_hit_beyond(centre, dir, 1e-4, 1e-3);
+                    (cpu.first, cpu.second) == (gpu_hit.first, gpu_hit.second)
+                } else {
+                    bvh.front_dual_hit_beyond(centre, dir, 1e-4, 1e-3) == gpu_hit
+                };
+                differ += usize::from(!same);
+                second_hits += usize::from(gpu_hit.second.is_finite());
+            }
+        }
+        eprintln!(
+            "depth-map kernel (every hit faces: {every_hit_faces}): {cast} rays, {differ} differ \
+             from the CPU, {handed_back} handed back, {second_hits} with a second hit"
+        );
+        assert!(second_hits > cast / 20, "{second_hits} second hits");
+        // The stacked triangle's rays come back to the CPU, and only a few others.
+        assert!(
+            handed_back > 0 && handed_back < cast / 4,
+            "{handed_back} handed back"
+        );
+        if exact_device() {
+            assert_eq!(differ, 0, "on lavapipe the kernel is the CPU's arithmetic");
+        } else {
+            assert!(differ * 1000 <= cast, "{differ} of {cast} differ");
+        }
+    }
+}
+
+/// A bake on the GPU writes the CPU's file: the Cornell box with a rigid block (two
+/// geometries, one kernel each), every second layer.
+#[test]
+fn gpu_bake_writes_the_cpu_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box");
+    for f in ["cornell-box.obj", "cornell-box.mtl"] {
+        std::fs::copy(cornell.join(f), dir.path().join(f)).unwrap();
+    }
+    let block = format!(
+        "mtllib cornell-box.mtl\nusemtl white\n{}",
+        cssm::builtin::cube_obj([0.0; 3], 60.0, 0, false)
+    );
+    std::fs::write(dir.path().join("block.obj"), block).unwrap();
+    std::fs::write(
+        dir.path().join("scene.toml"),
+        "name = \"cornell-block\"\nmesh = \"cornell-box.obj\"\n\n[[objects]]\nname = \"block\"\n\
+         mesh = \"block.obj\"\ntranslation = [300.0, 0.0, 200.0]\nscale = 2.0\n",
+    )
+    .unwrap();
+    let scene = Scene::load(dir.path()).expect("scene");
+    for second_layer in SecondLayer::ALL {
+        let options = BakeOptions {
+            atlas_resolution: 32,
+            cube_resolution: 16,
+            second_layer,
+            ..Default::default()
+        };
+        let bake = |device| {
+            let options = BakeOptions {
+                device,
+                ..options.clone()
+            };
+            let baked = cssm_bake::bake(&scene, &options, &mut |_| {}).expect("bake");
+            (
+                baked.stats,
+                cssm_formats::cssm::encode(&baked.file).expect("encode"),
+            )
+        };
+        let (cpu_stats, cpu_file) = bake(BakeDevice::Cpu);
+        let (gpu_stats, gpu_file) = bake(BakeDevice::Gpu);
+        assert!(gpu_stats.gpu.is_some() && cpu_stats.gpu.is_none());
+        assert_eq!(gpu_stats.rays, cpu_stats.rays);
+        assert!(cpu_stats.csms == 1, "the block is a rigid object");
+        if exact_device() {
+            assert!(cpu_file == gpu_file, "{second_layer}: the files differ");
+        } else {
+            let runs = |s: &cssm_bake::BakeStats| s.runs as f64;
+            assert!(
+                (runs(&gpu_stats) / runs(&cpu_stats) - 1.0).abs() < 0.005,
+                "{second_layer}: {} runs on the GPU, {} on the CPU",
+                gpu_stats.runs,
+                cpu_stats.runs
+            );
+        }
+    }
+}
