@@ -504,44 +504,52 @@ fn bake_slice(
                 / f64::from(far - near),
         },
     );
-    // On the CPU, enough maps per batch to keep every core busy, small enough to stay in
-    // cache-sized memory; on the GPU, as many as one readback holds.
-    let batch_maps = match &gpu_maps {
-        Some(maps) => maps.batch_maps(n),
-        None => (4 * rayon::current_num_threads()).max(8),
-    }
-    .min(map_count as usize)
-    .max(1);
-    let mut batch = vec![cubemap::DONT_CARE; batch_maps * pixel_count as usize];
-    for (b, ids) in slice.chunks(batch_maps).enumerate() {
-        let slots = &mut batch[..ids.len() * pixel_count as usize];
-        stats.rays += match &gpu_maps {
-            Some(maps) => maps.render_maps(
-                &atlas.texels,
-                ids,
-                n,
-                near,
-                &quantizer,
-                options.second_layer,
-                slots,
-            )?,
-            None => render_maps(
-                &renderer,
-                &atlas.texels,
-                ids,
-                n,
-                near,
-                &quantizer,
-                options.second_layer,
-                slots,
-            ),
-        };
+    let mut compressed = |done: usize, slots: &[cubemap::Interval]| {
         compressor.push(slots);
         progress(Progress {
             stage: Stage::Maps,
-            done: (b * batch_maps + ids.len()) as u64,
+            done: done as u64,
             total: u64::from(map_count),
         });
+    };
+    match &gpu_maps {
+        Some(maps) => {
+            stats.rays += maps.render_in_order(
+                &atlas.texels,
+                slice,
+                n,
+                near,
+                &quantizer,
+                options.second_layer,
+                maps.batch_maps(n),
+                &mut compressed,
+            )?;
+        }
+        None => {
+            // Enough maps per batch to keep every core busy, small enough to stay in
+            // cache-sized memory.
+            let batch_maps = (4 * rayon::current_num_threads())
+                .max(8)
+                .min(map_count as usize)
+                .max(1);
+            let mut batch = vec![cubemap::DONT_CARE; batch_maps * pixel_count as usize];
+            let mut done = 0;
+            for ids in slice.chunks(batch_maps) {
+                let slots = &mut batch[..ids.len() * pixel_count as usize];
+                stats.rays += render_maps(
+                    &renderer,
+                    &atlas.texels,
+                    ids,
+                    n,
+                    near,
+                    &quantizer,
+                    options.second_layer,
+                    slots,
+                );
+                done += ids.len();
+                compressed(done, slots);
+            }
+        }
     }
     let runs = compressor.finish();
     stats.maps_time = bvh_time + t0.elapsed();

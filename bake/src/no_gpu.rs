@@ -27,15 +27,16 @@ impl<'a> GpuMaps<'a> {
     }
 
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn render_maps(
+    pub(crate) fn render_in_order(
         &self,
         _texels: &[Texel],
-        _ids: &[u32],
+        _sequence: &[u32],
         _n: u32,
         _near: f32,
         _quantizer: &DepthQuantizer,
         _second_layer: cubemap::SecondLayer,
-        _slots: &mut [cubemap::Interval],
+        _batch: usize,
+        _each: &mut dyn FnMut(usize, &[cubemap::Interval]),
     ) -> Result<u64, BakeError> {
         match self.never {}
     }
