@@ -8,7 +8,7 @@
 // CPU would (its reducer overflowed, or it judged the pixel behind the tangent plane where
 // rounding leaves doubt) is marked, and the CPU casts it itself.
 
-#import cssm::bvh::{STACK, nodes, watertight_ray, intersect, safe_inverse, box_entry}
+#import cssm::bvh::{STACK, axis, nodes, watertight_ray, intersect, safe_inverse, box_entry}
 
 struct DepthMapParams {
     // Cube-map face resolution N.
@@ -116,23 +116,6 @@ fn add(r: ptr<function, Reducer>, t: f32, faces: bool) {
     }
 }
 
-// Sets component `k` of `v`.
-fn with_axis(v: vec3f, k: u32, value: f32) -> vec3f {
-    var out = v;
-    if k == 0u {
-        out.x = value;
-    } else if k == 1u {
-        out.y = value;
-    } else {
-        out.z = value;
-    }
-    return out;
-}
-
-fn axis_of(v: vec3f, k: u32) -> f32 {
-    return select(select(v.z, v.y, k == 1u), v.x, k == 0u);
-}
-
 fn cast_pixel(texel: DepthMapTexel, pixel: u32) -> vec2u {
     let n = params.n;
     // `cssm_formats::cube::pixel_direction`.
@@ -145,14 +128,15 @@ fn cast_pixel(texel: DepthMapTexel, pixel: u32) -> vec2u {
     let major = face / 2u;
     let ua = (major + 1u) % 3u;
     let va = (major + 2u) % 3u;
-    var dir = with_axis(vec3f(0.0), major, select(-1.0, 1.0, face % 2u == 0u));
-    dir = with_axis(dir, ua, u);
-    dir = with_axis(dir, va, v);
+    var dir = vec3f(0.0);
+    dir[major] = select(-1.0, 1.0, face % 2u == 0u);
+    dir[ua] = u;
+    dir[va] = v;
     let normal = texel.normal;
     // `cube::pixel_is_dont_care`, with a margin.
     let below = dot(dir, normal);
     let half_step = 1.0 / f32(n);
-    if below + half_step * (abs(axis_of(normal, ua)) + abs(axis_of(normal, va))) < -BEHIND_MARGIN {
+    if below + half_step * (abs(axis(normal, ua)) + abs(axis(normal, va))) < -BEHIND_MARGIN {
         return vec2u(RECOMPUTE, 0u);
     }
     // `cube::cast_direction`: a straddling pixel whose centre lies below the plane is cast
