@@ -7,8 +7,12 @@
 //! ```text
 //! cargo bench --bench gpu_queries -- [--scenes DIR] [--atlas 128] [--cube 32]
 //!     [--pairs 4194304] [--receivers 65536] [--senders 256] [--reps 5] [--csv FILE]
-//!     [--only cornell-box,heads,church3700,sibenik]
+//!     [--only cornell-box,heads,church3700,sibenik] [--baked NAME=FILE.cssm]
 //! ```
+//!
+//! `--baked NAME=FILE` takes scene NAME's bake from FILE instead of baking it here (the device
+//! harness bakes the full Sibenik cathedral in a step of its own, which the queries step's time
+//! limit did not leave room for).
 //!
 //! Each scene bakes at `--atlas`, or at the next power of two that holds its charts (the
 //! Sibenik cathedral's 6,913 charts need 256); the row names the atlas used and how many
@@ -116,6 +120,14 @@ fn main() {
         .position(|a| a == "--only")
         .and_then(|i| args.get(i + 1))
         .cloned();
+    let baked: Option<(String, PathBuf)> = args
+        .iter()
+        .position(|a| a == "--baked")
+        .and_then(|i| args.get(i + 1))
+        .map(|v| match v.split_once('=') {
+            Some((name, file)) => (name.to_string(), PathBuf::from(file)),
+            None => panic!("--baked takes NAME=FILE, not {v}"),
+        });
     let csv: Option<PathBuf> = args
         .iter()
         .position(|a| a == "--csv")
@@ -164,13 +176,24 @@ fn main() {
             }
         };
         let scene = formats::Scene::load(&dir).expect("scene loads");
-        let (file, atlas) = match bake_fitting(&scene, atlas, cube) {
+        let given = baked.as_ref().filter(|(n, _)| n == name);
+        let bake = match given {
+            Some((_, path)) => formats::cssm::read(path)
+                .map(|file| {
+                    let atlas = file.params.atlas_resolution;
+                    (file, atlas)
+                })
+                .map_err(|e| format!("{}: {e}", path.display())),
+            None => bake_fitting(&scene, atlas, cube),
+        };
+        let (file, atlas) = match bake {
             Ok(baked) => baked,
             Err(e) => {
                 skipped(&e);
                 continue;
             }
         };
+        let cube = file.params.cube_resolution;
         let cssm = match CssmGpu::new(&gpu.device, &gpu.queue, &file, Default::default()) {
             Ok(cssm) => cssm,
             Err(e) => {

@@ -237,7 +237,8 @@ measure() {
     # shellcheck disable=SC2086
     bakes_on_both $gpu_bakes
     # shellcheck disable=SC2086
-    run queries "$c/gpu_queries" --scenes "$c/scenes" $queries --csv "$out/runtime-queries.csv"
+    run queries "$c/gpu_queries" --scenes "$c/scenes" $queries --only cornell-box,heads,church3700 \
+        --csv "$out/runtime-queries.csv"
     if [ -x "$c/gpu-limit" ]; then
         # shellcheck disable=SC2086
         run gpu-limit "$c/gpu-limit" $limit_args
@@ -319,6 +320,11 @@ measure() {
     if [ -d "$c/scenes/sibenik" ]; then
         # shellcheck disable=SC2086
         run sibenik-bake "$c/cssm" bake "$c/scenes/sibenik" -o "$work/sibenik.cssm" $bake_sibenik
+        # The Sibenik row of the query table, on that bake (the queries step has no time for
+        # baking the cathedral itself).
+        # shellcheck disable=SC2086
+        run queries-sibenik "$c/gpu_queries" --scenes "$c/scenes" $queries --only sibenik \
+            --baked "sibenik=$work/sibenik.cssm" --csv "$out/runtime-queries-sibenik.csv"
     fi
     gi sibenik "$c/scenes/sibenik" "$work/sibenik.cssm"
     # Every method side by side (issue 27): `cssm compare` on the built-in boxes, GPU ms per
