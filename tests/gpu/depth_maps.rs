@@ -185,3 +185,25 @@ fn gpu_bake_writes_the_cpu_file() {
         }
     }
 }
+
+/// `cssm bake --device gpu` where no Vulkan driver loads: a clear error, exit 2, no file.
+#[test]
+fn gpu_bake_without_a_gpu_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cornell.cssm");
+    let nowhere = dir.path().join("no-driver.json");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_cssm"))
+        .args([
+            "bake", "--atlas", "32", "--cube", "8", "--device", "gpu", "-o",
+        ])
+        .arg(&out)
+        .env("VK_ICD_FILENAMES", &nowhere)
+        .env("VK_DRIVER_FILES", &nowhere)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("GPU: no GPU adapter found"), "{stderr}");
+    assert!(stderr.contains("mesa-vulkan-drivers"), "{stderr}");
+    assert!(!out.exists());
+}
