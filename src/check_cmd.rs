@@ -79,7 +79,8 @@ pub fn run_check(config: CheckConfig) -> CliResult {
             config.seed,
             config.query,
             &mut |done, _| bar.set_position(done),
-        );
+        )
+        .map_err(|e| format!("{}: {e}", config.file.display()))?;
         bar.finish_and_clear();
         m
     };

@@ -207,21 +207,27 @@ pub fn exact_visible(bvh: &SceneBvh, p_j: &SurfacePoint, p_i: &SurfacePoint, eps
 }
 
 /// Tests `pairs` random pairs (seeded) of `scene` with the CSSM `file` and with ray casts.
+///
+/// # Errors
+/// As [`measure_posed`]'s, for a scene with rigid objects.
 pub fn measure(
     scene: &Scene,
     file: &CssmFile,
     pairs: u64,
     seed: u64,
     options: QueryOptions,
-) -> Measurement {
+) -> Result<Measurement, String> {
     measure_with_progress(scene, file, pairs, seed, options, &mut |_, _| {})
 }
 
 /// [`measure`], calling `progress(done, pairs)` after every block of 65,536 pairs. A scene with
 /// rigid objects is measured with them where it placed them, through the moving-objects query
-/// ([`measure_posed`]); a file that lacks a rigid object's CSM (none `cssm bake` writes) is
-/// measured with its CSSM alone, which misses occlusion between objects: call
-/// [`measure_posed`] to have that refused instead (`cssm check` does).
+/// ([`measure_posed`], without its hull overlaps).
+///
+/// # Errors
+/// As [`measure_posed`]'s, for a scene with rigid objects: a file that lacks a rigid object's
+/// CSM (none `cssm bake` writes) is refused, since its CSSM alone would miss the occlusion
+/// between objects.
 pub fn measure_with_progress(
     scene: &Scene,
     file: &CssmFile,
@@ -229,23 +235,20 @@ pub fn measure_with_progress(
     seed: u64,
     options: QueryOptions,
     progress: &mut dyn FnMut(u64, u64),
-) -> Measurement {
+) -> Result<Measurement, String> {
     if scene
         .objects
         .iter()
         .any(|o| o.kind == cssm_formats::ObjectKind::Rigid)
     {
         let poses: Vec<_> = scene.objects.iter().map(|o| o.transform).collect();
-        if let Ok(m) =
-            measure_posed_with_progress(scene, file, &poses, pairs, seed, options, progress)
-        {
-            return m.measurement;
-        }
+        return measure_posed_with_progress(scene, file, &poses, pairs, seed, options, progress)
+            .map(|m| m.measurement);
     }
     let bvh = SceneBvh::new(scene);
     let query = VisibilityQuery::new(file, options);
     let eps = 1e-4 * scene.diameter();
-    tally(
+    Ok(tally(
         scene,
         &bvh,
         pairs,
@@ -262,7 +265,7 @@ pub fn measure_with_progress(
             )
         },
         &|p_j, p_i, truth, causes| classify(&bvh, &query, p_j, p_i, truth, eps, causes),
-    )
+    ))
 }
 
 /// What [`measure_posed`] found.
