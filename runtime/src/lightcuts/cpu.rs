@@ -9,7 +9,7 @@ use crate::{
     gpu_types::GpuMaterial,
     radiosity::cpu::TwinScene,
     radiosity::transfer::{
-        brdf, brdf_bound, in_near_field, irradiance_bound, irradiance_from,
+        brdf_bound, phong_lobe, in_near_field, irradiance_bound, irradiance_from,
         irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped,
     },
 };
@@ -29,10 +29,21 @@ pub struct Receiver {
     pub atlas: Vec2,
 }
 
-/// `final_gather.wgsl::gather_pixel`: indirect radiance leaving the receiver towards the eye
-/// and the cut size, gathering from the node radiance `radiance` (`jitter`: the seed when
-/// senders are random texels of their node, and the receiver's id), over `scene`'s texels and
-/// hierarchy.
+/// What [`gather_planes`] gathers at a receiver: the planes `final_gather.wgsl` writes.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Gathered {
+    /// The indirect irradiance.
+    pub irradiance: Vec3,
+    /// The indirect irradiance weighted by the receiver's normalised Phong lobe towards the eye
+    /// ([`phong_lobe`]).
+    pub lobe_weighted: Vec3,
+    /// Nodes gathered from.
+    pub cut: u32,
+}
+
+/// `final_gather.wgsl` then `common/resolve.wgsl`: indirect radiance leaving the receiver
+/// towards the eye (`albedo / pi * irradiance + ks * lobe_weighted` of [`gather_planes`]) and
+/// the cut size.
 #[allow(clippy::too_many_arguments)]
 pub fn gather_pixel(
     scene: &TwinScene,
@@ -43,6 +54,25 @@ pub fn gather_pixel(
     r: &Receiver,
     material: &GpuMaterial,
 ) -> (Vec3, u32) {
+    let g = gather_planes(scene, radiance, threshold, exposure, jitter, r, material);
+    let out = r.albedo / std::f32::consts::PI * g.irradiance + Vec3::from(material.ks) * g.lobe_weighted;
+    (out, g.cut)
+}
+
+/// `final_gather.wgsl::gather_pixel`: the indirect light arriving at the receiver as the two
+/// planes the kernel writes, and the cut size, gathering from the node radiance `radiance`
+/// (`jitter`: the seed when senders are random texels of their node, and the receiver's id),
+/// over `scene`'s texels and hierarchy.
+#[allow(clippy::too_many_arguments)]
+pub fn gather_planes(
+    scene: &TwinScene,
+    radiance: &[Vec3],
+    threshold: f32,
+    exposure: f32,
+    jitter: Option<(u32, u32)>,
+    r: &Receiver,
+    material: &GpuMaterial,
+) -> Gathered {
     let (texels, nodes) = (&scene.texels, &scene.hierarchy.nodes);
     let leaf_texels = &scene.hierarchy.leaf_texels;
     let (ks, ns) = (Vec3::from(material.ks), material.ns);
@@ -54,8 +84,7 @@ pub fn gather_pixel(
         .first()
         .filter(|s| s.1 > 0.0)
         .map_or(0, |s| texels[s.0 as usize].object);
-    let mut out = Vec3::ZERO;
-    let mut cut = 0;
+    let mut gathered = Gathered::default();
     let mut s = 0usize;
     while s < nodes.len() {
         let node = &nodes[s];
@@ -69,7 +98,7 @@ pub fn gather_pixel(
                 continue;
             }
         }
-        cut += 1;
+        gathered.cut += 1;
         let sender = match jitter {
             Some((seed, receiver)) if node.count > 1 => {
                 leaf_texels[jitter_leaf(seed, receiver, s as u32, node) as usize]
@@ -111,10 +140,11 @@ pub fn gather_pixel(
                         },
                     )
                     .unwrap_or(1.0);
-                out += brdf(n, v, w, r.albedo, ks, ns) * e * visibility;
+                gathered.irradiance += e * visibility;
+                gathered.lobe_weighted += phong_lobe(n, v, w, ns) * e * visibility;
             }
         }
         s = node.skip as usize;
     }
-    (out, cut)
+    gathered
 }

@@ -2,7 +2,8 @@
 #import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
-#import cssm::transfer::{brdf, brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
+#import cssm::lowres::lowres_representative
+#import cssm::transfer::{phong_lobe, brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
 
 // Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
 // pixel instead of a receiver leaf, the oracle bounding the normalised Phong BRDF so glossy
@@ -23,11 +24,30 @@
 @group(0) @binding(7) var gbuffer_normal: texture_2d<f32>;
 @group(0) @binding(8) var gbuffer_albedo: texture_2d<f32>;
 @group(0) @binding(9) var gbuffer_atlas: texture_2d<f32>;
-// Per pixel: rgb indirect radiance towards the eye (progressive mean over frames), w: cut size.
-@group(0) @binding(10) var<storage, read_write> indirect: array<vec4f>;
+// Two planes at the gather's resolution (progressive means over frames): the irradiance (w: the
+// cut size), then the irradiance weighted by the pixel's normalised Phong lobe towards the eye;
+// `common/resolve.wgsl` reflects them with the full-res albedo and Ks (after the edge-aware
+// filters when the gather runs at a reduced resolution).
+@group(0) @binding(10) var<storage, read_write> planes: array<vec4f>;
+@group(0) @binding(11) var<uniform> grid: GatherGrid;
 
-// Indirect radiance leaving `p` towards `v`, and the cut size.
-fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, atlas: vec2f) -> vec4f {
+struct GatherGrid {
+    // The gather's resolution: the G-buffer's reduced by `factor` per side.
+    low_size: vec2u,
+    factor: u32,
+    _pad: u32,
+}
+
+struct Gathered {
+    irradiance: vec3f,
+    lobe_weighted: vec3f,
+    cut: u32,
+}
+
+// The indirect light arriving at `p` (its irradiance, and its irradiance weighted by the Phong
+// lobe towards `v`), and the cut size; the radiance towards `v` is
+// albedo / pi * irradiance + ks * lobe_weighted.
+fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, atlas: vec2f) -> Gathered {
     // The receiver's own texels, found once for all its senders.
     let senders = cssm_senders_at(atlas);
     // The object the pixel lies on: its texels' (a point without texels answers unshadowed).
@@ -35,7 +55,8 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
     if senders.weights.x > 0.0 {
         object = cssm_texels[senders.texels.x].object;
     }
-    var l_out = vec3f(0.0);
+    var irradiance = vec3f(0.0);
+    var lobe_weighted = vec3f(0.0);
     var cut = 0u;
     var s = 0u;
     loop {
@@ -79,24 +100,27 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                         visibility = 1.0;
                     }
                     let w = normalize(y_position - p);
-                    l_out += brdf(n, v, w, albedo, m.ks, m.ns) * e * visibility;
+                    irradiance += e * visibility;
+                    lobe_weighted += phong_lobe(n, v, w, m.ns) * e * visibility;
                 }
             }
             s = node.skip;
         }
     }
-    return vec4f(l_out, f32(cut));
+    return Gathered(irradiance, lobe_weighted, cut);
 }
 
 @compute @workgroup_size(#{WORKGROUP_2D}, #{WORKGROUP_2D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
-    if id.x >= view.size.x || id.y >= view.size.y {
+    if id.x >= grid.low_size.x || id.y >= grid.low_size.y {
         return;
     }
-    let pixel = id.y * view.size.x + id.x;
-    let xy = vec2i(id.xy);
+    // The full-res pixel this gather pixel stands for (itself at factor 1).
+    let at = lowres_representative(id.xy, grid.factor, view.size);
+    let pixel = at.y * view.size.x + at.x;
+    let xy = vec2i(at);
     let position = textureLoad(gbuffer_position, xy, 0);
-    var value = vec4f(0.0);
+    var value = Gathered(vec3f(0.0), vec3f(0.0), 0u);
     if position.w > 0.0 {
         let normal = textureLoad(gbuffer_normal, xy, 0);
         let albedo = textureLoad(gbuffer_albedo, xy, 0).rgb;
@@ -106,6 +130,12 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         value = gather_pixel(pixel, position.xyz, normal.xyz, v, albedo, m, atlas);
     }
     // Progressive mean over the frames of a still camera (§4.5).
+    let index = id.y * grid.low_size.x + id.x;
+    let plane = grid.low_size.x * grid.low_size.y;
     let k = f32(params.frame);
-    indirect[pixel] = select((indirect[pixel] * k + value) / (k + 1.0), value, params.frame == 0u);
+    let first = params.frame == 0u;
+    let irradiance = vec4f(value.irradiance, f32(value.cut));
+    let lobe_weighted = vec4f(value.lobe_weighted, 0.0);
+    planes[index] = select((planes[index] * k + irradiance) / (k + 1.0), irradiance, first);
+    planes[plane + index] = select((planes[plane + index] * k + lobe_weighted) / (k + 1.0), lobe_weighted, first);
 }

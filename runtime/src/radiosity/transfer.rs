@@ -94,8 +94,15 @@ pub fn brdf_bound(
 /// The normalised Phong BRDF of `light.wgsl` for light from the unit direction `w`.
 /// `transfer.wgsl`: `brdf`.
 pub fn brdf(n: Vec3, v: Vec3, w: Vec3, albedo: Vec3, ks: Vec3, ns: f32) -> Vec3 {
+    albedo / PI + ks * phong_lobe(n, v, w, ns)
+}
+
+/// The normalised Phong lobe of [`brdf`] without Ks: what a gather weights its glossy plane
+/// with, so that the reflection takes the full-resolution Ks after filtering.
+/// `transfer.wgsl`: `phong_lobe`.
+pub fn phong_lobe(n: Vec3, v: Vec3, w: Vec3, ns: f32) -> f32 {
     let r = (-w).reflect(n);
-    albedo / PI + ks * ((ns + 2.0) / (2.0 * PI) * r.dot(v).max(0.0).powf(ns))
+    (ns + 2.0) / (2.0 * PI) * r.dot(v).max(0.0).powf(ns)
 }
 
 /// Unoccluded irradiance at `p` (normal `n`) from a sender at `y` with mean normal

@@ -55,8 +55,13 @@ fn brdf_bound(n: vec3f, v: vec3f, albedo: vec3f, ks: vec3f, ns: f32, to_center: 
 
 // transfer::brdf.
 fn brdf(n: vec3f, v: vec3f, w: vec3f, albedo: vec3f, ks: vec3f, ns: f32) -> vec3f {
+    return albedo / TRANSFER_PI + ks * phong_lobe(n, v, w, ns);
+}
+
+// transfer::phong_lobe: the normalised Phong lobe of `brdf` without Ks.
+fn phong_lobe(n: vec3f, v: vec3f, w: vec3f, ns: f32) -> f32 {
     let r = reflect(-w, n);
-    return albedo / TRANSFER_PI + ks * ((ns + 2.0) / (2.0 * TRANSFER_PI) * pow(max(dot(r, v), 0.0), ns));
+    return (ns + 2.0) / (2.0 * TRANSFER_PI) * pow(max(dot(r, v), 0.0), ns);
 }
 
 // transfer::irradiance_from: xyz irradiance; the direction is recomputed by the caller.
