@@ -488,8 +488,23 @@ fn direct_light_matches_cpu_reference() {
 
 #[test]
 fn atlas_direct_light_matches_cpu_reference() {
-    let gpu = gpu();
     let (scene, file) = cornell();
+    atlas_direct_light_vs_cpu(scene, file);
+    // A glossy floor: its texels reflect Kd + Ks in the bounces (`bounce_albedo`).
+    let (scene, file) = baked(
+        "cornell-glossy",
+        BakeOptions {
+            atlas_resolution: 32,
+            cube_resolution: 8,
+            ..Default::default()
+        },
+    );
+    assert!(scene.materials.iter().any(|m| m.ks[0] > 0.0));
+    atlas_direct_light_vs_cpu(&scene, &file);
+}
+
+fn atlas_direct_light_vs_cpu(scene: &Scene, file: &CssmFile) {
+    let gpu = gpu();
     let gpu_texels =
         cssm_runtime::radiosity::render_atlas_direct(&gpu.device, &gpu.queue, scene, file, 2048)
             .expect("atlas pass");

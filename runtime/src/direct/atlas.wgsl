@@ -1,9 +1,9 @@
 #import cssm::types::Texel
-#import cssm::light::{view, materials, spot_irradiance, PI}
+#import cssm::light::{view, materials, spot_irradiance, bounce_albedo, PI}
 #import cssm::posed::posed_texel
 
-// Direct light into the atlas texels: the radiance each texel sends out (Kd/pi times its
-// irradiance, plus what its material emits: §4.7, any direct light may be the radiosity's
+// Direct light into the atlas texels: the radiance each texel sends out (its bounce albedo
+// over pi times its irradiance, plus what its material emits: §4.7, any direct light may be the radiosity's
 // source), the source of the indirect bounces. Front side only: the texel's normal is the side
 // its cube map looks into, the winding's, the side that emits. A texel of a moving object is lit
 // where the object stands now (posed.wgsl, §3.3; the moving objects' group at MOVING_GROUP).
@@ -23,5 +23,5 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         e += spot_irradiance(k, t.position, t.normal).rgb;
     }
     let m = materials[t.material];
-    texel_radiance[i] = vec4f(m.kd / PI * e + m.emission_mean, 1.0);
+    texel_radiance[i] = vec4f(bounce_albedo(m) / PI * e + m.emission_mean, 1.0);
 }

@@ -279,8 +279,21 @@ pub fn barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3] {
     [1.0 - v - w, v, w]
 }
 
-/// Diffuse radiance leaving every texel of `texels` (front side), in texel order: Kd/pi times
-/// the exact irradiance, plus the radiance its material emits (`emission_mean` of `materials`,
+/// What a texel reflects in the view-independent bounces of the atlas (§4.1): Kd plus Ks,
+/// clamped to 1, the glossy lobe's energy (Ks of light along the normal, for the normalised
+/// Phong) sent out diffusely instead of lost. `light.wgsl`: `bounce_albedo`.
+///
+/// ```
+/// let rho = cssm_runtime::direct::cpu::bounce_albedo([0.25; 3], [0.5; 3]);
+/// assert_eq!(rho, glam::Vec3::splat(0.75));
+/// assert_eq!(cssm_runtime::direct::cpu::bounce_albedo([0.8; 3], [0.5; 3]).x, 1.0);
+/// ```
+pub fn bounce_albedo(kd: [f32; 3], ks: [f32; 3]) -> Vec3 {
+    (Vec3::from(kd) + Vec3::from(ks)).min(Vec3::ONE)
+}
+
+/// Diffuse radiance leaving every texel of `texels` (front side), in texel order: [`bounce_albedo`] over pi
+/// times the exact irradiance, plus the radiance its material emits (`emission_mean` of `materials`,
 /// the scene's as [`crate::load::cpu_materials`] makes them): the source of the radiosity
 /// (§4.7). `texels` are a file's, each where its object stands in `scene` and `bvh` (the file's
 /// own as baked, or `cssm_formats::moving::posed_texels` of them in the posed scene, §3.3).
@@ -301,7 +314,7 @@ pub fn render_atlas(
                 .filter_map(|l| spot_irradiance(l, bvh, eps, p, n).map(|(e, _)| e))
                 .sum();
             let m = &materials[t.material as usize];
-            Vec3::from(m.kd) / std::f32::consts::PI * e + Vec3::from(m.emission_mean)
+            bounce_albedo(m.kd, m.ks) / std::f32::consts::PI * e + Vec3::from(m.emission_mean)
         })
         .collect()
 }

@@ -435,14 +435,17 @@ pub const PREPARE_PASSES: [PassInfo; 4] = [
     },
 ];
 
-/// Diffuse albedo of every texel of `file` (Kd of its material; textures are not sampled in
-/// the atlas), as the radiosity iteration takes it.
+/// Bounce albedo of every texel of `file` ([`crate::direct::cpu::bounce_albedo`] of its
+/// material: Kd plus Ks; textures are not sampled in the atlas), as the radiosity iteration
+/// takes it.
 pub fn texel_albedo(scene: &Scene, file: &CssmFile) -> Vec<[f32; 4]> {
     file.texels
         .iter()
         .map(|t| {
-            let kd = scene.materials[t.material as usize].kd;
-            [kd[0], kd[1], kd[2], 0.0]
+            let m = &scene.materials[t.material as usize];
+            crate::direct::cpu::bounce_albedo(m.kd, m.ks)
+                .extend(0.0)
+                .to_array()
         })
         .collect()
 }
