@@ -149,6 +149,9 @@ fn flush(closed: &mut Vec<u32>, tail: &mut Tail, options: &CompressOptions) {
     tail.len = 0;
 }
 
+/// Pixels per parallel task of [`Compressor::push`].
+const PIXEL_BLOCK: usize = 1024;
+
 /// Streaming compressor of one CSSM.
 pub struct Compressor {
     pixel_count: u32,
@@ -205,27 +208,34 @@ impl Compressor {
             let first_map = self.maps_seen;
             let chunk = &maps[done * pc..(done + take) * pc];
             let options = self.options;
+            // Blocks of pixels, each walked map by map: the maps' rows are read in order (the
+            // batch was just written by the renderers' threads, and reading it pixel by pixel
+            // down the maps stalled on every load: 17% of a Cornell bake's CPU time), and the
+            // block's open runs stay in the first-level cache.
             self.open
-                .par_iter_mut()
-                .zip(self.segment_runs.par_iter_mut())
-                .zip(self.tails.par_iter_mut())
+                .par_chunks_mut(PIXEL_BLOCK)
+                .zip(self.segment_runs.par_chunks_mut(PIXEL_BLOCK))
+                .zip(self.tails.par_chunks_mut(PIXEL_BLOCK))
                 .enumerate()
-                .with_min_len(256)
-                .for_each(|(pixel, ((open, closed), tail))| {
+                .for_each(|(block, ((opens, closed), tails))| {
+                    let first_pixel = block * PIXEL_BLOCK;
                     for k in 0..take {
-                        let (a, b) = chunk[k * pc + pixel];
-                        let lo = open.lo.max(a);
-                        let hi = open.hi.min(b);
-                        if lo <= hi {
-                            open.lo = lo;
-                            open.hi = hi;
-                        } else {
-                            close_run(closed, tail, *open, &options);
-                            *open = Open {
-                                start: first_map + k as u32,
-                                lo: a,
-                                hi: b,
-                            };
+                        let row = &chunk[k * pc + first_pixel..][..opens.len()];
+                        for (i, &(a, b)) in row.iter().enumerate() {
+                            let open = &mut opens[i];
+                            let lo = open.lo.max(a);
+                            let hi = open.hi.min(b);
+                            if lo <= hi {
+                                open.lo = lo;
+                                open.hi = hi;
+                            } else {
+                                close_run(&mut closed[i], &mut tails[i], *open, &options);
+                                *open = Open {
+                                    start: first_map + k as u32,
+                                    lo: a,
+                                    hi: b,
+                                };
+                            }
                         }
                     }
                 });

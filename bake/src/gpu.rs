@@ -10,7 +10,9 @@
 use cssm_formats::{Texel, cube::DepthQuantizer};
 use cssm_runtime::{
     Gpu,
-    visibility::depth_maps::{DepthMapKernel, DepthMapSettings, DepthMapTexel, PixelHits, decode},
+    visibility::depth_maps::{
+        DepthMapBuffers, DepthMapKernel, DepthMapSettings, DepthMapTexel, PixelHits, decode,
+    },
 };
 use rayon::prelude::*;
 
@@ -82,8 +84,10 @@ impl<'a> GpuMaps<'a> {
             // finished, the one waiting, the one being cast).
             let (send, receive) = std::sync::mpsc::sync_channel(1);
             scope.spawn(move || {
+                let mut buffers = DepthMapBuffers::default();
                 for ids in sequence.chunks(batch) {
-                    let cast = self.cast(texels, ids, n, near, quantizer, second_layer);
+                    let cast =
+                        self.cast(&mut buffers, texels, ids, n, near, quantizer, second_layer);
                     let failed = cast.is_err();
                     if send.send(cast).is_err() || failed {
                         break;
@@ -105,8 +109,10 @@ impl<'a> GpuMaps<'a> {
     }
 
     /// The GPU's answers for texels `ids`: each geometry's texels in one dispatch.
+    #[allow(clippy::too_many_arguments)]
     fn cast(
         &self,
+        buffers: &mut DepthMapBuffers,
         texels: &[Texel],
         ids: &[u32],
         n: u32,
@@ -142,7 +148,11 @@ impl<'a> GpuMaps<'a> {
                 separation: cubemap::separation(quantizer),
                 every_hit_faces: second_layer == cubemap::SecondLayer::Any,
             };
-            answers.push(kernel.run(&self.gpu, &cast, settings).map_err(gpu_error)?);
+            answers.push(
+                kernel
+                    .run_with(&self.gpu, buffers, &cast, settings)
+                    .map_err(gpu_error)?,
+            );
         }
         Ok(Cast { answers, place })
     }

@@ -29,7 +29,7 @@ use cssm_formats::{
 use glam::{DVec3, Vec3};
 
 use crate::cubemap::{self, DONT_CARE, Interval, SecondLayer, Seen};
-use crate::raycast::{FrontHit, HitReducer, SceneBvh, WatertightRay, reduce_hits};
+use crate::raycast::{FrontHit, HitReducer, SceneBvh, SharedAxisRays, WatertightRay, reduce_hits};
 
 /// The scene as the rasteriser reads it: the BVH's own triangles and normals, by scene index.
 pub struct RasterScene {
@@ -88,6 +88,10 @@ struct Scratch {
     centre_dirs: Vec<Vec3>,
     /// Its watertight ray (from the origin).
     centre_rays: Vec<WatertightRay>,
+    /// The same rays laid out to test a triangle against a run of a row's pixels at once.
+    centre_lanes: SharedAxisRays,
+    /// One row's hits, from `centre_lanes`.
+    row_hits: Vec<f32>,
     kind: Vec<u32>,
     extras: Vec<Extra>,
     /// `extras[row_start[face * n + row]..row_start[face * n + row + 1]]` fall in that row.
@@ -326,6 +330,8 @@ fn render_with(
         scratch.centre_rays = (scratch.centre_dirs.iter())
             .map(|&dir| WatertightRay::new(Vec3::ZERO, dir))
             .collect();
+        scratch.centre_lanes = SharedAxisRays::new(&scratch.centre_rays);
+        scratch.row_hits = vec![0.0; n as usize];
         // The centre rays of a face share their axes (the face's major axis is the largest
         // component of each), so a triangle is reordered once per face.
         for (p, ray) in scratch.centre_rays.iter().enumerate() {
@@ -336,6 +342,8 @@ fn render_with(
     let Scratch {
         centre_dirs,
         centre_rays,
+        centre_lanes,
+        row_hits,
         kind,
         extras,
         row_start,
@@ -442,10 +450,18 @@ fn render_with(
             let permuted = tri.rel.map(|p| axes.map(|k| p[k]));
             // Rows of the face to visit, each with its columns.
             let mut visit = |row: u32, c0: u32, c1: u32| {
-                for col in c0..=c1 {
+                let first = (base + row * n + c0) as usize;
+                let hits = &mut row_hits[..(c1 - c0 + 1) as usize];
+                centre_lanes.intersect_permuted(first..first + hits.len(), &permuted, hits);
+                for (col, &t) in (c0..=c1).zip(hits.iter()) {
                     let pixel = base + row * n + col;
                     if kind[pixel as usize] == CENTRE {
-                        let t = centre_rays[pixel as usize].intersect_permuted(&permuted);
+                        // NaN: on an edge within `f32`'s rounding; the ray's own test decides.
+                        let t = if t.is_nan() {
+                            centre_rays[pixel as usize].intersect_permuted(&permuted)
+                        } else {
+                            t
+                        };
                         if t > min_hit {
                             let faces = any || normal_of.dot(centre_dirs[pixel as usize]) < 0.0;
                             reducers[(row * n + col) as usize].add(t, faces, separation);

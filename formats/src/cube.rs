@@ -205,6 +205,7 @@ impl DepthQuantizer {
     /// them is a correct stand-in for the pixel. `second = INFINITY` when the ray leaves the
     /// scene after the first hit, `first = INFINITY` when it hits nothing. When the layers are
     /// closer than one code apart the range collapses to the code of `first`.
+    #[inline]
     pub fn interval(&self, first: f32, second: f32) -> (u16, u16) {
         if !first.is_finite() || first >= self.far {
             return (DEPTH_MAX, DEPTH_MAX);
@@ -215,6 +216,7 @@ impl DepthQuantizer {
 
     /// Largest code whose depth lies before `depth` (clamped to 0), [`DEPTH_MAX`] when `depth` is
     /// infinite or beyond the far plane: the top of an interval that `depth` closes.
+    #[inline]
     pub fn last_code_before(&self, depth: f32) -> u16 {
         if !depth.is_finite() || depth >= self.far {
             DEPTH_MAX

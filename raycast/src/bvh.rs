@@ -159,17 +159,9 @@ impl WatertightRay {
     /// or already reordered (`[0, 1, 2]`, constant indices once inlined).
     #[inline(always)]
     fn test(&self, rel: &[[f32; 3]; 3], axes: [usize; 3]) -> f32 {
-        let [a, b, c] = rel;
-        let [kx, ky, kz] = axes;
-        let ax = a[kx] - self.sx * a[kz];
-        let ay = a[ky] - self.sy * a[kz];
-        let bx = b[kx] - self.sx * b[kz];
-        let by = b[ky] - self.sy * b[kz];
-        let cx = c[kx] - self.sx * c[kz];
-        let cy = c[ky] - self.sy * c[kz];
-        let mut u = cx * by - cy * bx;
-        let mut v = ax * cy - ay * cx;
-        let mut w = bx * ay - by * ax;
+        let (sx, sy, sz) = (self.sx, self.sy, self.sz);
+        let [ax, ay, bx, by, cx, cy] = sheared(rel, axes, sx, sy);
+        let [mut u, mut v, mut w] = edge_functions([ax, ay, bx, by, cx, cy]);
         if u == 0.0 || v == 0.0 || w == 0.0 {
             // Fall back to double precision on the edge, as the paper does.
             u = (cx as f64 * by as f64 - cy as f64 * bx as f64) as f32;
@@ -183,8 +175,121 @@ impl WatertightRay {
         if det == 0.0 {
             return f32::INFINITY;
         }
-        let t = (u * self.sz * a[kz] + v * self.sz * b[kz] + w * self.sz * c[kz]) / det;
+        let t = distance_numerator(rel, axes, sz, [u, v, w]) / det;
         if t.is_finite() { t } else { f32::INFINITY }
+    }
+}
+
+/// The corners relative to the ray's origin, sheared so that the ray runs along the third axis:
+/// `[ax, ay, bx, by, cx, cy]`.
+#[inline(always)]
+fn sheared(rel: &[[f32; 3]; 3], axes: [usize; 3], sx: f32, sy: f32) -> [f32; 6] {
+    let [a, b, c] = rel;
+    let [kx, ky, kz] = axes;
+    [
+        a[kx] - sx * a[kz],
+        a[ky] - sy * a[kz],
+        b[kx] - sx * b[kz],
+        b[ky] - sy * b[kz],
+        c[kx] - sx * c[kz],
+        c[ky] - sy * c[kz],
+    ]
+}
+
+/// The scaled barycentric coordinates `[u, v, w]` of the ray's point in the sheared triangle.
+#[inline(always)]
+fn edge_functions([ax, ay, bx, by, cx, cy]: [f32; 6]) -> [f32; 3] {
+    [cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax]
+}
+
+/// `t * det`: the hit's distance weighted by the barycentric coordinates.
+#[inline(always)]
+fn distance_numerator(rel: &[[f32; 3]; 3], axes: [usize; 3], sz: f32, [u, v, w]: [f32; 3]) -> f32 {
+    let [a, b, c] = rel;
+    let kz = axes[2];
+    u * sz * a[kz] + v * sz * b[kz] + w * sz * c[kz]
+}
+
+/// Many rays from one origin sharing their axes ([`WatertightRay::axes`]), say the centre rays
+/// of one cube face, laid out for testing one triangle against a run of them at once:
+/// [`SharedAxisRays::intersect_permuted`] is [`WatertightRay::intersect_permuted`] for each, with
+/// the same arithmetic, in lanes the compiler can vectorise.
+///
+/// ```
+/// use cssm_raycast::{SharedAxisRays, WatertightRay};
+/// use glam::Vec3;
+/// let rays: Vec<_> = (0..8)
+///     .map(|i| WatertightRay::new(Vec3::ZERO, Vec3::new(i as f32 * 0.1 - 0.4, 0.05, 1.0)))
+///     .collect();
+/// let shared = SharedAxisRays::new(&rays);
+/// let tri = [[-1.0, -1.0, 2.0], [1.0, -1.0, 2.0], [0.0, 1.0, 3.0f32]];
+/// let axes = rays[0].axes();
+/// let permuted = tri.map(|p| axes.map(|k| p[k]));
+/// let mut t = [0.0; 8];
+/// shared.intersect_permuted(0..8, &permuted, &mut t);
+/// for (ray, t) in rays.iter().zip(t) {
+///     let t = if t.is_nan() { ray.intersect_permuted(&permuted) } else { t };
+///     assert_eq!(t.to_bits(), ray.intersect_permuted(&permuted).to_bits());
+/// }
+/// ```
+#[derive(Clone, Debug, Default)]
+pub struct SharedAxisRays {
+    sx: Vec<f32>,
+    sy: Vec<f32>,
+    sz: Vec<f32>,
+}
+
+impl SharedAxisRays {
+    /// The per-ray constants of `rays` (their origins are not used).
+    pub fn new(rays: &[WatertightRay]) -> Self {
+        Self {
+            sx: rays.iter().map(|r| r.sx).collect(),
+            sy: rays.iter().map(|r| r.sy).collect(),
+            sz: rays.iter().map(|r| r.sz).collect(),
+        }
+    }
+
+    /// Number of rays.
+    pub fn len(&self) -> usize {
+        self.sx.len()
+    }
+
+    /// True when there is no ray.
+    pub fn is_empty(&self) -> bool {
+        self.sx.is_empty()
+    }
+
+    /// Writes into `out[i]` the hit of ray `range.start + i` with the triangle whose corners
+    /// are `rel` (relative to the origin, coordinates in the rays' axes' order), exactly as
+    /// [`WatertightRay::intersect_permuted`] gives it, or NaN for a ray that meets the
+    /// triangle's edge or corner within `f32`'s rounding: the caller asks that ray's own test,
+    /// which decides those in double precision (rarely needed; a branch-free lane cannot).
+    #[inline]
+    pub fn intersect_permuted(
+        &self,
+        range: std::ops::Range<usize>,
+        rel: &[[f32; 3]; 3],
+        out: &mut [f32],
+    ) {
+        const AXES: [usize; 3] = [0, 1, 2];
+        let out = &mut out[..range.len()];
+        let (sx, sy, sz) = (
+            &self.sx[range.clone()],
+            &self.sy[range.clone()],
+            &self.sz[range],
+        );
+        for (((t_out, &sx), &sy), &sz) in out.iter_mut().zip(sx).zip(sy).zip(sz) {
+            // `WatertightRay::test` without its branches: the same operations in the same
+            // order, each outcome selected afterwards.
+            let [u, v, w] = edge_functions(sheared(rel, AXES, sx, sy));
+            let on_edge = (u == 0.0) | (v == 0.0) | (w == 0.0);
+            let outside = ((u < 0.0) | (v < 0.0) | (w < 0.0)) & ((u > 0.0) | (v > 0.0) | (w > 0.0));
+            let det = u + v + w;
+            let t = distance_numerator(rel, AXES, sz, [u, v, w]) / det;
+            let miss = outside | (det == 0.0) | !t.is_finite();
+            let t = if miss { f32::INFINITY } else { t };
+            *t_out = if on_edge { f32::NAN } else { t };
+        }
     }
 }
 
@@ -255,32 +360,45 @@ impl HitReducer {
         if !(t > 0.0 && t < self.second) {
             return;
         }
-        if t < self.first {
-            let old = (self.first, self.faces & (1 << CLUSTER) != 0);
-            let old_cluster = self.cluster;
-            let old_faces = self.faces;
-            let old_len = self.len as usize;
+        // The common cases inline (the first hit, or one beyond it), the re-sort out of line.
+        if self.first == f32::INFINITY {
             self.first = t;
             self.faces = u8::from(faces) << CLUSTER;
-            self.len = 0;
-            let members = old_cluster[..old_len]
-                .iter()
-                .enumerate()
-                .map(|(i, &m)| (m, old_faces & (1 << i) != 0))
-                .chain(std::iter::once(old).filter(|&(m, _)| m.is_finite()));
-            for (m, m_faces) in members {
-                if beyond(m, t, separation) {
-                    if m_faces && m < self.second {
-                        self.second = m;
-                    }
-                } else {
-                    self.push(m, m_faces);
-                }
-            }
+            return;
+        }
+        if t < self.first {
+            self.nearer_first(t, faces, separation);
         } else if !beyond(t, self.first, separation) {
             self.push(t, faces);
         } else if faces {
             self.second = t;
+        }
+    }
+
+    /// [`HitReducer::add`] of a hit nearer than the first: the old first and its cluster are
+    /// sorted again around the new one.
+    #[inline(never)]
+    fn nearer_first(&mut self, t: f32, faces: bool, separation: f32) {
+        let old = (self.first, self.faces & (1 << CLUSTER) != 0);
+        let old_cluster = self.cluster;
+        let old_faces = self.faces;
+        let old_len = self.len as usize;
+        self.first = t;
+        self.faces = u8::from(faces) << CLUSTER;
+        self.len = 0;
+        let members = old_cluster[..old_len]
+            .iter()
+            .enumerate()
+            .map(|(i, &m)| (m, old_faces & (1 << i) != 0))
+            .chain(std::iter::once(old).filter(|&(m, _)| m.is_finite()));
+        for (m, m_faces) in members {
+            if beyond(m, t, separation) {
+                if m_faces && m < self.second {
+                    self.second = m;
+                }
+            } else {
+                self.push(m, m_faces);
+            }
         }
     }
 
@@ -704,6 +822,61 @@ mod tests {
         }
         // The fallback path is exercised, but rarely.
         assert!(overflows > 0 && overflows < 20_000, "{overflows}");
+    }
+
+    /// The lanes of [`SharedAxisRays`] give each ray's own answer bit for bit, or NaN where the
+    /// ray's own test takes its double-precision path; rays aimed at corners and along edges of
+    /// triangles on a coarse grid make that path, exact hits and exact misses common.
+    #[test]
+    fn shared_axis_rays_answer_as_each_ray() {
+        let mut rng = crate::SplitMix64(11);
+        let mut grid = |scale: f64| ((rng.next_f64() * 8.0).floor() - 4.0) as f32 * scale as f32;
+        let (mut edges, mut hits, mut total) = (0, 0, 0);
+        for face in 0..6usize {
+            // Directions around one axis, so the rays share their axes.
+            let (major, sign) = (face / 2, if face % 2 == 0 { 1.0 } else { -1.0 });
+            let rays: Vec<WatertightRay> = (0..64)
+                .map(|i| {
+                    let mut d = [0.0f32; 3];
+                    d[major] = sign;
+                    d[(major + 1) % 3] = ((i % 8) as f32 - 3.5) / 5.0;
+                    d[(major + 2) % 3] = ((i / 8) as f32 - 4.0) / 5.0;
+                    WatertightRay::new(Vec3::ZERO, Vec3::from_array(d))
+                })
+                .collect();
+            let axes = rays[0].axes();
+            assert!(rays.iter().all(|r| r.axes() == axes));
+            let lanes = SharedAxisRays::new(&rays);
+            let mut out = vec![0.0; rays.len()];
+            for _ in 0..400 {
+                // Corners on a grid of quarter units at depth 1 to 4 along the face's axis,
+                // so rays through corners and edges occur.
+                let tri: [[f32; 3]; 3] = std::array::from_fn(|_| {
+                    let mut p = [0.0f32; 3];
+                    p[major] = sign * (2.5 + grid(0.5)).max(0.5);
+                    p[(major + 1) % 3] = grid(0.25);
+                    p[(major + 2) % 3] = grid(0.25);
+                    p
+                });
+                let permuted = tri.map(|p| axes.map(|k| p[k]));
+                let (start, end) = (3, 3 + 7 + (total % 50));
+                lanes.intersect_permuted(start..end, &permuted, &mut out);
+                for (ray, &t) in rays[start..end].iter().zip(&out) {
+                    let expected = ray.intersect_permuted(&permuted);
+                    total += 1;
+                    if t.is_nan() {
+                        edges += 1;
+                    } else {
+                        assert_eq!(t.to_bits(), expected.to_bits(), "{tri:?}");
+                        hits += usize::from(t.is_finite());
+                    }
+                }
+            }
+        }
+        assert!(
+            edges > 100 && hits > 1000 && hits + edges < total,
+            "{edges} {hits} {total}"
+        );
     }
 
     /// The BVH's pruned traversal meets every hit that matters: on random triangle soups its

@@ -27,7 +27,8 @@ pub mod rng;
 pub mod sample;
 
 pub use bvh::{
-    DualHit, FrontHit, HitReducer, SceneBvh, WatertightRay, reduce_hits, scene_triangles,
+    DualHit, FrontHit, HitReducer, SceneBvh, SharedAxisRays, WatertightRay, reduce_hits,
+    scene_triangles,
 };
 pub use rng::SplitMix64;
 pub use sample::{SurfacePoint, SurfaceSampler, triangle_area};

@@ -27,6 +27,18 @@ fn map_and_copy(
     staging: &wgpu::Buffer,
     size: u64,
 ) -> Result<Vec<u8>, RuntimeError> {
+    map_read(device, staging, size, <[u8]>::to_vec)
+}
+
+/// Maps the first `size` bytes of `staging` (a `MAP_READ` buffer whose copy was submitted),
+/// waits for the GPU, hands them to `read` and unmaps: `read` converts them in one pass, where
+/// [`read_buffer`] copies them out first.
+pub fn map_read<R>(
+    device: &wgpu::Device,
+    staging: &wgpu::Buffer,
+    size: u64,
+    read: impl FnOnce(&[u8]) -> R,
+) -> Result<R, RuntimeError> {
     let (tx, rx) = std::sync::mpsc::channel();
     staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
         let _ = tx.send(r);
@@ -43,12 +55,14 @@ fn map_and_copy(
         ))
     };
     rx.recv().map_err(|e| lost(&e))?.map_err(|e| lost(&e))?;
-    let data = staging
-        .get_mapped_range(0..size)
-        .map_err(|e| RuntimeError::Gpu(e.to_string()))?
-        .to_vec();
+    let result = {
+        let view = staging
+            .get_mapped_range(0..size)
+            .map_err(|e| RuntimeError::Gpu(e.to_string()))?;
+        read(&view)
+    };
     staging.unmap();
-    Ok(data)
+    Ok(result)
 }
 
 /// Reads a texture's mip 0 (every layer of an array, every slice of a 3D texture) as tightly

@@ -20,6 +20,8 @@ use glam::Vec3;
 use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::builder::build_bvh2};
 use wgpu::util::DeviceExt;
 
+use std::mem::size_of;
+
 use crate::{Gpu, RuntimeError, common::layout};
 
 /// One texel's cube map as the kernel casts it.
@@ -209,13 +211,31 @@ impl DepthMapKernel {
         texels: &[DepthMapTexel],
         settings: DepthMapSettings,
     ) -> Result<Vec<PixelHits>, RuntimeError> {
+        self.run_with(gpu, &mut DepthMapBuffers::default(), texels, settings)
+    }
+
+    /// [`DepthMapKernel::run`] in `buffers`, kept from call to call: a bake runs hundreds of
+    /// batches, and creating a batch's buffers (its answers twice, on the GPU and the readback
+    /// side) for each would cost more than copying its texels in. Kernels of different scenes
+    /// may share one set.
+    ///
+    /// # Errors
+    /// As [`DepthMapKernel::run`].
+    pub fn run_with(
+        &self,
+        gpu: &Gpu,
+        buffers: &mut DepthMapBuffers,
+        texels: &[DepthMapTexel],
+        settings: DepthMapSettings,
+    ) -> Result<Vec<PixelHits>, RuntimeError> {
         if texels.is_empty() {
             return Ok(Vec::new());
         }
         let device = &gpu.device;
         let pixels = 6 * settings.resolution as usize * settings.resolution as usize;
         let items = texels.len() * pixels;
-        crate::load::limit_check(device, "the depth maps' answers", 8 * items as u64)?;
+        let answer_bytes = 8 * items as u64;
+        crate::load::limit_check(device, "the depth maps' answers", answer_bytes)?;
         if items > u32::MAX as usize {
             return Err(RuntimeError::TooLarge {
                 what: "the depth maps' pixels",
@@ -231,42 +251,101 @@ impl DepthMapKernel {
             separation: settings.separation,
             ..Default::default()
         };
-        let param_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("depth map parameters"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let texel_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("depth map texels"),
-            contents: bytemuck::cast_slice(texels),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let output = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("depth map hits"),
-            size: 8 * items as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let texel_bytes: &[u8] = bytemuck::cast_slice(texels);
+        use wgpu::BufferUsages as U;
+        let param_buffer = buffers.params.take(
+            device,
+            "depth map parameters",
+            size_of::<GpuDepthMapParams>() as u64,
+            U::UNIFORM | U::COPY_DST,
+        );
+        let texel_buffer = buffers.texels.take(
+            device,
+            "depth map texels",
+            texel_bytes.len() as u64,
+            U::STORAGE | U::COPY_DST,
+        );
+        let output = buffers.output.take(
+            device,
+            "depth map hits",
+            answer_bytes,
+            U::STORAGE | U::COPY_SRC,
+        );
+        let staging = buffers.staging.take(
+            device,
+            "depth map readback",
+            answer_bytes,
+            U::MAP_READ | U::COPY_DST,
+        );
+        gpu.queue
+            .write_buffer(param_buffer, 0, bytemuck::bytes_of(&params));
+        gpu.queue.write_buffer(texel_buffer, 0, texel_bytes);
+        // The bindings cover what this batch uses only: the shader reads its sizes from them.
+        fn binding(buffer: &wgpu::Buffer, size: u64) -> wgpu::BindingResource<'_> {
+            wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer,
+                offset: 0,
+                size: wgpu::BufferSize::new(size),
+            })
+        }
         let io = layout::bind_group(
             device,
             "depth maps",
             &self.io_layout,
             &[
                 param_buffer.as_entire_binding(),
-                texel_buffer.as_entire_binding(),
-                output.as_entire_binding(),
+                binding(texel_buffer, texel_bytes.len() as u64),
+                binding(output, answer_bytes),
             ],
         );
-        let bytes = super::dispatch_and_read(
+        let mut encoder = super::dispatch(
             gpu,
             "depth cube maps",
             &self.pipeline,
             &[&io, &self.bvh_group],
             items,
-            &output,
             None,
-        )?;
-        Ok(bytemuck::pod_collect_to_vec(&bytes))
+        );
+        encoder.copy_buffer_to_buffer(output, 0, staging, 0, answer_bytes);
+        gpu.queue.submit([encoder.finish()]);
+        crate::common::readback::map_read(device, staging, answer_bytes, |bytes| {
+            bytemuck::pod_collect_to_vec(bytes)
+        })
+    }
+}
+
+/// The buffers of [`DepthMapKernel::run_with`], created on first use and grown when a batch
+/// needs more.
+#[derive(Default)]
+pub struct DepthMapBuffers {
+    params: Reused,
+    texels: Reused,
+    output: Reused,
+    staging: Reused,
+}
+
+/// One buffer kept for the next batch.
+#[derive(Default)]
+struct Reused(Option<wgpu::Buffer>);
+
+impl Reused {
+    /// The buffer, replaced by a new one when it holds fewer than `size` bytes.
+    fn take(
+        &mut self,
+        device: &wgpu::Device,
+        label: &'static str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+    ) -> &wgpu::Buffer {
+        if self.0.as_ref().is_none_or(|b| b.size() < size) {
+            self.0 = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            }));
+        }
+        self.0.as_ref().expect("created above")
     }
 }
 

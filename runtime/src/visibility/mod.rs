@@ -239,8 +239,22 @@ pub(crate) fn dispatch_and_read(
     bind_groups: &[&wgpu::BindGroup],
     items: usize,
     answers: &wgpu::Buffer,
-    mut timer: Option<&mut crate::common::timestamps::PassTimer>,
+    timer: Option<&mut crate::common::timestamps::PassTimer>,
 ) -> Result<Vec<u8>, RuntimeError> {
+    let encoder = dispatch(gpu, label, pipeline, bind_groups, items, timer);
+    gpu.queue.submit([encoder.finish()]);
+    readback::read_buffer(&gpu.device, &gpu.queue, answers, 0, answers.size())
+}
+
+/// Encodes one invocation of `pipeline` per item (timed by `timer` when given).
+pub(crate) fn dispatch(
+    gpu: &Gpu,
+    label: &'static str,
+    pipeline: &wgpu::ComputePipeline,
+    bind_groups: &[&wgpu::BindGroup],
+    items: usize,
+    mut timer: Option<&mut crate::common::timestamps::PassTimer>,
+) -> wgpu::CommandEncoder {
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     let (gx, gy) = dispatch_size(items as u32);
     {
@@ -258,8 +272,7 @@ pub(crate) fn dispatch_and_read(
     if let Some(t) = timer.as_deref() {
         t.resolve(&mut encoder);
     }
-    gpu.queue.submit([encoder.finish()]);
-    readback::read_buffer(&gpu.device, &gpu.queue, answers, 0, answers.size())
+    encoder
 }
 
 #[cfg(test)]
