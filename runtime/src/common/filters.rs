@@ -30,6 +30,7 @@ use crate::{
     RuntimeError,
     common::{gbuffer::GBuffer, layout},
     frame::FrameEncoder,
+    method::{OptionKind, OptionSpec},
     shaders::{self, Shader},
 };
 
@@ -38,6 +39,34 @@ pub const MAX_RADIUS: u32 = 16;
 
 /// Largest reduction per side.
 pub const MAX_FACTOR: u32 = 4;
+
+/// The `downsample` option of a method whose light the filters up-sample ([`FilterOptions`]'s
+/// factor), with its own help and default.
+pub(crate) const fn downsample_option(help: &'static str, default: u32) -> OptionSpec {
+    OptionSpec {
+        name: "downsample",
+        help,
+        kind: OptionKind::Count {
+            default,
+            min: 1,
+            max: MAX_FACTOR,
+        },
+    }
+}
+
+/// The `blur` option of a method whose light the filters blur ([`FilterOptions`]'s radius),
+/// with its own help and default.
+pub(crate) const fn blur_option(help: &'static str, default: u32) -> OptionSpec {
+    OptionSpec {
+        name: "blur",
+        help,
+        kind: OptionKind::Count {
+            default,
+            min: 0,
+            max: MAX_RADIUS,
+        },
+    }
+}
 
 /// Size of the low-res image for a full-res `(width, height)` reduced by `factor` per side.
 pub fn low_size((w, h): (u32, u32), factor: u32) -> (u32, u32) {
@@ -86,6 +115,16 @@ impl Default for FilterOptions {
 }
 
 impl FilterOptions {
+    /// A method's light at 1/`factor` of the resolution per side, blurred with `radius` taps on
+    /// each side, the other settings at their defaults.
+    pub fn reduced(factor: u32, radius: u32) -> Self {
+        Self {
+            factor,
+            radius,
+            ..Default::default()
+        }
+    }
+
     /// Refuses a factor outside 1 to [`MAX_FACTOR`], a radius above [`MAX_RADIUS`], sigmas
     /// that are not finite and positive, and a normal power that is not finite and
     /// non-negative.

@@ -313,25 +313,15 @@ pub const METHOD: MethodEntry = MethodEntry {
         // tracer is no larger than the full gather's (0.0788 against 0.0817 relative RMSE, and
         // 0.2311 against 0.2337) for a quarter of the gathers; 4 leaves the 10% target
         // (0.1067). reports/final-gather.md, "A reduced-resolution gather".
-        OptionSpec {
-            name: "downsample",
-            help: "final gather at 1/N of the resolution per side, then up-sampled by the \
+        filters::downsample_option(
+            "final gather at 1/N of the resolution per side, then up-sampled by the \
                    edge-aware filters (N² times fewer gathers)",
-            kind: OptionKind::Count {
-                default: 2,
-                min: 1,
-                max: filters::MAX_FACTOR,
-            },
-        },
-        OptionSpec {
-            name: "blur",
-            help: "taps on each side of the edge-aware blur of a down-sampled gather, 0 for none",
-            kind: OptionKind::Count {
-                default: 0,
-                min: 0,
-                max: filters::MAX_RADIUS,
-            },
-        },
+            2,
+        ),
+        filters::blur_option(
+            "taps on each side of the edge-aware blur of a down-sampled gather, 0 for none",
+            0,
+        ),
     ],
     passes: &[
         radiosity::PREPARE_PASSES[0],
@@ -397,11 +387,7 @@ impl LightcutsOptions {
 
     /// The shared filters' settings for a down-sampled gather.
     pub fn filter(&self) -> FilterOptions {
-        FilterOptions {
-            factor: self.downsample,
-            radius: self.blur,
-            ..Default::default()
-        }
+        FilterOptions::reduced(self.downsample, self.blur)
     }
 }
 

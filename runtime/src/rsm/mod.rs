@@ -107,11 +107,7 @@ impl RsmOptions {
 
     /// The shared filters' settings for these options.
     pub fn filter(&self) -> FilterOptions {
-        FilterOptions {
-            factor: self.downsample,
-            radius: self.blur,
-            ..Default::default()
-        }
+        FilterOptions::reduced(self.downsample, self.blur)
     }
 }
 
@@ -292,24 +288,14 @@ pub const METHOD: MethodEntry = MethodEntry {
                 min: 0.01,
             },
         },
-        OptionSpec {
-            name: "downsample",
-            help: "indirect light at 1/N of the resolution per side, then up-sampled (§4.4)",
-            kind: OptionKind::Count {
-                default: 2,
-                min: 1,
-                max: filters::MAX_FACTOR,
-            },
-        },
-        OptionSpec {
-            name: "blur",
-            help: "taps on each side of the edge-aware blur (§4.5), 0 for none",
-            kind: OptionKind::Count {
-                default: 8,
-                min: 0,
-                max: filters::MAX_RADIUS,
-            },
-        },
+        filters::downsample_option(
+            "indirect light at 1/N of the resolution per side, then up-sampled (§4.4)",
+            2,
+        ),
+        filters::blur_option(
+            "taps on each side of the edge-aware blur (§4.5), 0 for none",
+            8,
+        ),
     ],
     passes: &[
         PassInfo {

@@ -180,11 +180,7 @@ impl SsilOptions {
 
     /// The shared filters' settings.
     pub fn filter(&self) -> FilterOptions {
-        FilterOptions {
-            factor: 1 << self.start_level,
-            radius: self.blur,
-            ..Default::default()
-        }
+        FilterOptions::reduced(1 << self.start_level, self.blur)
     }
 }
 
@@ -1108,15 +1104,10 @@ pub const METHOD: MethodEntry = MethodEntry {
                 min: 0.0,
             },
         },
-        OptionSpec {
-            name: "blur",
-            help: "taps on each side of the edge-aware blur at the finest gathered level",
-            kind: OptionKind::Count {
-                default: 2,
-                min: 0,
-                max: filters::MAX_RADIUS,
-            },
-        },
+        filters::blur_option(
+            "taps on each side of the edge-aware blur at the finest gathered level",
+            2,
+        ),
         OptionSpec {
             name: "temporal",
             help: "weight of the reprojected previous frame, 0 to below 1 (§4, Eq. 6)",
