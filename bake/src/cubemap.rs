@@ -80,8 +80,8 @@ impl std::str::FromStr for SecondLayer {
 /// differs with the scene's size (reports/bake.md, "CPU rasteriser").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CubeRenderer {
-    /// The rasteriser for scenes of at most `N^3 / 48` triangles at cube resolution `N`, the BVH
-    /// above ([`CubeRenderer::resolve`]).
+    /// The rasteriser for scenes of at most `N^2.5 / 5` triangles at cube resolution `N`, the
+    /// BVH above ([`CubeRenderer::resolve`]).
     #[default]
     Auto,
     /// Triangle by triangle ([`crate::raster`]): fastest for scenes of few triangles.
@@ -106,24 +106,26 @@ impl CubeRenderer {
 
     /// The renderer used for a scene of `triangles` triangles at cube resolution `n`:
     /// [`CubeRenderer::Raster`] or [`CubeRenderer::Bvh`]. [`CubeRenderer::Auto`] rasterises up
-    /// to `n^3 / 48` triangles (10 at cube 8, 85 at 16, 682 at 32, 5,461 at 64). The
+    /// to `n^2.5 / 5` triangles (36 at cube 8, 204 at 16, 1,158 at 32, 6,553 at 64). The
     /// rasteriser's cost per map grows with the triangles (each is clipped to every face and
     /// scanned row by row) and the pixels they cover, the BVH's with the pixels and slowly with
     /// the triangles; in `benches/cube_renderer.rs` (the Cornell box split into more and more
-    /// triangles) the two break even at about 19 triangles at cube 8, 170 at 16, 745 at 32 and
-    /// 5,000 at 64, close to `n^3 / 48` (reports/bake.md, "CPU rasteriser").
+    /// triangles, and the teapot) the two break even at about 28 triangles at cube 8, 200 at 16,
+    /// 1,150 at 32 and 5,600-6,500 at 64 (reports/bake.md, "The rasteriser's crossover, again").
     ///
     /// ```
     /// use cssm_bake::cubemap::CubeRenderer;
     /// assert_eq!(CubeRenderer::Auto.resolve(30, 64), CubeRenderer::Raster);
-    /// assert_eq!(CubeRenderer::Auto.resolve(30, 8), CubeRenderer::Bvh);
-    /// assert_eq!(CubeRenderer::Auto.resolve(6_320, 64), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Auto.resolve(100, 8), CubeRenderer::Bvh);
+    /// assert_eq!(CubeRenderer::Auto.resolve(6_320, 64), CubeRenderer::Raster);
+    /// assert_eq!(CubeRenderer::Auto.resolve(7_680, 64), CubeRenderer::Bvh);
     /// assert_eq!(CubeRenderer::Auto.resolve(2_000, 32), CubeRenderer::Bvh);
     /// assert_eq!(CubeRenderer::Bvh.resolve(30, 64), CubeRenderer::Bvh);
     /// ```
     pub fn resolve(self, triangles: usize, n: u32) -> CubeRenderer {
         match self {
-            CubeRenderer::Auto if triangles as u64 * 48 <= u64::from(n).pow(3) => {
+            // triangles <= n^2.5 / 5, squared to stay in integers.
+            CubeRenderer::Auto if (triangles as u128).pow(2) * 25 <= u128::from(n).pow(5) => {
                 CubeRenderer::Raster
             }
             CubeRenderer::Auto => CubeRenderer::Bvh,
