@@ -365,12 +365,9 @@ fn render_with(
         let a = &mut active[face as usize];
         *a = [a[0].min(row), a[1].max(row), a[2].min(col), a[3].max(col)];
     };
-    let nrm = normal.to_array();
-    let half_step = 1.0 / n as f32;
     for face in 0..6 {
         // `cube::pixel_is_dont_care` with its per-face term hoisted, the same arithmetic.
-        let (_, ua, va) = cube::face_axes(face);
-        let corner_reach = half_step * (nrm[ua].abs() + nrm[va].abs());
+        let corner_reach = cube::dont_care_reach(n, face, normal);
         for (row, col) in (0..n).flat_map(|row| (0..n).map(move |col| (row, col))) {
             let pixel = face * n * n + row * n + col;
             let below = centre_dirs[pixel as usize].dot(normal);
@@ -383,7 +380,8 @@ fn render_with(
                 activate(face, row, col);
                 continue;
             }
-            let (dir, depth_scale) = cube::cast_direction(n, pixel, normal);
+            let (dir, depth_scale) =
+                cube::cast_direction_from(centre_dirs[pixel as usize], below, normal, face);
             if depth_scale < 1e-3 {
                 continue;
             }

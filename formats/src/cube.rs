@@ -122,10 +122,7 @@ pub fn pixel_is_dont_care(n: u32, pixel: u32, normal: Vec3) -> bool {
     // `dot(normal, direction)` is linear in (u, v) over a face, so its largest value over the
     // pixel's corners is the value at the centre plus half a pixel step times |n_u| + |n_v|.
     let (face, _, _) = split_pixel(n, pixel);
-    let (_, ua, va) = face_axes(face);
-    let nrm = normal.to_array();
-    let half_step = 1.0 / n as f32;
-    pixel_direction(n, pixel).dot(normal) + half_step * (nrm[ua].abs() + nrm[va].abs()) < 0.0
+    pixel_direction(n, pixel).dot(normal) + dont_care_reach(n, face, normal) < 0.0
 }
 
 /// The ray the bake casts for `pixel` of a texel with normal `normal`, and the factor that turns
@@ -136,13 +133,29 @@ pub fn pixel_is_dont_care(n: u32, pixel: u32, normal: Vec3) -> bool {
 #[inline]
 pub fn cast_direction(n: u32, pixel: u32, normal: Vec3) -> (Vec3, f32) {
     let dir = pixel_direction(n, pixel);
-    let below = dir.dot(normal);
+    cast_direction_from(dir, dir.dot(normal), normal, pixel / (n * n))
+}
+
+/// [`cast_direction`] from the pixel's centre direction `dir` on face `face` and
+/// `below = dir.dot(normal)`, for a renderer that has them already.
+#[inline]
+pub fn cast_direction_from(dir: Vec3, below: f32, normal: Vec3, face: u32) -> (Vec3, f32) {
     if below >= 0.0 {
         return (dir, 1.0);
     }
     let projected = dir - normal * below;
-    let major = (pixel / (n * n) / 2) as usize;
+    let major = (face / 2) as usize;
     (projected, projected.to_array()[major].abs())
+}
+
+/// Half a pixel's reach of `dot(normal, direction)` on face `face` at resolution `n`:
+/// [`pixel_is_dont_care`] is `pixel_direction(n, pixel).dot(normal) + dont_care_reach(..) < 0`.
+#[inline]
+pub fn dont_care_reach(n: u32, face: u32, normal: Vec3) -> f32 {
+    let (_, ua, va) = face_axes(face);
+    let nrm = normal.to_array();
+    let half_step = 1.0 / n as f32;
+    half_step * (nrm[ua].abs() + nrm[va].abs())
 }
 
 /// `x.ceil().clamp(0.0, DEPTH_MAX as f32) as u16` (NaN gives 0), without `ceilf`: on x86-64's
