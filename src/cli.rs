@@ -230,8 +230,8 @@ pub struct BakeArgs {
     /// Which renderer draws the depth cube maps: raster (triangle by triangle, the watertight
     /// ray/triangle test on the pixels each triangle covers; fastest for scenes of few
     /// triangles), bvh (one BVH traversal per pixel), or auto (raster for scenes of at most
-    /// N^3/48 triangles at cube resolution N, about where the two break even: 5,461 at cube 64;
-    /// bvh above; the default).
+    /// N^2.5/5 triangles at cube resolution N, about where the two break even: 1,158 at cube 32,
+    /// 6,553 at cube 64; bvh above; the default).
     /// The file is byte-identical either way; only the time differs (reports/bake.md).
     #[arg(long, default_value = "auto")]
     cube_renderer: bake::cubemap::CubeRenderer,
