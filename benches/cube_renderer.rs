@@ -188,8 +188,8 @@ fn main() {
         let near = bake::DEFAULT_NEAR_FRACTION * far;
         let quantizer = DepthQuantizer::new(near, far);
         let bvh = SceneBvh::new(scene);
-        let by_bvh = Renderer::new(&bvh, CubeRenderer::Bvh);
-        let by_raster = Renderer::new(&bvh, CubeRenderer::Raster);
+        let by_bvh = Renderer::new(&bvh, CubeRenderer::Bvh, Default::default());
+        let by_raster = Renderer::new(&bvh, CubeRenderer::Raster, Default::default());
         let ((bvh_s, rays, bvh_maps), (raster_s, raster_rays, raster_maps)) = pool.install(|| {
             (
                 time_renderer(&by_bvh, &texels, n, near, &quantizer),

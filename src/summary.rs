@@ -68,6 +68,8 @@ pub struct BakeSummary {
     pub merge_short_runs: u32,
     /// Which intersection closes a pixel's interval ([`bake::cubemap::SecondLayer::name`]).
     pub second_layer: String,
+    /// Where each texel's pixels sit ([`formats::cube::PixelGrid::name`]).
+    pub pixel_grid: String,
     /// How the file codes the runs ([`formats::cssm::FileCoding::name`]).
     pub file_coding: String,
     /// Atlas charts.
@@ -144,6 +146,7 @@ impl BakeSummary {
             run_value: options.run_value.name().into(),
             merge_short_runs: options.merge_short_runs,
             second_layer: options.second_layer.name().into(),
+            pixel_grid: options.pixel_grid.name().into(),
             file_coding: file_coding.name().into(),
             charts: s.charts,
             defined_texels: s.defined_texels,
@@ -189,7 +192,8 @@ impl fmt::Display for BakeSummary {
         )?;
         writeln!(
             f,
-            "  cube 6x{c}x{c}, {} traversal, {} rays ({:.1} M rays/s, {:.0} maps/s)",
+            "  cube 6x{c}x{c} ({} pixel grid), {} traversal, {} rays ({:.1} M rays/s, {:.0} maps/s)",
+            self.pixel_grid,
             self.traversal,
             self.rays,
             self.rays_per_second / 1e6,
@@ -277,6 +281,8 @@ pub struct InspectSummary {
     pub far: f32,
     /// Texel order ([`formats::Traversal::name`]).
     pub traversal: String,
+    /// Where each texel's pixels sit ([`formats::cube::PixelGrid::name`]).
+    pub pixel_grid: String,
     /// Defined texels: depth maps.
     pub defined_texels: u64,
     /// Runs.
@@ -317,6 +323,7 @@ impl InspectSummary {
             near: p.near,
             far: p.far,
             traversal: p.traversal.name().into(),
+            pixel_grid: file.pixel_grid.name().into(),
             defined_texels: file.texels.len() as u64,
             runs: file.runs.runs.len() as u64,
             uncompressed_bytes: uncompressed,
@@ -369,6 +376,7 @@ impl fmt::Display for InspectSummary {
             c = self.cube_resolution
         )?;
         writeln!(f, "  traversal      {}", self.traversal)?;
+        writeln!(f, "  pixel grid     {}", self.pixel_grid)?;
         writeln!(f, "  runs           {}", self.runs)?;
         writeln!(
             f,
@@ -694,6 +702,7 @@ mod tests {
             run_value: "middle".into(),
             merge_short_runs: 0,
             second_layer: "any".into(),
+            pixel_grid: "staggered".into(),
             file_coding: "packed".into(),
             charts: 30,
             defined_texels: 500,
@@ -742,6 +751,7 @@ mod tests {
                 "merge_short_runs",
                 "output",
                 "peak_rss_bytes",
+                "pixel_grid",
                 "ratio_file",
                 "ratio_gpu",
                 "rays",
@@ -868,6 +878,7 @@ mod tests {
             near: 1.1056,
             far: 552.8,
             traversal: "hilbert".into(),
+            pixel_grid: "centred".into(),
             defined_texels: 500,
             runs: 9_000,
             uncompressed_bytes: 384_000,
@@ -890,6 +901,7 @@ mod tests {
             "near": i.near,
             "far": i.far,
             "traversal": i.traversal,
+            "pixel_grid": i.pixel_grid,
             "defined_texels": i.defined_texels,
             "runs": i.runs,
             "uncompressed_bytes": i.uncompressed_bytes,

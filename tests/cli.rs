@@ -1357,7 +1357,17 @@ fn chunks_merge_into_the_file_of_one_bake() {
     let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
     // Atlas 512: 179,761 maps, three segments of 65,536. Four chunks: chunk 0 empty, the others
     // a segment each, the last one short.
-    let options = ["--atlas", "512", "--cube", "8", "--traversal", "hilbert"];
+    // Staggered pixel grids: the chunks' header flag reaches the merged file.
+    let options = [
+        "--atlas",
+        "512",
+        "--cube",
+        "8",
+        "--traversal",
+        "hilbert",
+        "--pixel-grid",
+        "staggered",
+    ];
     let bake = |extra: &[&str]| {
         let mut args = vec!["bake", scene.to_str().unwrap()];
         args.extend_from_slice(&options);

@@ -223,8 +223,17 @@ fn random_pairs(scene: &Scene, count: usize, seed: u64) -> Vec<QueryPair> {
 /// GPU and CPU answers to the same pairs: (pairs compared, decisions that differ, largest
 /// difference of the visible fraction).
 fn compare(options: QueryOptions, count: usize, seed: u64) -> (usize, usize, f32) {
+    compare_on(cornell(), options, count, seed)
+}
+
+/// [`compare`] on the baked `scene` and `file`.
+fn compare_on(
+    (scene, file): &(Scene, CssmFile),
+    options: QueryOptions,
+    count: usize,
+    seed: u64,
+) -> (usize, usize, f32) {
     let gpu = gpu();
-    let (scene, file) = cornell();
     let pairs = random_pairs(scene, count, seed);
     let cssm = CssmGpu::new(&gpu.device, &gpu.queue, file, options).expect("upload");
     let kernel = QueryKernel::new(gpu, &cssm);
@@ -262,6 +271,36 @@ fn gpu_matches_cpu_reference() {
         differ as f64 <= 1e-4 * n as f64,
         "{differ} of {n} decisions differ (allowed: 0.01%)"
     );
+}
+
+/// The query on staggered pixel grids (`PixelGrid::Staggered`): each texel's lookups shift with
+/// its grid on the GPU as on the CPU.
+#[test]
+fn gpu_matches_cpu_on_staggered_grids() {
+    let staggered = baked(
+        "cornell-box",
+        BakeOptions {
+            atlas_resolution: 64,
+            cube_resolution: 16,
+            pixel_grid: cssm_formats::cube::PixelGrid::Staggered,
+            ..Default::default()
+        },
+    );
+    assert_eq!(
+        staggered.1.pixel_grid,
+        cssm_formats::cube::PixelGrid::Staggered
+    );
+    let unfiltered = QueryOptions {
+        pcf: false,
+        sender_filter: false,
+        both_ends: false,
+        ..Default::default()
+    };
+    for (options, count) in [(QueryOptions::default(), 50_000), (unfiltered, 20_000)] {
+        let (n, differ, worst) = compare_on(&staggered, options, count, 13);
+        eprintln!("staggered: {differ} of {n} differ, largest difference {worst}");
+        assert!(differ as f64 <= 1e-4 * n as f64, "{differ} of {n} differ");
+    }
 }
 
 #[test]

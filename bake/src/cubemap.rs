@@ -8,7 +8,7 @@
 
 use cssm_formats::{
     Texel,
-    cube::{self, DEPTH_MAX, DepthQuantizer},
+    cube::{self, DEPTH_MAX, DepthQuantizer, PixelGrid},
 };
 
 use crate::raster::RasterScene;
@@ -159,17 +159,20 @@ impl std::str::FromStr for CubeRenderer {
 pub struct Renderer<'a> {
     bvh: &'a SceneBvh,
     choice: CubeRenderer,
+    /// Where every texel's pixels sit.
+    grid: PixelGrid,
     /// The rasteriser's scene, unless the choice is the BVH.
     raster: Option<RasterScene>,
 }
 
 impl<'a> Renderer<'a> {
-    /// Renders `bvh`'s scene as `choice` says.
-    pub fn new(bvh: &'a SceneBvh, choice: CubeRenderer) -> Self {
+    /// Renders `bvh`'s scene as `choice` says, each texel's pixels on `grid`.
+    pub fn new(bvh: &'a SceneBvh, choice: CubeRenderer, grid: PixelGrid) -> Self {
         let raster = (choice != CubeRenderer::Bvh).then(|| RasterScene::new(bvh));
         Self {
             bvh,
             choice,
+            grid,
             raster,
         }
     }
@@ -195,10 +198,26 @@ impl<'a> Renderer<'a> {
         out: &mut [Interval],
     ) -> u64 {
         match &self.raster {
-            Some(scene) if self.kind(n) == CubeRenderer::Raster => {
-                crate::raster::render(scene, texel, n, near, quantizer, second_layer, out)
-            }
-            _ => render(self.bvh, texel, n, near, quantizer, second_layer, out),
+            Some(scene) if self.kind(n) == CubeRenderer::Raster => crate::raster::render(
+                scene,
+                texel,
+                self.grid,
+                n,
+                near,
+                quantizer,
+                second_layer,
+                out,
+            ),
+            _ => render(
+                self.bvh,
+                texel,
+                self.grid,
+                n,
+                near,
+                quantizer,
+                second_layer,
+                out,
+            ),
         }
     }
 }
@@ -217,12 +236,14 @@ pub(crate) enum Seen {
     FacingSurface,
 }
 
-/// Renders one texel's cube map into `out` (`6 * n * n` intervals) by one BVH traversal per
-/// pixel. Returns the number of rays cast (pixels that were not don't-care).
-/// [`crate::raster::render`] writes the same intervals triangle by triangle.
+/// Renders one texel's cube map into `out` (`6 * n * n` intervals), its pixels on `grid`, by
+/// one BVH traversal per pixel. Returns the number of rays cast (pixels that were not
+/// don't-care). [`crate::raster::render`] writes the same intervals triangle by triangle.
+#[allow(clippy::too_many_arguments)]
 pub fn render(
     bvh: &SceneBvh,
     texel: &Texel,
+    grid: PixelGrid,
     n: u32,
     near: f32,
     quantizer: &DepthQuantizer,
@@ -232,6 +253,7 @@ pub fn render(
     let cast = ray_caster(bvh, near, quantizer, second_layer);
     render_with(
         texel,
+        grid,
         n,
         near,
         quantizer,
@@ -273,8 +295,10 @@ pub(crate) fn centre(texel: &Texel, near: f32) -> glam::Vec3 {
 /// [`render`] with each cast pixel's hits from `hit(pixel, centre, direction)`: the BVH's, or
 /// the GPU's ([`crate::gpu`]). Everything else (which pixels are cast, along which ray, their
 /// intervals, the exchange layer's second pass) is this one code for every renderer.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn render_with(
     texel: &Texel,
+    grid: PixelGrid,
     n: u32,
     near: f32,
     quantizer: &DepthQuantizer,
@@ -292,7 +316,7 @@ pub(crate) fn render_with(
     };
     let mut rays = 0;
     let face_pixels = (n * n) as usize;
-    let directions = centre_directions(n);
+    let directions = centre_directions(n, grid.offset(texel.x, texel.y));
     let reach: [f32; 6] = std::array::from_fn(|f| cube::dont_care_reach(n, f as u32, normal));
     for (pixel, slot) in out.iter_mut().enumerate() {
         *slot = DONT_CARE;
@@ -415,25 +439,31 @@ pub(crate) fn exchange_pass(n: u32, seen: &[Seen], out: &mut [Interval]) {
     });
 }
 
-/// [`cube::pixel_direction`] of every pixel at resolution `n`, computed once per thread and
-/// resolution (two divisions per pixel of every map otherwise: 9% of a BVH bake's samples with
-/// the don't-care test).
-fn centre_directions(n: u32) -> std::rc::Rc<[glam::Vec3]> {
-    CENTRE_DIRECTIONS.with_borrow_mut(|(resolution, dirs)| {
-        if *resolution != n || dirs.is_empty() {
-            *dirs = (0..6 * n * n)
-                .map(|p| cube::pixel_direction(n, p))
-                .collect();
-            *resolution = n;
+/// [`cube::pixel_direction_at`] of every pixel at resolution `n` on the grid shifted by
+/// `offset`, computed once per thread, resolution and offset (two divisions per pixel of every
+/// map otherwise: 9% of a BVH bake's samples with the don't-care test). A bake's texels take
+/// turns among the four offsets of a staggered grid, so the last four tables are kept.
+pub(crate) fn centre_directions(n: u32, offset: glam::Vec2) -> std::rc::Rc<[glam::Vec3]> {
+    CENTRE_DIRECTIONS.with_borrow_mut(|tables| {
+        if let Some((_, _, dirs)) = tables.iter().find(|(r, o, _)| *r == n && *o == offset) {
+            return dirs.clone();
         }
-        dirs.clone()
+        let dirs: std::rc::Rc<[glam::Vec3]> = (0..6 * n * n)
+            .map(|p| cube::pixel_direction_at(n, p, offset))
+            .collect();
+        if tables.len() == 4 {
+            tables.remove(0);
+        }
+        tables.push((n, offset, dirs.clone()));
+        dirs
     })
 }
 
 thread_local! {
-    /// [`centre_directions`]' table.
-    static CENTRE_DIRECTIONS: std::cell::RefCell<(u32, std::rc::Rc<[glam::Vec3]>)> =
-        std::cell::RefCell::new((0, std::rc::Rc::from(Vec::new())));
+    /// [`centre_directions`]' tables: resolution, offset, directions.
+    #[allow(clippy::type_complexity)]
+    static CENTRE_DIRECTIONS: std::cell::RefCell<Vec<(u32, glam::Vec2, std::rc::Rc<[glam::Vec3]>)>> =
+        const { std::cell::RefCell::new(Vec::new()) };
     /// [`cube::neighbours`] of every pixel on a face's border (those cross to other faces,
     /// each a projection per neighbour) at the last resolution this thread saw: computed once
     /// per bake thread instead of for every map (they cost the exchange pass a third of a
@@ -540,7 +570,16 @@ mod tests {
         let quantizer = DepthQuantizer::new(near, 10.0);
         let render_with = |layer| {
             let mut out = vec![DONT_CARE; 6 * (n * n) as usize];
-            render(&bvh, &texel, n, near, &quantizer, layer, &mut out);
+            render(
+                &bvh,
+                &texel,
+                PixelGrid::Centred,
+                n,
+                near,
+                &quantizer,
+                layer,
+                &mut out,
+            );
             out
         };
         let (facing, exchange) = (

@@ -7,7 +7,10 @@
 //! where the CPU does not, so a ray through an edge may decide otherwise (measured in
 //! reports/bake.md, "The bake on the GPU").
 
-use cssm_formats::{Texel, cube::DepthQuantizer};
+use cssm_formats::{
+    Texel,
+    cube::{DepthQuantizer, PixelGrid},
+};
 use cssm_runtime::{
     Gpu,
     visibility::depth_maps::{
@@ -23,6 +26,8 @@ pub(crate) struct GpuMaps<'a> {
     gpu: Gpu,
     kernels: Vec<DepthMapKernel>,
     geometry: &'a TexelGeometry,
+    /// Where every texel's pixels sit.
+    grid: PixelGrid,
 }
 
 fn gpu_error(e: impl std::fmt::Display) -> BakeError {
@@ -30,8 +35,9 @@ fn gpu_error(e: impl std::fmt::Display) -> BakeError {
 }
 
 impl<'a> GpuMaps<'a> {
-    /// The first GPU wgpu finds (lavapipe where there is none) with `geometry`'s BVHs on it.
-    pub(crate) fn new(geometry: &'a TexelGeometry) -> Result<Self, BakeError> {
+    /// The first GPU wgpu finds (lavapipe where there is none) with `geometry`'s BVHs on it,
+    /// casting each texel's pixels on `grid`.
+    pub(crate) fn new(geometry: &'a TexelGeometry, grid: PixelGrid) -> Result<Self, BakeError> {
         let gpu = Gpu::new_headless().map_err(gpu_error)?;
         let kernels = geometry
             .bvhs
@@ -46,6 +52,7 @@ impl<'a> GpuMaps<'a> {
             gpu,
             kernels,
             geometry,
+            grid,
         })
     }
 
@@ -132,10 +139,12 @@ impl<'a> GpuMaps<'a> {
                 .iter()
                 .map(|&k| {
                     let texel = &texels[ids[k] as usize];
+                    let offset = self.grid.offset(texel.x, texel.y);
                     DepthMapTexel {
                         centre: cubemap::centre(texel, near).to_array(),
+                        grid_u: offset.x,
                         normal: texel.normal,
-                        ..Default::default()
+                        grid_v: offset.y,
                     }
                 })
                 .collect();
@@ -181,9 +190,8 @@ impl<'a> GpuMaps<'a> {
                 let hits = &cast.answers[g][j * pixels..(j + 1) * pixels];
                 let ray =
                     cubemap::ray_caster(&self.geometry.bvhs[g], near, quantizer, second_layer);
-                cubemap::render_with(texel, n, near, quantizer, second_layer, out, |p, c, d| {
-                    decode(hits[p]).unwrap_or_else(|| ray(c, d))
-                })
+                let hit = |p: usize, c, d| decode(hits[p]).unwrap_or_else(|| ray(c, d));
+                cubemap::render_with(texel, self.grid, n, near, quantizer, second_layer, out, hit)
             })
             .sum()
     }
@@ -208,7 +216,9 @@ mod tests {
         let scene = cssm_formats::Scene::load(&dir).expect("the built-in Cornell box");
         let atlas = crate::atlas::build(&scene, 32, &mut |_| {}).expect("atlas");
         let geometry = TexelGeometry::new(&scene);
-        let maps = GpuMaps::new(&geometry).expect("a GPU (lavapipe where there is none)");
+        // A staggered grid: the kernel's rays follow each texel's offset as the CPU's do.
+        let grid = PixelGrid::Staggered;
+        let maps = GpuMaps::new(&geometry, grid).expect("a GPU (lavapipe where there is none)");
         let (n, near) = (8, 0.5);
         let quantizer = DepthQuantizer::new(near, scene.diameter());
         let layer = cubemap::SecondLayer::Exchange;
@@ -233,7 +243,7 @@ mod tests {
         let batches = sequence.len().div_ceil(7);
         assert_eq!(counts.len(), batches);
         assert_eq!(counts.last(), Some(&sequence.len()));
-        let renderers = geometry.renderers(cubemap::CubeRenderer::Bvh);
+        let renderers = geometry.renderers(cubemap::CubeRenderer::Bvh, grid);
         let mut cpu = vec![cubemap::DONT_CARE; sequence.len() * pixels];
         crate::render_maps(
             &renderers,

@@ -1,7 +1,10 @@
 //! [`crate::BakeDevice::Gpu`] in a build without the crate's `gpu` feature: no GPU renderer can
 //! be made, and the bake says so.
 
-use cssm_formats::{Texel, cube::DepthQuantizer};
+use cssm_formats::{
+    Texel,
+    cube::{DepthQuantizer, PixelGrid},
+};
 
 use crate::{BakeError, TexelGeometry, cubemap};
 
@@ -12,7 +15,7 @@ pub(crate) struct GpuMaps<'a> {
 }
 
 impl<'a> GpuMaps<'a> {
-    pub(crate) fn new(_geometry: &'a TexelGeometry) -> Result<Self, BakeError> {
+    pub(crate) fn new(_geometry: &'a TexelGeometry, _grid: PixelGrid) -> Result<Self, BakeError> {
         Err(BakeError::Gpu(
             "this build has no GPU support (build cssm-bake with its `gpu` feature)".into(),
         ))

@@ -24,9 +24,9 @@ use std::cell::RefCell;
 
 use cssm_formats::{
     Texel,
-    cube::{self, DepthQuantizer},
+    cube::{self, DepthQuantizer, PixelGrid},
 };
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use crate::cubemap::{self, DONT_CARE, Interval, SecondLayer, Seen};
 use crate::raycast::{FrontHit, HitReducer, SceneBvh, SharedAxisRays, WatertightRay, reduce_hits};
@@ -79,18 +79,48 @@ struct Extra {
     reducer: HitReducer,
 }
 
+/// The centre rays of one pixel grid: a resolution and a grid offset.
+struct GridRays {
+    n: u32,
+    offset: Vec2,
+    /// Centre direction of every pixel ([`cubemap::centre_directions`]).
+    dirs: std::rc::Rc<[Vec3]>,
+    /// Its watertight ray (from the origin).
+    rays: Vec<WatertightRay>,
+    /// The same rays laid out to test a triangle against a run of a row's pixels at once.
+    lanes: SharedAxisRays,
+}
+
+impl GridRays {
+    fn new(n: u32, offset: Vec2) -> Self {
+        let dirs = cubemap::centre_directions(n, offset);
+        let rays: Vec<WatertightRay> = dirs
+            .iter()
+            .map(|&dir| WatertightRay::new(Vec3::ZERO, dir))
+            .collect();
+        // The centre rays of a face share their axes (the face's major axis is the largest
+        // component of each), so a triangle is reordered once per face.
+        for (p, ray) in rays.iter().enumerate() {
+            assert_eq!(ray.axes(), rays[p - p % (n * n) as usize].axes());
+        }
+        let lanes = SharedAxisRays::new(&rays);
+        Self {
+            n,
+            offset,
+            dirs,
+            rays,
+            lanes,
+        }
+    }
+}
+
 /// Per-thread buffers, reused from texel to texel.
 #[derive(Default)]
 struct Scratch {
-    /// Resolution the centre rays were built for.
-    n: u32,
-    /// Centre direction of every pixel.
-    centre_dirs: Vec<Vec3>,
-    /// Its watertight ray (from the origin).
-    centre_rays: Vec<WatertightRay>,
-    /// The same rays laid out to test a triangle against a run of a row's pixels at once.
-    centre_lanes: SharedAxisRays,
-    /// One row's hits, from `centre_lanes`.
+    /// The centre rays of the last four grids (a staggered grid's texels take turns among
+    /// four offsets).
+    grids: Vec<GridRays>,
+    /// One row's hits, from a grid's `lanes`.
     row_hits: Vec<f32>,
     kind: Vec<u32>,
     extras: Vec<Extra>,
@@ -257,33 +287,38 @@ fn band_span(edges: &[Edge], lo: f64, hi: f64) -> Option<(f64, f64)> {
     (min <= max).then_some((min, max))
 }
 
-/// Renders one texel's cube map into `out` (`6 * n * n` intervals) triangle by triangle:
+/// Renders one texel's cube map into `out` (`6 * n * n` intervals), its pixels on `grid`,
+/// triangle by triangle:
 /// byte-identical to [`cubemap::render`] with the BVH `scene` was built from. Returns the number
 /// of rays cast (pixels that were not don't-care), as it does.
 ///
 /// ```
 /// use cssm_bake::{cubemap, raster, raycast::SceneBvh};
-/// use cssm_formats::{Texel, cube::DepthQuantizer};
+/// use cssm_formats::{Texel, cube::{DepthQuantizer, PixelGrid}};
 /// let scene = cssm_formats::Scene::load(
 ///     &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box"),
 /// )?;
 /// let bvh = SceneBvh::new(&scene);
 /// let texel = Texel {
 ///     position: [278.0, 0.0, 279.0], normal: [0.0, 1.0, 0.0], area: 1.0,
-///     material: 0, chart: 0, object: 0, x: 0, y: 0,
+///     material: 0, chart: 0, object: 0, x: 3, y: 0,
 /// };
+/// let grid = PixelGrid::Staggered;
 /// let (n, near, quantizer) = (8, 0.5, DepthQuantizer::new(0.5, scene.diameter()));
 /// let layer = cubemap::SecondLayer::Exchange;
 /// let mut by_bvh = vec![cubemap::DONT_CARE; 6 * 8 * 8];
 /// let mut by_raster = by_bvh.clone();
-/// cubemap::render(&bvh, &texel, n, near, &quantizer, layer, &mut by_bvh);
-/// raster::render(&raster::RasterScene::new(&bvh), &texel, n, near, &quantizer, layer, &mut by_raster);
+/// cubemap::render(&bvh, &texel, grid, n, near, &quantizer, layer, &mut by_bvh);
+/// let scene = raster::RasterScene::new(&bvh);
+/// raster::render(&scene, &texel, grid, n, near, &quantizer, layer, &mut by_raster);
 /// assert_eq!(by_bvh, by_raster);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
+#[allow(clippy::too_many_arguments)]
 pub fn render(
     scene: &RasterScene,
     texel: &Texel,
+    grid: PixelGrid,
     n: u32,
     near: f32,
     quantizer: &DepthQuantizer,
@@ -294,6 +329,7 @@ pub fn render(
         render_with(
             scene,
             texel,
+            grid.offset(texel.x, texel.y),
             n,
             near,
             quantizer,
@@ -308,6 +344,7 @@ pub fn render(
 fn render_with(
     scene: &RasterScene,
     texel: &Texel,
+    offset: Vec2,
     n: u32,
     near: f32,
     quantizer: &DepthQuantizer,
@@ -324,25 +361,19 @@ fn render_with(
     let pixels = 6 * n * n;
     let face_pixels = (n * n) as usize;
 
-    if scratch.n != n || scratch.centre_rays.len() != pixels as usize {
-        scratch.n = n;
-        scratch.centre_dirs = (0..pixels).map(|p| cube::pixel_direction(n, p)).collect();
-        scratch.centre_rays = (scratch.centre_dirs.iter())
-            .map(|&dir| WatertightRay::new(Vec3::ZERO, dir))
-            .collect();
-        scratch.centre_lanes = SharedAxisRays::new(&scratch.centre_rays);
-        scratch.row_hits = vec![0.0; n as usize];
-        // The centre rays of a face share their axes (the face's major axis is the largest
-        // component of each), so a triangle is reordered once per face.
-        for (p, ray) in scratch.centre_rays.iter().enumerate() {
-            let first = scratch.centre_rays[p - p % (n * n) as usize];
-            assert_eq!(ray.axes(), first.axes());
+    let grid = match (scratch.grids.iter()).position(|g| g.n == n && g.offset == offset) {
+        Some(i) => i,
+        None => {
+            if scratch.grids.len() == 4 {
+                scratch.grids.remove(0);
+            }
+            scratch.grids.push(GridRays::new(n, offset));
+            scratch.grids.len() - 1
         }
-    }
+    };
+    scratch.row_hits.resize(n as usize, 0.0);
     let Scratch {
-        centre_dirs,
-        centre_rays,
-        centre_lanes,
+        grids,
         row_hits,
         kind,
         extras,
@@ -350,8 +381,13 @@ fn render_with(
         reducers,
         seen,
         triangles,
-        ..
     } = scratch;
+    let GridRays {
+        dirs: centre_dirs,
+        rays: centre_rays,
+        lanes: centre_lanes,
+        ..
+    } = &grids[grid];
 
     // Which pixels cast which ray: exactly `cubemap::render`'s choices.
     kind.clear();
@@ -386,7 +422,7 @@ fn render_with(
                 continue;
             }
             let (face, u, v, _) = cube::project(dir);
-            let cell = cube::pixel_index(n, face, u, v);
+            let cell = cube::pixel_index_at(n, face, u, v, offset);
             let (_, cell_row, cell_col) = cube::split_pixel(n, cell);
             activate(face, cell_row, cell_col);
             extras.push(Extra {
@@ -443,8 +479,12 @@ fn render_with(
         reducers.clear();
         reducers.resize(face_pixels, HitReducer::default());
     }
+    // Pixel `col` of the grid covers `u` in `[(col + offset.x) step - 1, (col + 1 + offset.x)
+    // step - 1]`, and likewise rows in `v`.
     let step = 2.0 / f64::from(n);
-    let cell = |x: f64| ((x + 1.0) / step).floor();
+    let (shift_u, shift_v) = (f64::from(offset.x), f64::from(offset.y));
+    let cell_u = |x: f64| ((x + 1.0) / step - shift_u).floor();
+    let cell_v = |x: f64| ((x + 1.0) / step - shift_v).floor();
     let mut uv = [[0.0f64; 2]; 8];
     let mut edges = [Edge::default(); 8];
     for face in 0..6 {
@@ -528,20 +568,20 @@ fn render_with(
                 edges[i] = Edge::new(uv[i], uv[(i + 1) % poly.len]);
             }
             let edges = &edges[..poly.len];
-            let r0 = cell(vmin - margin).max(*rows.start());
-            let r1 = cell(vmax + margin).min(*rows.end());
+            let r0 = cell_v(vmin - margin).max(*rows.start());
+            let r1 = cell_v(vmax + margin).min(*rows.end());
             // (`max` and `min` drop a NaN bound: the rows stay within the active ones.)
             if r0 > r1 {
                 continue;
             }
             for row in r0 as u32..=r1 as u32 {
-                let lo = f64::from(row) * step - 1.0 - margin;
-                let hi = f64::from(row + 1) * step - 1.0 + margin;
+                let lo = (f64::from(row) + shift_v) * step - 1.0 - margin;
+                let hi = (f64::from(row + 1) + shift_v) * step - 1.0 + margin;
                 let Some((u0, u1)) = band_span(edges, lo, hi) else {
                     continue;
                 };
-                let c0 = cell(u0 - margin).max(col0);
-                let c1 = cell(u1 + margin).min(col1);
+                let c0 = cell_u(u0 - margin).max(col0);
+                let c1 = cell_u(u1 + margin).min(col1);
                 if c0 <= c1 {
                     visit(row, c0 as u32, c1 as u32);
                 }
@@ -644,16 +684,19 @@ mod tests {
         let mut bad = 0;
         for (k, texel) in atlas.texels.iter().enumerate() {
             {
+                // Both grids, each with every layer (the texels' cells give a staggered grid's
+                // four offsets).
                 let layer = SecondLayer::ALL[k % 3];
+                let grid = PixelGrid::ALL[(k / 3) % 2];
                 let mut a = vec![DONT_CARE; (6 * n * n) as usize];
                 let mut b = a.clone();
-                cubemap::render(&bvh, texel, n, near, &quantizer, layer, &mut a);
-                render(&raster, texel, n, near, &quantizer, layer, &mut b);
+                cubemap::render(&bvh, texel, grid, n, near, &quantizer, layer, &mut a);
+                render(&raster, texel, grid, n, near, &quantizer, layer, &mut b);
                 for (i, (x, y)) in a.iter().zip(&b).enumerate() {
                     if x != y && bad < 10 {
                         bad += 1;
                         eprintln!(
-                            "texel {k} {texel:?} {layer} pixel {i} {:?}: {x:?} vs {y:?}",
+                            "texel {k} {texel:?} {layer} {grid} pixel {i} {:?}: {x:?} vs {y:?}",
                             cube::split_pixel(n, i as u32)
                         );
                     }
@@ -756,21 +799,24 @@ mod tests {
                 material: 0,
                 chart: 0,
                 object: 0,
-                x: 0,
-                y: 0,
+                // Every offset of a staggered grid, case after case.
+                x: (case % 2) as u16,
+                y: (case / 2 % 2) as u16,
             };
+            let grid = PixelGrid::ALL[case / 4 % 2];
             for n in [8u32, 16] {
                 for layer in SecondLayer::ALL {
                     let mut a = vec![DONT_CARE; (6 * n * n) as usize];
                     let mut b = a.clone();
-                    let ra = cubemap::render(&bvh, &texel, n, near, &quantizer, layer, &mut a);
-                    let rb = render(&raster, &texel, n, near, &quantizer, layer, &mut b);
+                    let ra =
+                        cubemap::render(&bvh, &texel, grid, n, near, &quantizer, layer, &mut a);
+                    let rb = render(&raster, &texel, grid, n, near, &quantizer, layer, &mut b);
                     assert_eq!(ra, rb);
                     for (i, (x, y)) in a.iter().zip(&b).enumerate() {
                         assert_eq!(
                             x,
                             y,
-                            "case {case} n {n} {layer} pixel {i} {:?}",
+                            "case {case} n {n} {layer} {grid} pixel {i} {:?}",
                             cube::split_pixel(n, i as u32)
                         );
                     }
@@ -799,20 +845,22 @@ mod tests {
                     material: 0,
                     chart: 0,
                     object: 0,
-                    x: 0,
-                    y: 0,
+                    x: (case % 2) as u16,
+                    y: (case / 2 % 2) as u16,
                 };
+                let grid = PixelGrid::ALL[case / 4 % 2];
                 for layer in SecondLayer::ALL {
                     let mut a = vec![DONT_CARE; (6 * n * n) as usize];
                     let mut b = a.clone();
-                    let ra = cubemap::render(&bvh, &texel, n, near, &quantizer, layer, &mut a);
-                    let rb = render(&raster, &texel, n, near, &quantizer, layer, &mut b);
+                    let ra =
+                        cubemap::render(&bvh, &texel, grid, n, near, &quantizer, layer, &mut a);
+                    let rb = render(&raster, &texel, grid, n, near, &quantizer, layer, &mut b);
                     assert_eq!(ra, rb);
                     for (i, (x, y)) in a.iter().zip(&b).enumerate() {
                         assert_eq!(
                             x,
                             y,
-                            "n {n} case {case} {layer} pixel {i} {:?}",
+                            "n {n} case {case} {layer} {grid} pixel {i} {:?}",
                             cube::split_pixel(n, i as u32)
                         );
                     }

@@ -9,7 +9,7 @@
 //! their major component is ±1, so the ray parameter `t` of a hit is its linear depth (distance
 //! along the face axis), the depth the paper stores (§3.2.1, after Brabec et al.).
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// Largest quantised depth; stands for "nothing within the far plane".
 pub const DEPTH_MAX: u16 = u16::MAX;
@@ -38,12 +38,100 @@ pub fn face_direction(face: u32, u: f32, v: f32) -> Vec3 {
     Vec3::from(d)
 }
 
+/// Where a texel's cube-map pixels sit on the faces: the paper's grid, or one shifted by a
+/// fraction of a pixel that depends on the texel's atlas cell.
+///
+/// With one depth per pixel, an occluder's edge is placed by the pixel grid to within half a
+/// pixel. Neighbouring texels see a distant edge at nearly the same place on their faces, so
+/// on one shared grid the sender filter's 2x2 texels (§3.2.2) all make the same error. Staggered
+/// grids (interleaved sampling, after Keller and Heidrich 2001) shift each texel's grid by
+/// [`PixelGrid::STAGGER`] of a pixel along both face axes, the sign of each shift set by the
+/// parity of the texel's atlas column and row, so the four texels of a filter sample an edge at
+/// four places (reports/visibility.md, "Staggered pixel grids").
+///
+/// ```
+/// use cssm_formats::cube::PixelGrid;
+/// use glam::Vec2;
+/// assert_eq!(PixelGrid::Centred.offset(3, 4), Vec2::ZERO);
+/// assert_eq!(PixelGrid::Staggered.offset(3, 4), Vec2::new(0.125, -0.125));
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PixelGrid {
+    /// Pixel centres at `(col + 0.5) / N` on every texel's faces (the paper).
+    #[default]
+    Centred,
+    /// Every texel's grid shifted by `±STAGGER` pixels along each face axis: `+` for an odd
+    /// atlas column (u) or row (v), `-` for an even one.
+    Staggered,
+}
+
+impl PixelGrid {
+    /// The shift of a staggered grid, in pixels.
+    pub const STAGGER: f32 = 0.125;
+
+    /// Every choice, default first.
+    pub const ALL: [PixelGrid; 2] = [PixelGrid::Centred, PixelGrid::Staggered];
+
+    /// The shift, in pixels along the faces' (u, v) axes, of the grid of the texel at atlas
+    /// cell `(x, y)`.
+    #[inline]
+    pub fn offset(self, x: u16, y: u16) -> Vec2 {
+        match self {
+            PixelGrid::Centred => Vec2::ZERO,
+            PixelGrid::Staggered => {
+                let shift = |k: u16| {
+                    if k % 2 == 1 {
+                        Self::STAGGER
+                    } else {
+                        -Self::STAGGER
+                    }
+                };
+                Vec2::new(shift(x), shift(y))
+            }
+        }
+    }
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelGrid::Centred => "centred",
+            PixelGrid::Staggered => "staggered",
+        }
+    }
+}
+
+impl std::fmt::Display for PixelGrid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for PixelGrid {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "centred" | "centered" => Ok(PixelGrid::Centred),
+            "staggered" => Ok(PixelGrid::Staggered),
+            other => Err(format!(
+                "unknown pixel grid '{other}': expected centred or staggered"
+            )),
+        }
+    }
+}
+
 /// Direction through the centre of pixel `pixel` of a cube map of resolution `n`.
 #[inline]
 pub fn pixel_direction(n: u32, pixel: u32) -> Vec3 {
+    pixel_direction_at(n, pixel, Vec2::ZERO)
+}
+
+/// [`pixel_direction`] on a grid shifted by `offset` pixels ([`PixelGrid::offset`]); a zero
+/// offset gives [`pixel_direction`] bit for bit.
+#[inline]
+pub fn pixel_direction_at(n: u32, pixel: u32, offset: Vec2) -> Vec3 {
     let (face, row, col) = split_pixel(n, pixel);
-    let u = (col as f32 + 0.5) / n as f32 * 2.0 - 1.0;
-    let v = (row as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+    let u = (col as f32 + 0.5 + offset.x) / n as f32 * 2.0 - 1.0;
+    let v = (row as f32 + 0.5 + offset.y) / n as f32 * 2.0 - 1.0;
     face_direction(face, u, v)
 }
 
@@ -113,16 +201,30 @@ pub fn pixel_index(n: u32, face: u32, u: f32, v: f32) -> u32 {
     face * n * n + row * n + col
 }
 
+/// [`pixel_index`] on a grid shifted by `offset` pixels ([`PixelGrid::offset`]): the pixel
+/// whose cell holds `(u, v)`.
+#[inline]
+pub fn pixel_index_at(n: u32, face: u32, u: f32, v: f32, offset: Vec2) -> u32 {
+    let step = 2.0 / n as f32;
+    pixel_index(n, face, u - offset.x * step, v - offset.y * step)
+}
+
 /// True when the whole pixel lies strictly behind the surface's tangent plane (all four corner
 /// directions have a negative dot product with the normal). Such pixels only see the inside of
 /// the object: their depth is "don't care" and may take any value after compression (§3.2.1).
 /// Pixels that straddle the plane are kept, so coplanar neighbours stay queryable.
 #[inline]
 pub fn pixel_is_dont_care(n: u32, pixel: u32, normal: Vec3) -> bool {
+    pixel_is_dont_care_at(n, pixel, normal, Vec2::ZERO)
+}
+
+/// [`pixel_is_dont_care`] on a grid shifted by `offset` pixels.
+#[inline]
+pub fn pixel_is_dont_care_at(n: u32, pixel: u32, normal: Vec3, offset: Vec2) -> bool {
     // `dot(normal, direction)` is linear in (u, v) over a face, so its largest value over the
     // pixel's corners is the value at the centre plus half a pixel step times |n_u| + |n_v|.
     let (face, _, _) = split_pixel(n, pixel);
-    pixel_direction(n, pixel).dot(normal) + dont_care_reach(n, face, normal) < 0.0
+    pixel_direction_at(n, pixel, offset).dot(normal) + dont_care_reach(n, face, normal) < 0.0
 }
 
 /// The ray the bake casts for `pixel` of a texel with normal `normal`, and the factor that turns
@@ -132,7 +234,13 @@ pub fn pixel_is_dont_care(n: u32, pixel: u32, normal: Vec3) -> bool {
 /// view of coplanar receivers (the factor is then the projected major component).
 #[inline]
 pub fn cast_direction(n: u32, pixel: u32, normal: Vec3) -> (Vec3, f32) {
-    let dir = pixel_direction(n, pixel);
+    cast_direction_at(n, pixel, normal, Vec2::ZERO)
+}
+
+/// [`cast_direction`] on a grid shifted by `offset` pixels.
+#[inline]
+pub fn cast_direction_at(n: u32, pixel: u32, normal: Vec3, offset: Vec2) -> (Vec3, f32) {
+    let dir = pixel_direction_at(n, pixel, offset);
     cast_direction_from(dir, dir.dot(normal), normal, pixel / (n * n))
 }
 
@@ -247,6 +355,42 @@ impl DepthQuantizer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On every grid a query finds each pixel where the bake cast it: the pixel's own
+    /// direction lands in its own cell (`pixel_index_at`), and no shifted grid's direction is
+    /// the centred grid's; a zero offset is the centred grid bit for bit.
+    #[test]
+    fn shifted_grids_find_their_own_pixels() {
+        for n in [8, 16, 32] {
+            for x in 0..2u16 {
+                for y in 0..2u16 {
+                    for grid in PixelGrid::ALL {
+                        let offset = grid.offset(x, y);
+                        for pixel in 0..6 * n * n {
+                            let dir = pixel_direction_at(n, pixel, offset);
+                            let (face, u, v, _) = project(dir);
+                            assert_eq!(pixel_index_at(n, face, u, v, offset), pixel);
+                            let centred = pixel_direction(n, pixel);
+                            match grid {
+                                PixelGrid::Centred => assert_eq!(dir, centred),
+                                PixelGrid::Staggered => assert_ne!(dir, centred),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // The four offsets of a staggered grid, one per parity of the atlas cell.
+        let mut offsets: Vec<[f32; 2]> = (0..4u16)
+            .map(|k| PixelGrid::Staggered.offset(k % 2, k / 2).to_array())
+            .collect();
+        offsets.dedup();
+        assert_eq!(offsets.len(), 4);
+        assert_eq!(
+            PixelGrid::Staggered.offset(7, 9),
+            PixelGrid::Staggered.offset(1, 1)
+        );
+    }
 
     /// The quantiser's ceilings equal the libm formulas they replace, at and between every
     /// code, out of range, at infinities and NaN.

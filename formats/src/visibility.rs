@@ -194,6 +194,8 @@ impl<'a> VisibilityQuery<'a> {
             return 0.0;
         }
         let centre = self.cube_centre(texel);
+        // The texel's own pixel grid (`cube::PixelGrid`), in pixels.
+        let offset = self.file.pixel_grid.offset(t.x, t.y);
         let mut d = p_i - centre;
         let below = d.dot(normal);
         if below < 0.0 {
@@ -208,7 +210,7 @@ impl<'a> VisibilityQuery<'a> {
         // Depth of the receiver along the ray the bake cast for `pixel`.
         let receiver_depth = |pixel: u32| -> f32 {
             let Some(n_i) = n_i else { return depth };
-            let (ray, scale) = cube::cast_direction(n, pixel, normal);
+            let (ray, scale) = cube::cast_direction_at(n, pixel, normal, offset);
             let denom = ray.dot(n_i);
             if denom.abs() < 1e-4 {
                 return depth;
@@ -221,7 +223,7 @@ impl<'a> VisibilityQuery<'a> {
             }
         };
         let test = |pixel: u32| -> f32 {
-            if cube::pixel_is_dont_care(n, pixel, normal) {
+            if cube::pixel_is_dont_care_at(n, pixel, normal, offset) {
                 return 0.0;
             }
             let stored = self.quantizer.depth(self.depth_code(texel, pixel));
@@ -232,11 +234,11 @@ impl<'a> VisibilityQuery<'a> {
             }
         };
         if !self.options.pcf {
-            return test(cube::pixel_index(n, face, u, v));
+            return test(cube::pixel_index_at(n, face, u, v, offset));
         }
         // Bilinear weights over the 2x2 pixel centres around the projection, clamped to the face.
-        let fx = ((u + 1.0) * 0.5 * n as f32 - 0.5).clamp(0.0, n as f32 - 1.0);
-        let fy = ((v + 1.0) * 0.5 * n as f32 - 0.5).clamp(0.0, n as f32 - 1.0);
+        let fx = ((u + 1.0) * 0.5 * n as f32 - 0.5 - offset.x).clamp(0.0, n as f32 - 1.0);
+        let fy = ((v + 1.0) * 0.5 * n as f32 - 0.5 - offset.y).clamp(0.0, n as f32 - 1.0);
         let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
         let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
         let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);

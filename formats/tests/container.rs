@@ -218,13 +218,21 @@ fn versions_and_flags() {
         err.to_string(),
         "file version 1 is not supported (this build reads version 4); re-bake it"
     );
-    // Bit 1 is a chunk of a chunked bake (FLAG_CHUNK), bit 2 nothing yet.
+    // Bit 1 is a chunk of a chunked bake (FLAG_CHUNK), bit 2 staggered pixel grids, bit 3
+    // nothing yet.
     let mut flags = bytes.clone();
-    flags[12] = 4;
+    flags[12] = 8;
     assert!(matches!(
         cssm::decode(&flags),
-        Err(CssmError::UnsupportedFlags { flags: 4 })
+        Err(CssmError::UnsupportedFlags { flags: 8 })
     ));
+    flags[12] = bytes[12] | 4;
+    let staggered = cssm::decode(&flags).unwrap();
+    assert_eq!(
+        staggered.pixel_grid,
+        cssm_formats::cube::PixelGrid::Staggered
+    );
+    assert_eq!(cssm::encode(&staggered).unwrap(), flags);
     flags[12] = 2;
     assert!(matches!(cssm::decode(&flags), Err(CssmError::IsChunk)));
 }

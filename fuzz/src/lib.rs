@@ -819,6 +819,7 @@ pub fn tiny_file(scene: &Scene) -> CssmFile {
             runs,
         },
         csms: Vec::new(),
+        pixel_grid: Default::default(),
     }
 }
 

@@ -167,7 +167,8 @@ pub struct GpuCssmParams {
     pub bias_near: f32,
     /// Bias proportional to the query depth.
     pub bias_relative: f32,
-    /// Bit 0: PCF over 2x2 pixels; bit 1: filter over the 2x2 sender texels.
+    /// Bit 0: PCF over 2x2 pixels; bit 1: filter over the 2x2 sender texels; bit 2: both ends;
+    /// bit 3: the file's cube maps sample staggered pixel grids.
     pub flags: u32,
     /// Number of scene triangles with atlas coordinates.
     pub triangle_count: u32,

@@ -61,15 +61,21 @@ fn depth_map_kernel_matches_cpu_ray_casts() {
     let (triangles, normals) = bvh.triangles_by_scene_index();
     let kernel = DepthMapKernel::new(gpu, &triangles, normals, bvh.box_padding()).expect("kernel");
     let mut rng = SplitMix64(3);
+    // The first 16 on a staggered grid (each of its four offsets), the rest centred.
+    let offset = |t: usize| {
+        let grid = cube::PixelGrid::ALL[usize::from(t < 16)];
+        grid.offset(t as u16 % 2, t as u16 / 2 % 2)
+    };
     let texels: Vec<DepthMapTexel> = (0..24)
-        .map(|_| {
+        .map(|t| {
             let mut v = || rng.next_f64() as f32 * 2.0 - 1.0;
             let centre = Vec3::new(v(), v(), v()) * 0.8;
             let normal = Vec3::new(v(), v(), v()).normalize_or(Vec3::Z);
             DepthMapTexel {
                 centre: centre.to_array(),
+                grid_u: offset(t).x,
                 normal: normal.to_array(),
-                ..Default::default()
+                grid_v: offset(t).y,
             }
         })
         .collect();
@@ -87,14 +93,15 @@ fn depth_map_kernel_matches_cpu_ray_casts() {
         let (mut cast, mut handed_back, mut differ, mut second_hits) = (0, 0, 0, 0);
         for (t, texel) in texels.iter().enumerate() {
             let normal = Vec3::from(texel.normal);
+            let offset = offset(t);
             for pixel in 0..pixels {
-                if cube::pixel_is_dont_care(n, pixel as u32, normal)
-                    || cube::cast_direction(n, pixel as u32, normal).1 < 1e-3
+                let (dir, depth_scale) = cube::cast_direction_at(n, pixel as u32, normal, offset);
+                if cube::pixel_is_dont_care_at(n, pixel as u32, normal, offset)
+                    || depth_scale < 1e-3
                 {
                     continue;
                 }
                 cast += 1;
-                let (dir, _) = cube::cast_direction(n, pixel as u32, normal);
                 let centre = Vec3::from(texel.centre);
                 let Some(gpu_hit) = decode(answers[t * pixels + pixel]) else {
                     handed_back += 1;
@@ -149,11 +156,13 @@ fn gpu_bake_writes_the_cpu_file() {
     )
     .unwrap();
     let scene = Scene::load(dir.path()).expect("scene");
-    for second_layer in SecondLayer::ALL {
+    // Every layer, on both pixel grids between them.
+    for (k, second_layer) in SecondLayer::ALL.into_iter().enumerate() {
         let options = BakeOptions {
             atlas_resolution: 32,
             cube_resolution: 16,
             second_layer,
+            pixel_grid: cube::PixelGrid::ALL[k % 2],
             ..Default::default()
         };
         let bake = |device| {

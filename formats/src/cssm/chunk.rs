@@ -24,7 +24,10 @@ use serde::{Deserialize, Serialize};
 use super::framing::{compress_payload, decode_body, unframe};
 use super::validate::{validate_csms, validate_params, validate_runs, validate_tables};
 use super::write::write_atomic_by;
-use super::{CssmError, CssmFile, FileCoding, HEADER_LEN, RunData, SEGMENT_MAPS};
+use super::{
+    CssmError, CssmFile, FLAG_STAGGERED_GRID, FileCoding, HEADER_LEN, RunData, SEGMENT_MAPS,
+    grid_flag, grid_of_flags,
+};
 
 /// Header flag of a chunk file (payload: a [`CssmChunk`]).
 pub const FLAG_CHUNK: u32 = 2;
@@ -221,7 +224,8 @@ impl CssmChunk {
 /// [`CssmError::Invalid`] for an inconsistent chunk, [`CssmError::Encode`] when encoding fails.
 pub fn encode_chunk(chunk: &CssmChunk) -> Result<Vec<u8>, CssmError> {
     chunk.validate()?;
-    let (mut bytes, head) = compress_payload(FLAG_CHUNK, chunk, vec![0u8; HEADER_LEN])?;
+    let flags = FLAG_CHUNK | grid_flag(chunk.file.pixel_grid);
+    let (mut bytes, head) = compress_payload(flags, chunk, vec![0u8; HEADER_LEN])?;
     bytes[..HEADER_LEN].copy_from_slice(&head);
     Ok(bytes)
 }
@@ -248,14 +252,15 @@ pub fn write_chunk_atomic(path: &Path, chunk: &CssmChunk) -> Result<u64, CssmErr
 /// [`CssmError::NotAChunk`] for a whole `.cssm` file, or any error of [`super::decode`].
 pub fn decode_chunk(bytes: &[u8]) -> Result<CssmChunk, CssmError> {
     let (flags, raw) = unframe(bytes)?;
-    if flags != FLAG_CHUNK {
+    if flags & !FLAG_STAGGERED_GRID != FLAG_CHUNK {
         return Err(if flags & FLAG_CHUNK == 0 {
             CssmError::NotAChunk
         } else {
             CssmError::UnsupportedFlags { flags }
         });
     }
-    let chunk: CssmChunk = decode_body(&raw)?;
+    let mut chunk: CssmChunk = decode_body(&raw)?;
+    chunk.file.pixel_grid = grid_of_flags(flags);
     chunk.validate()?;
     Ok(chunk)
 }
@@ -403,6 +408,7 @@ pub fn merge_chunks(
             (a.sequence != b.sequence, "traversals"),
             (a.hierarchy != b.hierarchy, "hierarchies"),
             (a.csms != b.csms, "coherent shadow maps"),
+            (a.pixel_grid != b.pixel_grid, "pixel grids (--pixel-grid)"),
             (first.coding != chunk.coding, "file codings (--coding)"),
         ];
         if let Some(&(_, what)) = differs.iter().find(|(d, _)| *d) {

@@ -35,6 +35,11 @@ pub const ZSTD_LEVEL: i32 = 9;
 ///
 /// [`PackedRuns`]: super::PackedRuns
 pub const FLAG_PACKED_RUNS: u32 = 1;
+
+/// Header flag of a file (or chunk) whose cube maps sample staggered pixel grids
+/// ([`crate::cube::PixelGrid::Staggered`]); without it, the paper's centred grid. A build that
+/// predates staggered grids refuses such a file as an unknown flag rather than misread it.
+pub const FLAG_STAGGERED_GRID: u32 = 4;
 /// Size of the fixed header in bytes.
 pub const HEADER_LEN: usize = 8 + 4 + 4 + 8 + 8 + 16;
 
@@ -213,7 +218,7 @@ pub(super) fn check_header(bytes: &[u8]) -> Result<(), CssmError> {
         return Err(CssmError::UnsupportedVersion { version });
     }
     let flags = u32_at(bytes, 12);
-    if flags & !(FLAG_PACKED_RUNS | super::FLAG_CHUNK) != 0 {
+    if flags & !(FLAG_PACKED_RUNS | super::FLAG_CHUNK | FLAG_STAGGERED_GRID) != 0 {
         return Err(CssmError::UnsupportedFlags { flags });
     }
     let (uncompressed_len, compressed_len) = (u64_at(bytes, 16), u64_at(bytes, 24));

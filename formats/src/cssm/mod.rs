@@ -9,7 +9,7 @@
 //! |-------|-------|
 //! | 8     | [`MAGIC`] |
 //! | 4     | format version, `u32` little-endian ([`FORMAT_VERSION`]) |
-//! | 4     | flags, `u32` LE: 0, or [`FLAG_PACKED_RUNS`] |
+//! | 4     | flags, `u32` LE: 0, [`FLAG_PACKED_RUNS`], [`FLAG_STAGGERED_GRID`], or both |
 //! | 8     | uncompressed payload length, `u64` LE (at most [`MAX_UNCOMPRESSED_BYTES`]) |
 //! | 8     | compressed payload length, `u64` LE (= the rest of the file) |
 //! | 16    | checksum: first 16 bytes of BLAKE3 of the compressed payload |
@@ -24,6 +24,9 @@
 //! without it (flags 0) are read as well; a build that predates it refuses packed files with
 //! "unsupported header flags". Version-1 files (before the hierarchy) are refused with
 //! [`CssmError::UnsupportedVersion`]: re-bake them.
+//!
+//! [`FLAG_STAGGERED_GRID`] says the cube maps sample staggered pixel grids ([`CssmFile::pixel_grid`]);
+//! files without it (every file before it) sample the paper's centred grid and read as before.
 //!
 //! Encoding is deterministic: the same [`CssmFile`] always gives the same bytes. Decoding checks
 //! every field before trusting it, bounds every allocation, and finishes with [`validate`].
@@ -49,8 +52,9 @@ pub use chunk::{
     merge_chunks, read_chunk, write_chunk_atomic,
 };
 pub use framing::{
-    FLAG_PACKED_RUNS, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_UNCOMPRESSED_BYTES, MAX_ZSTD_RATIO,
-    PLAUSIBLE_NEWER_VERSIONS, RATIO_FREE_BYTES, ZSTD_LEVEL, frame_payload,
+    FLAG_PACKED_RUNS, FLAG_STAGGERED_GRID, FORMAT_VERSION, HEADER_LEN, MAGIC,
+    MAX_UNCOMPRESSED_BYTES, MAX_ZSTD_RATIO, PLAUSIBLE_NEWER_VERSIONS, RATIO_FREE_BYTES, ZSTD_LEVEL,
+    frame_payload,
 };
 pub use runs::{PackedRuns, RunData, SEGMENT_MAPS};
 pub use validate::{validate, validate_for_scene, validate_run_layout};
@@ -173,6 +177,11 @@ pub struct CssmFile {
     /// The coherent shadow maps of the scene's rigid objects (§3.1, §3.3; [`crate::csm`]), in
     /// object order; empty for a scene without `[[objects]]`. Since version 3.
     pub csms: Vec<crate::csm::CsmData>,
+    /// Where each texel's cube-map pixels sit ([`crate::cube::PixelGrid`]): stored as the
+    /// header's [`FLAG_STAGGERED_GRID`], not in the payload, so that every older file reads as
+    /// the centred grid it was baked with.
+    #[serde(skip)]
+    pub pixel_grid: crate::cube::PixelGrid,
 }
 
 /// Everything that can go wrong reading, writing or validating a `.cssm` file. Every message is
@@ -237,7 +246,8 @@ pub enum CssmError {
     /// Reserved flag bits are set.
     #[error(
         "unknown header flags {flags:#x} (this build knows {FLAG_PACKED_RUNS:#x}, packed runs, \
-         and {FLAG_CHUNK:#x}, a chunk): a corrupted file or one from a newer build"
+         {FLAG_CHUNK:#x}, a chunk, and {FLAG_STAGGERED_GRID:#x}, staggered pixel grids): a \
+         corrupted file or one from a newer build"
     )]
     UnsupportedFlags {
         /// Flags found in the header.
@@ -349,8 +359,9 @@ fn encode_into<W: Write>(
     out: W,
 ) -> Result<(W, Vec<u8>), CssmError> {
     validate(file)?;
+    let grid = grid_flag(file.pixel_grid);
     match coding {
-        FileCoding::Plain => compress_payload(0, file, out),
+        FileCoding::Plain => compress_payload(grid, file, out),
         FileCoding::Packed => {
             // Borrow-free copy of the small tables; the run data is replaced by its packed form.
             let packed = PackedFile {
@@ -365,7 +376,7 @@ fn encode_into<W: Write>(
                 runs: PackedRuns::pack(&file.runs),
                 csms: file.csms.clone(),
             };
-            compress_payload(FLAG_PACKED_RUNS, &packed, out)
+            compress_payload(FLAG_PACKED_RUNS | grid, &packed, out)
         }
     }
 }
@@ -379,7 +390,7 @@ pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
     if flags & FLAG_CHUNK != 0 {
         return Err(CssmError::IsChunk);
     }
-    let file = if flags & FLAG_PACKED_RUNS != 0 {
+    let mut file: CssmFile = if flags & FLAG_PACKED_RUNS != 0 {
         let p: PackedFile = decode_body(&raw)?;
         // The sizes the run data will be unpacked to must agree with the tables already read
         // (which the payload's own length bounds) before anything is allocated for it.
@@ -407,12 +418,31 @@ pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
             hierarchy: p.hierarchy,
             runs,
             csms: p.csms,
+            pixel_grid: Default::default(),
         }
     } else {
         decode_body(&raw)?
     };
+    file.pixel_grid = grid_of_flags(flags);
     validate(&file)?;
     Ok(file)
+}
+
+/// The header flag that stores `grid`.
+fn grid_flag(grid: crate::cube::PixelGrid) -> u32 {
+    match grid {
+        crate::cube::PixelGrid::Centred => 0,
+        crate::cube::PixelGrid::Staggered => FLAG_STAGGERED_GRID,
+    }
+}
+
+/// The pixel grid header flags `flags` store.
+fn grid_of_flags(flags: u32) -> crate::cube::PixelGrid {
+    if flags & FLAG_STAGGERED_GRID != 0 {
+        crate::cube::PixelGrid::Staggered
+    } else {
+        crate::cube::PixelGrid::Centred
+    }
 }
 
 /// Reads and decodes the `.cssm` file at `path`. Every error names the path.

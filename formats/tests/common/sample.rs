@@ -55,5 +55,6 @@ pub fn sample() -> CssmFile {
             runs,
         },
         csms: Vec::new(),
+        pixel_grid: Default::default(),
     }
 }

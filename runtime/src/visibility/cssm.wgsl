@@ -48,6 +48,10 @@ const CSSM_DEPTH_MAX: u32 = 65535u;
 const CSSM_FLAG_PCF: u32 = 1u;
 const CSSM_FLAG_SENDER_FILTER: u32 = 2u;
 const CSSM_FLAG_BOTH_ENDS: u32 = 4u;
+// The file's cube maps sample staggered pixel grids (cube::PixelGrid::Staggered).
+const CSSM_FLAG_STAGGERED_GRID: u32 = 8u;
+// cube::PixelGrid::STAGGER.
+const CSSM_STAGGER: f32 = 0.125;
 // Stands for "nothing within the far plane": larger than any receiver depth.
 const CSSM_FAR_AWAY: f32 = 3.0e38;
 
@@ -160,27 +164,38 @@ fn cssm_face_direction(face: u32, u: f32, v: f32) -> vec3f {
     return vec3f(u, v, s);
 }
 
-// cube::pixel_direction.
-fn cssm_pixel_direction(n: u32, pixel: u32) -> vec3f {
+// cube::PixelGrid::offset: the shift of texel `t`'s pixel grid, in pixels.
+fn cssm_grid_offset(t: Texel) -> vec2f {
+    if (cssm.flags & CSSM_FLAG_STAGGERED_GRID) == 0u {
+        return vec2f(0.0);
+    }
+    return vec2f(
+        select(-CSSM_STAGGER, CSSM_STAGGER, t.x % 2u == 1u),
+        select(-CSSM_STAGGER, CSSM_STAGGER, t.y % 2u == 1u),
+    );
+}
+
+// cube::pixel_direction_at.
+fn cssm_pixel_direction(n: u32, pixel: u32, offset: vec2f) -> vec3f {
     let face = pixel / (n * n);
     let rest = pixel % (n * n);
-    let u = (f32(rest % n) + 0.5) / f32(n) * 2.0 - 1.0;
-    let v = (f32(rest / n) + 0.5) / f32(n) * 2.0 - 1.0;
+    let u = (f32(rest % n) + 0.5 + offset.x) / f32(n) * 2.0 - 1.0;
+    let v = (f32(rest / n) + 0.5 + offset.y) / f32(n) * 2.0 - 1.0;
     return cssm_face_direction(face, u, v);
 }
 
-// cube::pixel_is_dont_care: the whole pixel lies behind the tangent plane.
-fn cssm_pixel_is_dont_care(n: u32, pixel: u32, normal: vec3f) -> bool {
+// cube::pixel_is_dont_care_at: the whole pixel lies behind the tangent plane.
+fn cssm_pixel_is_dont_care(n: u32, pixel: u32, normal: vec3f, offset: vec2f) -> bool {
     let major = pixel / (n * n) / 2u;
     let half_step = 1.0 / f32(n);
     let nu = abs(cssm_axis(normal, (major + 1u) % 3u));
     let nv = abs(cssm_axis(normal, (major + 2u) % 3u));
-    return dot(cssm_pixel_direction(n, pixel), normal) + half_step * (nu + nv) < 0.0;
+    return dot(cssm_pixel_direction(n, pixel, offset), normal) + half_step * (nu + nv) < 0.0;
 }
 
-// cube::cast_direction: the ray the bake cast for the pixel, and its depth factor.
-fn cssm_cast_direction(n: u32, pixel: u32, normal: vec3f) -> vec4f {
-    let dir = cssm_pixel_direction(n, pixel);
+// cube::cast_direction_at: the ray the bake cast for the pixel, and its depth factor.
+fn cssm_cast_direction(n: u32, pixel: u32, normal: vec3f, offset: vec2f) -> vec4f {
+    let dir = cssm_pixel_direction(n, pixel, offset);
     let below = dot(dir, normal);
     if below >= 0.0 {
         return vec4f(dir, 1.0);
@@ -217,8 +232,11 @@ fn cssm_project(d: vec3f) -> CssmProjection {
     );
 }
 
-// cube::pixel_index.
-fn cssm_pixel_index(n: u32, face: u32, u: f32, v: f32) -> u32 {
+// cube::pixel_index_at.
+fn cssm_pixel_index(n: u32, face: u32, u_centred: f32, v_centred: f32, offset: vec2f) -> u32 {
+    let step = 2.0 / f32(n);
+    let u = u_centred - offset.x * step;
+    let v = v_centred - offset.y * step;
     let col = u32(clamp(i32((u + 1.0) * 0.5 * f32(n)), 0, i32(n) - 1));
     let row = u32(clamp(i32((v + 1.0) * 0.5 * f32(n)), 0, i32(n) - 1));
     return face * n * n + row * n + col;
@@ -227,12 +245,13 @@ fn cssm_pixel_index(n: u32, face: u32, u: f32, v: f32) -> u32 {
 // Depth of the receiver along the ray the bake cast for `pixel` (receiver-plane depth);
 // `n_i` = vec3f(0) when the receiver's normal is unknown.
 fn cssm_receiver_depth(
-    n: u32, pixel: u32, normal: vec3f, centre: vec3f, p_i: vec3f, n_i: vec3f, depth: f32,
+    n: u32, pixel: u32, normal: vec3f, offset: vec2f, centre: vec3f, p_i: vec3f, n_i: vec3f,
+    depth: f32,
 ) -> f32 {
     if all(n_i == vec3f(0.0)) {
         return depth;
     }
-    let ray = cssm_cast_direction(n, pixel, normal);
+    let ray = cssm_cast_direction(n, pixel, normal, offset);
     let denom = dot(ray.xyz, n_i);
     if abs(denom) < 1e-4 {
         return depth;
@@ -246,14 +265,15 @@ fn cssm_receiver_depth(
 }
 
 fn cssm_pixel_test(
-    texel: Texel, pixel: u32, centre: vec3f, p_i: vec3f, n_i: vec3f, depth: f32, bias: f32,
+    texel: Texel, offset: vec2f, pixel: u32, centre: vec3f, p_i: vec3f, n_i: vec3f, depth: f32,
+    bias: f32,
 ) -> f32 {
     let n = cssm.cube_resolution;
-    if cssm_pixel_is_dont_care(n, pixel, texel.normal) {
+    if cssm_pixel_is_dont_care(n, pixel, texel.normal, offset) {
         return 0.0;
     }
     let stored = cssm_depth(cssm_lookup(texel.map, pixel));
-    let receiver = cssm_receiver_depth(n, pixel, texel.normal, centre, p_i, n_i, depth);
+    let receiver = cssm_receiver_depth(n, pixel, texel.normal, offset, centre, p_i, n_i, depth);
     return select(0.0, 1.0, stored >= receiver - bias);
 }
 
@@ -268,6 +288,7 @@ fn cssm_visibility_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> f32 {
         return 0.0;
     }
     let centre = t.position + t.normal * near;
+    let offset = cssm_grid_offset(t);
     var d = p_i - centre;
     let below = dot(d, t.normal);
     if below < 0.0 {
@@ -279,12 +300,13 @@ fn cssm_visibility_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> f32 {
     let q = cssm_project(d);
     let bias = cssm.bias_near * near + cssm.bias_relative * q.depth;
     if (cssm.flags & CSSM_FLAG_PCF) == 0u {
-        return cssm_pixel_test(t, cssm_pixel_index(n, q.face, q.u, q.v), centre, p_i, n_i, q.depth, bias);
+        let pixel = cssm_pixel_index(n, q.face, q.u, q.v, offset);
+        return cssm_pixel_test(t, offset, pixel, centre, p_i, n_i, q.depth, bias);
     }
     // §3.2.2 PCF: bilinear weights over the 2x2 pixel centres around the projection.
     let nf = f32(n);
-    let fx = clamp((q.u + 1.0) * 0.5 * nf - 0.5, 0.0, nf - 1.0);
-    let fy = clamp((q.v + 1.0) * 0.5 * nf - 0.5, 0.0, nf - 1.0);
+    let fx = clamp((q.u + 1.0) * 0.5 * nf - 0.5 - offset.x, 0.0, nf - 1.0);
+    let fy = clamp((q.v + 1.0) * 0.5 * nf - 0.5 - offset.y, 0.0, nf - 1.0);
     let x0 = u32(floor(fx));
     let y0 = u32(floor(fy));
     let x1 = min(x0 + 1u, n - 1u);
@@ -292,10 +314,10 @@ fn cssm_visibility_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> f32 {
     let wx = fx - f32(x0);
     let wy = fy - f32(y0);
     let base = q.face * n * n;
-    let t00 = cssm_pixel_test(t, base + y0 * n + x0, centre, p_i, n_i, q.depth, bias);
-    let t10 = cssm_pixel_test(t, base + y0 * n + x1, centre, p_i, n_i, q.depth, bias);
-    let t01 = cssm_pixel_test(t, base + y1 * n + x0, centre, p_i, n_i, q.depth, bias);
-    let t11 = cssm_pixel_test(t, base + y1 * n + x1, centre, p_i, n_i, q.depth, bias);
+    let t00 = cssm_pixel_test(t, offset, base + y0 * n + x0, centre, p_i, n_i, q.depth, bias);
+    let t10 = cssm_pixel_test(t, offset, base + y0 * n + x1, centre, p_i, n_i, q.depth, bias);
+    let t01 = cssm_pixel_test(t, offset, base + y1 * n + x0, centre, p_i, n_i, q.depth, bias);
+    let t11 = cssm_pixel_test(t, offset, base + y1 * n + x1, centre, p_i, n_i, q.depth, bias);
     return (1.0 - wy) * ((1.0 - wx) * t00 + wx * t10) + wy * ((1.0 - wx) * t01 + wx * t11);
 }
 

@@ -31,12 +31,13 @@ pub struct DepthMapTexel {
     /// The cube's centre (the texel's position pushed off its surface by the near distance),
     /// computed by the caller exactly as its CPU renderer does.
     pub centre: [f32; 3],
-    /// Unused.
-    pub _pad0: f32,
+    /// The shift of the texel's pixel grid along each face's u axis, in pixels
+    /// (`cssm_formats::cube::PixelGrid::offset`; 0 on the paper's centred grid).
+    pub grid_u: f32,
     /// The texel's unit normal.
     pub normal: [f32; 3],
-    /// Unused.
-    pub _pad1: f32,
+    /// The shift along each face's v axis, in pixels.
+    pub grid_v: f32,
 }
 
 /// What every ray of a batch shares.
@@ -253,25 +254,25 @@ impl DepthMapKernel {
         };
         let texel_bytes: &[u8] = bytemuck::cast_slice(texels);
         use wgpu::BufferUsages as U;
-        let param_buffer = buffers.params.take(
+        let param_buffer = buffers.params.at_least(
             device,
             "depth map parameters",
             size_of::<GpuDepthMapParams>() as u64,
             U::UNIFORM | U::COPY_DST,
         );
-        let texel_buffer = buffers.texels.take(
+        let texel_buffer = buffers.texels.at_least(
             device,
             "depth map texels",
             texel_bytes.len() as u64,
             U::STORAGE | U::COPY_DST,
         );
-        let output = buffers.output.take(
+        let output = buffers.output.at_least(
             device,
             "depth map hits",
             answer_bytes,
             U::STORAGE | U::COPY_SRC,
         );
-        let staging = buffers.staging.take(
+        let staging = buffers.staging.at_least(
             device,
             "depth map readback",
             answer_bytes,
@@ -329,8 +330,9 @@ pub struct DepthMapBuffers {
 struct Reused(Option<wgpu::Buffer>);
 
 impl Reused {
-    /// The buffer, replaced by a new one when it holds fewer than `size` bytes.
-    fn take(
+    /// A buffer of at least `size` bytes: the one kept, or a new one (kept in its place) when
+    /// the kept one holds fewer.
+    fn at_least(
         &mut self,
         device: &wgpu::Device,
         label: &'static str,

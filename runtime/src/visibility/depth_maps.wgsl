@@ -29,9 +29,11 @@ struct DepthMapTexel {
     // The cube's centre: the texel's position pushed off its surface by the near distance,
     // computed on the CPU so that every ray starts where the CPU's does.
     centre: vec3f,
-    _pad0: f32,
+    // The shift of the texel's pixel grid along the faces' u and v axes, in pixels
+    // (`cssm_formats::cube::PixelGrid::offset`).
+    grid_u: f32,
     normal: vec3f,
-    _pad1: f32,
+    grid_v: f32,
 }
 
 @group(0) @binding(0) var<uniform> params: DepthMapParams;
@@ -118,13 +120,13 @@ fn add(r: ptr<function, Reducer>, t: f32, faces: bool) {
 
 fn cast_pixel(texel: DepthMapTexel, pixel: u32) -> vec2u {
     let n = params.n;
-    // `cssm_formats::cube::pixel_direction`.
+    // `cssm_formats::cube::pixel_direction_at`.
     let face = pixel / (n * n);
     let rest = pixel % (n * n);
     let row = rest / n;
     let col = rest % n;
-    let u = (f32(col) + 0.5) / f32(n) * 2.0 - 1.0;
-    let v = (f32(row) + 0.5) / f32(n) * 2.0 - 1.0;
+    let u = (f32(col) + 0.5 + texel.grid_u) / f32(n) * 2.0 - 1.0;
+    let v = (f32(row) + 0.5 + texel.grid_v) / f32(n) * 2.0 - 1.0;
     let major = face / 2u;
     let ua = (major + 1u) % 3u;
     let va = (major + 2u) % 3u;
