@@ -356,8 +356,9 @@ pub struct CheckArgs {
     /// Use only the texel under each sender point (no filtering across neighbouring cube maps).
     #[arg(long)]
     no_sender_filter: bool,
-    /// Ask only the sender's cube maps, as the paper does, instead of the mean of both points'
-    /// (each pair's points both have texels, as in the runtime's radiosity and final gather).
+    /// Ask only the sender's cube maps, as the paper does, instead of both points' (their
+    /// answers weighted towards the end nearer the occluder; each pair's points both have
+    /// texels, as in the runtime's radiosity and final gather).
     #[arg(long)]
     one_end: bool,
     /// Constant depth bias, in multiples of the bake's near distance.
@@ -510,7 +511,7 @@ pub struct ErrorArgs {
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
     /// CSSM methods: ask only the receiver's cube maps for each sender, as the paper does,
-    /// instead of the mean of both ends' answers (the default; see `cssm check --one-end`).
+    /// instead of both ends' answers combined (the default; see `cssm check --one-end`).
     #[arg(long)]
     one_end: bool,
     /// Atlas resolution of the .cssm baked in memory for the methods that need one (32 to 1024).
@@ -726,7 +727,7 @@ pub struct CompareArgs {
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
     /// CSSM methods: ask only the receiver's cube maps for each sender, as the paper does,
-    /// instead of the mean of both ends' answers (the default; see `cssm check --one-end`).
+    /// instead of both ends' answers combined (the default; see `cssm check --one-end`).
     #[arg(long)]
     one_end: bool,
     /// Atlas resolution of the .cssm baked in memory for the methods that need one (32 to 1024).
@@ -1116,7 +1117,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
     /// CSSM methods: ask only the receiver's cube maps for each sender, as the paper does,
-    /// instead of the mean of both ends' answers (the default; see `cssm check --one-end`).
+    /// instead of both ends' answers combined (the default; see `cssm check --one-end`).
     #[arg(long)]
     one_end: bool,
     /// Print GPU milliseconds per pass (timestamp queries): the first frame, which also runs

@@ -26,7 +26,7 @@ use crate::{
     CssmFile, ObjectKind,
     csm::CsmData,
     texel::Texel,
-    visibility::{QueryOptions, VisibilityQuery},
+    visibility::{QueryOptions, VisibilityQuery, combine_ends},
 };
 
 /// One end of a query: a surface point where the objects stand now.
@@ -258,24 +258,20 @@ impl<'a> MovingQuery<'a> {
         // 1. Self-occlusion: each end's maps answer for the other end, in the end's own baked
         // frame (one frame when both lie on one object).
         let (p_b, n_b) = self.to_baked(a.object, b.position, b.normal);
-        let forward = self
-            .query
-            .visibility_from_senders(a.senders, p_b, Some(n_b));
+        let forward = self.query.answer_from_senders(a.senders, p_b, Some(n_b));
         let (p_a, n_a) = self.to_baked(b.object, a.position, a.normal);
-        let backward = self
-            .query
-            .visibility_from_senders(b.senders, p_a, Some(n_a));
+        let backward = self.query.answer_from_senders(b.senders, p_a, Some(n_a));
         let own = if group_a == group_b {
             // VisibilityQuery::visibility_between's combination.
             match (forward, backward) {
-                (Some(f), Some(r)) if self.query.options.both_ends => Some(0.5 * (f + r)),
-                (Some(f), _) => Some(f),
-                (None, r) => r,
+                (Some(f), Some(r)) if self.query.options.both_ends => Some(combine_ends(f, r)),
+                (Some(f), _) => Some(f.visible),
+                (None, r) => r.map(|r| r.visible),
             }
         } else {
             match (forward, backward) {
-                (Some(f), Some(r)) => Some(f * r),
-                (f, r) => f.or(r),
+                (Some(f), Some(r)) => Some(f.visible * r.visible),
+                (f, r) => f.or(r).map(|answer| answer.visible),
             }
         }?;
         // 2. Every other rigid object, with its CSM where it stands now.

@@ -12,7 +12,9 @@
 //! `p_j`'s cube maps say of `p_i` and what `p_i`'s say of `p_j`. Visibility is symmetric, but
 //! the two answers' errors are not: an occluder near one end covers many pixels of that end's
 //! cube map and few of the other's, so the end near it resolves its edge, and where one end's
-//! pixels straddle an edge the other's often do not.
+//! pixels straddle an edge the other's often do not. So the two answers are not simply averaged:
+//! each end weighs by how near to it its blocking pixels put the occluder ([`EndAnswer`],
+//! [`combine_ends`]); with nothing blocked at either end that is the mean.
 //!
 //! The GPU query of the runtime computes exactly this; this module is its reference.
 
@@ -37,7 +39,8 @@ pub struct QueryOptions {
     /// filtering across neighbouring depth maps as well as pixels.
     pub sender_filter: bool,
     /// Queries between two surface points that both have texels ([`VisibilityQuery::
-    /// visibility_between`]) take the mean of both ends' answers instead of the sender's alone.
+    /// visibility_between`]) combine both ends' answers ([`combine_ends`]) instead of taking
+    /// the sender's alone.
     pub both_ends: bool,
 }
 
@@ -57,6 +60,47 @@ impl Default for QueryOptions {
             both_ends: true,
         }
     }
+}
+
+/// One end's answer for the other end's point: what its cube maps say, and where they put the
+/// occluder.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EndAnswer {
+    /// Fraction of the point visible (PCF over the pixels, sender filter over the texels).
+    pub visible: f32,
+    /// How near to this end the blocking pixels put the occluder: the sum over the blocked taps
+    /// of their weight times `1 - stored depth / receiver depth`. 0 when nothing blocks (or
+    /// only don't-care pixels do), up to 1 when every tap is blocked right at the cube centre.
+    /// A stored depth lies at or beyond the first surface along the pixel's ray that faces
+    /// this end (its interval starts there), so a small one says the occluder is near.
+    pub nearness: f32,
+}
+
+/// How much more the end nearer the occluder counts in [`combine_ends`]: its weight is
+/// `exp(NEARER_END_WEIGHT * nearness)`. Measured with `examples/endsdiag.rs` over the pairs
+/// that exchange light (reports/visibility.md, "Which end to trust"): 1, 2 and 4 all gain on
+/// the church and the Cornell box; 2 gains most on both.
+pub const NEARER_END_WEIGHT: f32 = 2.0;
+
+/// Both ends' answers combined into one visible fraction: their mean, each end weighted by
+/// `exp(NEARER_END_WEIGHT * nearness)`. The end nearer the occluder sees it larger (its edges
+/// span more of that end's pixels), so where the two ends disagree it is more often right; with
+/// nothing blocked at either end the weights are equal and this is the plain mean. The result
+/// lies between the two answers.
+///
+/// ```
+/// use cssm_formats::visibility::{EndAnswer, combine_ends};
+/// let clear = EndAnswer { visible: 1.0, nearness: 0.0 };
+/// // Blocked, by an occluder a tenth of the way from this end to the receiver.
+/// let blocked_near = EndAnswer { visible: 0.0, nearness: 0.9 };
+/// assert_eq!(combine_ends(clear, clear), 1.0);
+/// assert!(combine_ends(clear, blocked_near) < 0.5);
+/// ```
+pub fn combine_ends(forward: EndAnswer, backward: EndAnswer) -> f32 {
+    let weight_forward = (NEARER_END_WEIGHT * forward.nearness).exp();
+    let weight_backward = (NEARER_END_WEIGHT * backward.nearness).exp();
+    (weight_forward * forward.visible + weight_backward * backward.visible)
+        / (weight_forward + weight_backward)
 }
 
 /// Answers visibility queries from a baked CSSM without decompressing it.
@@ -186,12 +230,18 @@ impl<'a> VisibilityQuery<'a> {
     /// a surface seen at a grazing angle spans a wide range of depths across one pixel, and
     /// without this the pixel's centre ray, hitting that surface nearer or farther, shadows it.
     pub fn visibility_oriented(&self, texel: u32, p_i: Vec3, n_i: Option<Vec3>) -> f32 {
+        self.answer_oriented(texel, p_i, n_i).visible
+    }
+
+    /// [`Self::visibility_oriented`] with where the blocking pixels put the occluder
+    /// ([`EndAnswer::nearness`]).
+    pub fn answer_oriented(&self, texel: u32, p_i: Vec3, n_i: Option<Vec3>) -> EndAnswer {
         let n = self.file.params.cube_resolution;
         let t = &self.file.texels[texel as usize];
         let normal = t.nrm();
         let near = self.file.params.near;
         if (p_i - t.pos()).dot(normal) < -near {
-            return 0.0;
+            return EndAnswer::default();
         }
         let centre = self.cube_centre(texel);
         // The texel's own pixel grid (`cube::PixelGrid`), in pixels.
@@ -202,7 +252,10 @@ impl<'a> VisibilityQuery<'a> {
             d -= normal * below;
         }
         if d.length_squared() < near * near * 1e-6 {
-            return 1.0;
+            return EndAnswer {
+                visible: 1.0,
+                nearness: 0.0,
+            };
         }
         let (face, u, v, depth) = cube::project(d);
         let bias =
@@ -222,19 +275,22 @@ impl<'a> VisibilityQuery<'a> {
                 depth
             }
         };
-        let test = |pixel: u32| -> f32 {
+        // (visible, nearness) of one pixel.
+        let test = |pixel: u32| -> (f32, f32) {
             if cube::pixel_is_dont_care_at(n, pixel, normal, offset) {
-                return 0.0;
+                return (0.0, 0.0);
             }
             let stored = self.quantizer.depth(self.depth_code(texel, pixel));
-            if stored >= receiver_depth(pixel) - bias {
-                1.0
+            let receiver = receiver_depth(pixel);
+            if stored >= receiver - bias {
+                (1.0, 0.0)
             } else {
-                0.0
+                (0.0, (1.0 - stored / receiver).clamp(0.0, 1.0))
             }
         };
         if !self.options.pcf {
-            return test(cube::pixel_index_at(n, face, u, v, offset));
+            let (visible, nearness) = test(cube::pixel_index_at(n, face, u, v, offset));
+            return EndAnswer { visible, nearness };
         }
         // Bilinear weights over the 2x2 pixel centres around the projection, clamped to the face.
         let fx = ((u + 1.0) * 0.5 * n as f32 - 0.5 - offset.x).clamp(0.0, n as f32 - 1.0);
@@ -243,9 +299,15 @@ impl<'a> VisibilityQuery<'a> {
         let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
         let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
         let base = face * n * n;
-        let at = |x: u32, y: u32| test(base + y * n + x);
-        (1.0 - wy) * ((1.0 - wx) * at(x0, y0) + wx * at(x1, y0))
-            + wy * ((1.0 - wx) * at(x0, y1) + wx * at(x1, y1))
+        let (t00, t10) = (test(base + y0 * n + x0), test(base + y0 * n + x1));
+        let (t01, t11) = (test(base + y1 * n + x0), test(base + y1 * n + x1));
+        let bilinear = |a: f32, b: f32, c: f32, d: f32| {
+            (1.0 - wy) * ((1.0 - wx) * a + wx * b) + wy * ((1.0 - wx) * c + wx * d)
+        };
+        EndAnswer {
+            visible: bilinear(t00.0, t10.0, t01.0, t11.0),
+            nearness: bilinear(t00.1, t10.1, t01.1, t11.1),
+        }
     }
 
     /// Whether `p_i` is visible from the cube map of `texel` (PCF: at least half visible).
@@ -323,9 +385,9 @@ impl<'a> VisibilityQuery<'a> {
 
     /// Fraction of the way between two surface points that is clear: `a` (its
     /// [`Self::sender_texels_at`], position, normal) and `b` likewise. With
-    /// [`QueryOptions::both_ends`], the mean of `a`'s cube maps' answer for `b` and `b`'s for
-    /// `a` (see the module docs); else, or when `b` has no texels, `a`'s alone; `b`'s alone when
-    /// `a` has none; `None` when neither has.
+    /// [`QueryOptions::both_ends`], `a`'s cube maps' answer for `b` and `b`'s for `a`
+    /// combined by [`combine_ends`] (see the module docs); else, or when `b` has no texels,
+    /// `a`'s alone; `b`'s alone when `a` has none; `None` when neither has.
     pub fn visibility_between(
         &self,
         a: &[(u32, f32)],
@@ -335,14 +397,16 @@ impl<'a> VisibilityQuery<'a> {
         p_b: Vec3,
         n_b: Vec3,
     ) -> Option<f32> {
-        let forward = self.visibility_from_senders(a, p_b, Some(n_b));
-        if !self.options.both_ends && forward.is_some() {
-            return forward;
+        let forward = self.answer_from_senders(a, p_b, Some(n_b));
+        if !self.options.both_ends
+            && let Some(f) = forward
+        {
+            return Some(f.visible);
         }
-        let backward = self.visibility_from_senders(b, p_a, Some(n_a));
+        let backward = self.answer_from_senders(b, p_a, Some(n_a));
         match (forward, backward) {
-            (Some(f), Some(r)) => Some(0.5 * (f + r)),
-            (f, r) => f.or(r),
+            (Some(f), Some(r)) => Some(combine_ends(f, r)),
+            (f, r) => f.or(r).map(|answer| answer.visible),
         }
     }
 
@@ -375,14 +439,27 @@ impl<'a> VisibilityQuery<'a> {
         p_i: Vec3,
         n_i: Option<Vec3>,
     ) -> Option<f32> {
+        self.answer_from_senders(senders, p_i, n_i)
+            .map(|answer| answer.visible)
+    }
+
+    /// [`Self::visibility_from_senders`] with where the blocking pixels put the occluder: the
+    /// weighted sum of the senders' [`Self::answer_oriented`].
+    pub fn answer_from_senders(
+        &self,
+        senders: &[(u32, f32)],
+        p_i: Vec3,
+        n_i: Option<Vec3>,
+    ) -> Option<EndAnswer> {
         if senders.is_empty() {
             return None;
         }
-        Some(
-            senders
-                .iter()
-                .map(|&(t, w)| w * self.visibility_oriented(t, p_i, n_i))
-                .sum(),
-        )
+        Some(senders.iter().fold(EndAnswer::default(), |sum, &(t, w)| {
+            let answer = self.answer_oriented(t, p_i, n_i);
+            EndAnswer {
+                visible: sum.visible + w * answer.visible,
+                nearness: sum.nearness + w * answer.nearness,
+            }
+        }))
     }
 }

@@ -264,28 +264,37 @@ fn cssm_receiver_depth(
     return depth;
 }
 
+// One pixel's test: (visible, nearness), as VisibilityQuery::answer_oriented's `test`.
 fn cssm_pixel_test(
     texel: Texel, offset: vec2f, pixel: u32, centre: vec3f, p_i: vec3f, n_i: vec3f, depth: f32,
     bias: f32,
-) -> f32 {
+) -> vec2f {
     let n = cssm.cube_resolution;
     if cssm_pixel_is_dont_care(n, pixel, texel.normal, offset) {
-        return 0.0;
+        return vec2f(0.0);
     }
     let stored = cssm_depth(cssm_lookup(texel.map, pixel));
     let receiver = cssm_receiver_depth(n, pixel, texel.normal, offset, centre, p_i, n_i, depth);
-    return select(0.0, 1.0, stored >= receiver - bias);
+    if stored >= receiver - bias {
+        return vec2f(1.0, 0.0);
+    }
+    return vec2f(0.0, clamp(1.0 - stored / receiver, 0.0, 1.0));
 }
 
 // VisibilityQuery::visibility_oriented: fraction of `p_i` (normal `n_i`, or vec3f(0)) visible
 // from the cube map of `texel_index`.
 fn cssm_visibility_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> f32 {
+    return cssm_answer_texel(texel_index, p_i, n_i).x;
+}
+
+// VisibilityQuery::answer_oriented: cssm_visibility_texel's fraction and EndAnswer::nearness.
+fn cssm_answer_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> vec2f {
     let n = cssm.cube_resolution;
     let t = cssm_texels[texel_index];
     let near = cssm.near;
     // Behind the sender's tangent plane: light leaves a surface on its front side.
     if dot(p_i - t.position, t.normal) < -near {
-        return 0.0;
+        return vec2f(0.0);
     }
     let centre = t.position + t.normal * near;
     let offset = cssm_grid_offset(t);
@@ -295,7 +304,7 @@ fn cssm_visibility_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> f32 {
         d -= t.normal * below;
     }
     if dot(d, d) < near * near * 1e-6 {
-        return 1.0;
+        return vec2f(1.0, 0.0);
     }
     let q = cssm_project(d);
     let bias = cssm.bias_near * near + cssm.bias_relative * q.depth;
@@ -427,23 +436,41 @@ fn cssm_senders_at(p: vec2f) -> CssmSenders {
 // VisibilityQuery::visibility_from_senders: the weighted mean of the senders' answers, -1 when
 // there are none. A receiver that asks many queries (a final-gather pixel) finds its senders once.
 fn cssm_visibility_senders(s: CssmSenders, p_i: vec3f, n_i: vec3f) -> f32 {
+    return cssm_answer_senders(s, p_i, n_i).x;
+}
+
+// VisibilityQuery::answer_from_senders: (visible, nearness) summed over the senders with their
+// weights; x = -1 when there are none.
+fn cssm_answer_senders(s: CssmSenders, p_i: vec3f, n_i: vec3f) -> vec2f {
     if all(s.weights == vec4f(0.0)) {
-        return -1.0;
+        return vec2f(-1.0, 0.0);
     }
-    var sum = 0.0;
+    var sum = vec2f(0.0);
     if s.weights.x > 0.0 {
-        sum += s.weights.x * cssm_visibility_texel(s.texels.x, p_i, n_i);
+        sum += s.weights.x * cssm_answer_texel(s.texels.x, p_i, n_i);
     }
     if s.weights.y > 0.0 {
-        sum += s.weights.y * cssm_visibility_texel(s.texels.y, p_i, n_i);
+        sum += s.weights.y * cssm_answer_texel(s.texels.y, p_i, n_i);
     }
     if s.weights.z > 0.0 {
-        sum += s.weights.z * cssm_visibility_texel(s.texels.z, p_i, n_i);
+        sum += s.weights.z * cssm_answer_texel(s.texels.z, p_i, n_i);
     }
     if s.weights.w > 0.0 {
-        sum += s.weights.w * cssm_visibility_texel(s.texels.w, p_i, n_i);
+        sum += s.weights.w * cssm_answer_texel(s.texels.w, p_i, n_i);
     }
     return sum;
+}
+
+// visibility::NEARER_END_WEIGHT.
+const CSSM_NEARER_END_WEIGHT: f32 = 2.0;
+
+// visibility::combine_ends: the two ends' fractions, each weighted by exp(NEARER_END_WEIGHT *
+// nearness) (the end nearer the occluder sees it larger).
+fn cssm_combine_ends(forward: vec2f, backward: vec2f) -> f32 {
+    let weight_forward = exp(CSSM_NEARER_END_WEIGHT * forward.y);
+    let weight_backward = exp(CSSM_NEARER_END_WEIGHT * backward.y);
+    return (weight_forward * forward.x + weight_backward * backward.x)
+        / (weight_forward + weight_backward);
 }
 
 // The one texel `t` as a point's senders (a texel's centre has no neighbours to filter with).
@@ -451,22 +478,22 @@ fn cssm_senders_texel(t: u32) -> CssmSenders {
     return CssmSenders(vec4u(t, CSSM_NONE, CSSM_NONE, CSSM_NONE), vec4f(1.0, 0.0, 0.0, 0.0));
 }
 
-// VisibilityQuery::visibility_between: the mean of `a`'s answer for `p_b` and `b`'s for `p_a`
-// (CSSM_FLAG_BOTH_ENDS), else `a`'s alone; one end's alone when the other has no texels, -1
-// when neither has.
+// VisibilityQuery::visibility_between: `a`'s answer for `p_b` and `b`'s for `p_a` combined by
+// cssm_combine_ends (CSSM_FLAG_BOTH_ENDS), else `a`'s alone; one end's alone when the other has
+// no texels, -1 when neither has.
 fn cssm_visibility_between(a: CssmSenders, p_a: vec3f, n_a: vec3f, b: CssmSenders, p_b: vec3f, n_b: vec3f) -> f32 {
-    let forward = cssm_visibility_senders(a, p_b, n_b);
-    if (cssm.flags & CSSM_FLAG_BOTH_ENDS) == 0u && forward >= 0.0 {
-        return forward;
+    let forward = cssm_answer_senders(a, p_b, n_b);
+    if (cssm.flags & CSSM_FLAG_BOTH_ENDS) == 0u && forward.x >= 0.0 {
+        return forward.x;
     }
-    let backward = cssm_visibility_senders(b, p_a, n_a);
-    if forward < 0.0 {
-        return backward;
+    let backward = cssm_answer_senders(b, p_a, n_a);
+    if forward.x < 0.0 {
+        return backward.x;
     }
-    if backward < 0.0 {
-        return forward;
+    if backward.x < 0.0 {
+        return forward.x;
     }
-    return 0.5 * (forward + backward);
+    return cssm_combine_ends(forward, backward);
 }
 
 // VisibilityQuery::visibility_from_atlas: cssm_visibility for the surface point at atlas

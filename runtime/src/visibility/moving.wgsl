@@ -1,6 +1,6 @@
 #define_import_path cssm::moving
 
-#import cssm::visibility::{CSSM_FLAG_BOTH_ENDS, CssmSenders, cssm, cssm_visibility_between, cssm_visibility_senders}
+#import cssm::visibility::{CSSM_FLAG_BOTH_ENDS, CssmSenders, cssm, cssm_answer_senders, cssm_combine_ends, cssm_visibility_between}
 
 // Visibility among moving rigid objects (Ritschel et al. 2008, §3.3) in WGSL: the same
 // computation, step for step, as the CPU reference `cssm_formats::moving::MovingQuery` and,
@@ -258,18 +258,20 @@ fn moving_visibility_between(
     let group_b = moving_objects[object_b].group;
     // Each end's maps answer for the other end, in the end's own baked frame (one frame when
     // both lie on one object).
-    let forward = cssm_visibility_senders(a, moving_to_baked(object_a, p_b), moving_normal_to_baked(object_a, n_b));
-    let backward = cssm_visibility_senders(b, moving_to_baked(object_b, p_a), moving_normal_to_baked(object_b, n_a));
+    let forward_answer = cssm_answer_senders(a, moving_to_baked(object_a, p_b), moving_normal_to_baked(object_a, n_b));
+    let backward_answer = cssm_answer_senders(b, moving_to_baked(object_b, p_a), moving_normal_to_baked(object_b, n_a));
+    let forward = forward_answer.x;
+    let backward = backward_answer.x;
     var own: f32;
     if group_a == group_b {
-        // cssm_visibility_between's combination: the mean (CSSM_FLAG_BOTH_ENDS), else the
-        // sender's alone; one end's when the other has no texels.
+        // cssm_visibility_between's combination: cssm_combine_ends (CSSM_FLAG_BOTH_ENDS), else
+        // the sender's alone; one end's when the other has no texels.
         if forward < 0.0 {
             own = backward;
         } else if backward < 0.0 || (cssm.flags & CSSM_FLAG_BOTH_ENDS) == 0u {
             own = forward;
         } else {
-            own = 0.5 * (forward + backward);
+            own = cssm_combine_ends(forward_answer, backward_answer);
         }
     } else if forward >= 0.0 && backward >= 0.0 {
         own = forward * backward;

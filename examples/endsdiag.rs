@@ -1,0 +1,299 @@
+//! Diagnostic of how the two ends' answers are combined (reports/visibility.md, "Which end to
+//! trust"). Run
+//! `cargo build --release --example endsdiag && ./target/release/examples/endsdiag FILE.cssm`
+//! (the pairs of `cssm check`, seed 1, 100,000; only the exchanging pairs with texels at both
+//! ends). Each end is asked as the query asks it (sender filter, 2x2 PCF, receiver-plane depth)
+//! and, besides, with what the rules below need: where its blocking pixels' stored depths put
+//! the occluder, and wider pixel filters.
+use cssm::{
+    bake::check::{exact_visible, exchanges_light},
+    formats::{
+        self,
+        cube::{self, DepthQuantizer},
+        visibility::{QueryOptions, VisibilityQuery},
+    },
+    raycast::{SceneBvh, SplitMix64, SurfacePoint, SurfaceSampler},
+};
+use glam::Vec3;
+
+/// One end's answer for the other end's point.
+#[derive(Default, Clone, Copy)]
+struct End {
+    /// Visible fraction, as `VisibilityQuery::visibility_from_senders` computes it.
+    v: f32,
+    /// Weight of the 2x2 taps that are blocked by a stored depth under half the receiver's
+    /// depth: the occluder lies in this end's half of the segment.
+    blocked_near: f32,
+    /// Sum over the blocked taps of weight x (1 - stored depth / receiver depth).
+    nearness: f32,
+    /// Mean stored depth / receiver depth over the blocked taps (1 when none is blocked).
+    occluder_ratio: f32,
+    /// Visible fraction with a tent of radius 1.5 pixels over the pixels (up to 3x3 taps).
+    tent_1_5: f32,
+    /// Visible fraction with a tent of radius 2 pixels (up to 4x4 taps).
+    tent_2: f32,
+}
+
+struct Ends<'a> {
+    q: VisibilityQuery<'a>,
+    file: &'a formats::CssmFile,
+    quantizer: DepthQuantizer,
+}
+
+impl Ends<'_> {
+    /// What the cube maps of `senders` say of the point `p_i` with normal `n_i`; the
+    /// arithmetic of `VisibilityQuery::visibility_oriented`, keeping each tap.
+    fn answer(&self, senders: &[(u32, f32)], p_i: Vec3, n_i: Vec3) -> End {
+        let n = self.file.params.cube_resolution;
+        let near = self.file.params.near;
+        let mut e = End::default();
+        let mut ratio_sum = 0.0;
+        let mut blocked = 0.0;
+        for &(texel, ws) in senders {
+            let t = &self.file.texels[texel as usize];
+            let normal = t.nrm();
+            if (p_i - t.pos()).dot(normal) < -near {
+                continue;
+            }
+            let centre = self.q.cube_centre(texel);
+            let offset = self.file.pixel_grid.offset(t.x, t.y);
+            let mut d = p_i - centre;
+            let below = d.dot(normal);
+            if below < 0.0 {
+                d -= normal * below;
+            }
+            if d.length_squared() < near * near * 1e-6 {
+                e.v += ws;
+                e.tent_1_5 += ws;
+                e.tent_2 += ws;
+                continue;
+            }
+            let (face, u, v, depth) = cube::project(d);
+            let receiver_depth = |pixel: u32| -> f32 {
+                let (ray, scale) = cube::cast_direction_at(n, pixel, normal, offset);
+                let denom = ray.dot(n_i);
+                if denom.abs() < 1e-4 {
+                    return depth;
+                }
+                let along = (p_i - centre).dot(n_i) / denom * scale;
+                if along.is_finite() && along > 0.0 {
+                    along.clamp(0.5 * depth, 1.5 * depth)
+                } else {
+                    depth
+                }
+            };
+            // (visible, stored / receiver depth) of one pixel; don't care is blocked.
+            let tap = |pixel: u32| -> (bool, f32) {
+                if cube::pixel_is_dont_care_at(n, pixel, normal, offset) {
+                    return (false, 1.0);
+                }
+                let stored = self.quantizer.depth(self.q.depth_code(texel, pixel));
+                let receiver = receiver_depth(pixel);
+                (stored >= receiver, stored / receiver)
+            };
+            let fx = ((u + 1.0) * 0.5 * n as f32 - 0.5 - offset.x).clamp(0.0, n as f32 - 1.0);
+            let fy = ((v + 1.0) * 0.5 * n as f32 - 0.5 - offset.y).clamp(0.0, n as f32 - 1.0);
+            let base = face * n * n;
+            let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
+            let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
+            let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
+            for (x, y, wp) in [
+                (x0, y0, (1.0 - wx) * (1.0 - wy)),
+                (x1, y0, wx * (1.0 - wy)),
+                (x0, y1, (1.0 - wx) * wy),
+                (x1, y1, wx * wy),
+            ] {
+                let w = ws * wp;
+                let (visible, ratio) = tap(base + y * n + x);
+                if visible {
+                    e.v += w;
+                } else {
+                    blocked += w;
+                    ratio_sum += w * ratio;
+                    e.nearness += w * (1.0 - ratio).max(0.0);
+                    if ratio < 0.5 {
+                        e.blocked_near += w;
+                    }
+                }
+            }
+            // Wider tents over the face's pixels (clamped to the face, as the 2x2 is).
+            let (cx, cy) = (fx.round() as i64, fy.round() as i64);
+            for (radius, slot) in [(1.5f32, &mut e.tent_1_5), (2.0, &mut e.tent_2)] {
+                let (mut visible, mut total) = (0.0, 0.0);
+                for y in cy - 2..=cy + 2 {
+                    for x in cx - 2..=cx + 2 {
+                        if x < 0 || y < 0 || x >= n as i64 || y >= n as i64 {
+                            continue;
+                        }
+                        let w = (1.0 - (x as f32 - fx).abs() / radius).max(0.0)
+                            * (1.0 - (y as f32 - fy).abs() / radius).max(0.0);
+                        if w > 0.0 {
+                            total += w;
+                            if tap(base + y as u32 * n + x as u32).0 {
+                                visible += w;
+                            }
+                        }
+                    }
+                }
+                if total > 0.0 {
+                    *slot += ws * visible / total;
+                }
+            }
+        }
+        e.occluder_ratio = if blocked > 0.0 {
+            ratio_sum / blocked
+        } else {
+            1.0
+        };
+        e
+    }
+}
+
+/// A rule combining the two ends' answers into a visible fraction.
+type Rule = (&'static str, fn(&End, &End) -> f32);
+
+fn weighted(a: f32, wa: f32, b: f32, wb: f32) -> f32 {
+    (wa * a + wb * b) / (wa + wb)
+}
+
+const RULES: [Rule; 12] = [
+    ("the mean (today)", |a, b| 0.5 * (a.v + b.v)),
+    ("an end blocked in its own half decides", |a, b| {
+        if a.blocked_near >= 0.5 || b.blocked_near >= 0.5 {
+            0.0
+        } else {
+            0.5 * (a.v + b.v)
+        }
+    }),
+    (
+        "the nearer end weighs more: exp(2 (1 - v) (1 - ratio))",
+        |a, b| {
+            let w = |e: &End| (2.0 * (1.0 - e.v) * (1.0 - e.occluder_ratio)).exp();
+            weighted(a.v, w(a), b.v, w(b))
+        },
+    ),
+    (
+        "the nearer end weighs more: exp(1 (1 - v) (1 - ratio))",
+        |a, b| {
+            let w = |e: &End| (1.0 - e.v) * (1.0 - e.occluder_ratio);
+            weighted(a.v, w(a).exp(), b.v, w(b).exp())
+        },
+    ),
+    (
+        "the nearer end weighs more: exp(4 (1 - v) (1 - ratio))",
+        |a, b| {
+            let w = |e: &End| 4.0 * (1.0 - e.v) * (1.0 - e.occluder_ratio);
+            weighted(a.v, w(a).exp(), b.v, w(b).exp())
+        },
+    ),
+    ("the nearer end weighs more: exp(2 nearness)", |a, b| {
+        weighted(a.v, (2.0 * a.nearness).exp(), b.v, (2.0 * b.nearness).exp())
+    }),
+    ("leaning to the lower: 0.9 mean + 0.1 min", |a, b| {
+        0.9 * 0.5 * (a.v + b.v) + 0.1 * a.v.min(b.v)
+    }),
+    ("nearer end and leaning", |a, b| {
+        let w = |e: &End| (2.0 * (1.0 - e.v) * (1.0 - e.occluder_ratio)).exp();
+        0.95 * weighted(a.v, w(a), b.v, w(b)) + 0.05 * a.v.min(b.v)
+    }),
+    ("pixel tent radius 1.5 at each end", |a, b| {
+        0.5 * (a.tent_1_5 + b.tent_1_5)
+    }),
+    ("pixel tent radius 2 at each end", |a, b| {
+        0.5 * (a.tent_2 + b.tent_2)
+    }),
+    ("mean of 2x2 and tent 2", |a, b| {
+        0.25 * (a.v + b.v + a.tent_2 + b.tent_2)
+    }),
+    (
+        "an end weighs more where its tent 2 agrees with it",
+        |a, b| {
+            let w = |e: &End| 2.0 - (e.tent_2 - e.v).abs();
+            weighted(a.v, w(a), b.v, w(b))
+        },
+    ),
+];
+
+fn main() {
+    let Some(path) = std::env::args().nth(1) else {
+        eprintln!("usage: endsdiag FILE.cssm");
+        std::process::exit(2);
+    };
+    let file = formats::cssm::read(std::path::Path::new(&path)).unwrap();
+    let scene = formats::Scene::load(std::path::Path::new(&file.scene.dir)).unwrap();
+    let bvh = SceneBvh::new(&scene);
+    let eps = 1e-4 * scene.diameter();
+    let ends = Ends {
+        q: VisibilityQuery::new(&file, QueryOptions::default()),
+        file: &file,
+        quantizer: DepthQuantizer::new(file.params.near, file.params.far),
+    };
+    let sampler = SurfaceSampler::new(&scene);
+    let mut rng = SplitMix64(1);
+    let pairs: Vec<(SurfacePoint, SurfacePoint)> = (0..100_000)
+        .map(|_| {
+            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+            (sampler.point(r()), sampler.point(r()))
+        })
+        .collect();
+    let (mut count, mut query, mut either, mut both, mut split) = (0u32, 0u32, 0u32, 0u32, 0u32);
+    let mut split_blocked_right = 0u32;
+    let mut agree = [0u32; RULES.len()];
+    // The fractions as an image uses them: their sum against the visible pairs' count (bias)
+    // and their squared error against the 0/1 truth.
+    let (mut bias, mut squared) = ([0f64; RULES.len()], [0f64; RULES.len()]);
+    let mut visible = 0u32;
+    for (pj, pi) in &pairs {
+        if !exchanges_light(pj, pi, eps) {
+            continue;
+        }
+        let sj = ends.q.sender_texels(pj.triangle, pj.bary);
+        let si = ends.q.sender_texels(pi.triangle, pi.bary);
+        if sj.is_empty() || si.is_empty() {
+            continue;
+        }
+        count += 1;
+        let truth = exact_visible(&bvh, pj, pi, eps);
+        visible += u32::from(truth);
+        let a = ends.answer(&sj, pi.position, pi.normal);
+        let b = ends.answer(&si, pj.position, pj.normal);
+        let library = ends
+            .q
+            .visibility_between(&sj, pj.position, pj.normal, &si, pi.position, pi.normal)
+            .unwrap_or(f32::NAN);
+        query += u32::from((library >= 0.5) == truth);
+        let (a_right, b_right) = ((a.v >= 0.5) == truth, (b.v >= 0.5) == truth);
+        either += u32::from(a_right || b_right);
+        both += u32::from(a_right && b_right);
+        if a_right != b_right {
+            split += 1;
+            split_blocked_right += u32::from(!truth);
+        }
+        for (k, (_, rule)) in RULES.iter().enumerate() {
+            let v = rule(&a, &b);
+            agree[k] += u32::from((v >= 0.5) == truth);
+            let error = f64::from(v) - f64::from(u8::from(truth));
+            bias[k] += error;
+            squared[k] += error * error;
+        }
+    }
+    let pc = |x: u32| 100.0 * x as f64 / count.max(1) as f64;
+    println!("{path}: {count} pairs that exchange light with texels at both ends");
+    println!("  the library's query           {:.3}%", pc(query));
+    println!("  both ends right               {:.3}%", pc(both));
+    println!("  either end right (an oracle)  {:.3}%", pc(either));
+    println!(
+        "  ends split: {split} pairs, the blocked end right in {split_blocked_right} ({:.1}%)",
+        100.0 * split_blocked_right as f64 / split.max(1) as f64
+    );
+    println!("  agreement, pairs gained, visible fraction's bias (of the visible pairs) and RMSE:");
+    for (k, (name, _)) in RULES.iter().enumerate() {
+        println!(
+            "  {:>8.3}%  {:+6} pairs  bias {:+.4}  RMSE {:.4}  {name}",
+            pc(agree[k]),
+            agree[k] as i64 - agree[0] as i64,
+            bias[k] / f64::from(visible.max(1)),
+            (squared[k] / f64::from(count.max(1))).sqrt(),
+        );
+    }
+}
