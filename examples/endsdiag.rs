@@ -57,6 +57,8 @@ impl Ends<'_> {
             }
             let centre = self.q.cube_centre(texel);
             let offset = self.file.pixel_grid.offset(t.x, t.y);
+            let frame = self.file.cube_frame;
+            let (cube_normal, cube_n_i) = (frame.to_cube(normal), frame.to_cube(n_i));
             let mut d = p_i - centre;
             let below = d.dot(normal);
             if below < 0.0 {
@@ -68,10 +70,10 @@ impl Ends<'_> {
                 e.tent_2 += ws;
                 continue;
             }
-            let (face, u, v, depth) = cube::project(d);
+            let (face, u, v, depth) = cube::project(frame.to_cube(d));
             let receiver_depth = |pixel: u32| -> f32 {
-                let (ray, scale) = cube::cast_direction_at(n, pixel, normal, offset);
-                let denom = ray.dot(n_i);
+                let (ray, scale) = cube::cast_direction_at(n, pixel, cube_normal, offset);
+                let denom = ray.dot(cube_n_i);
                 if denom.abs() < 1e-4 {
                     return depth;
                 }
@@ -84,7 +86,7 @@ impl Ends<'_> {
             };
             // (visible, stored / receiver depth) of one pixel; don't care is blocked.
             let tap = |pixel: u32| -> (bool, f32) {
-                if cube::pixel_is_dont_care_at(n, pixel, normal, offset) {
+                if cube::pixel_is_dont_care_at(n, pixel, cube_normal, offset) {
                     return (false, 1.0);
                 }
                 let stored = self.quantizer.depth(self.q.depth_code(texel, pixel));

@@ -243,6 +243,13 @@ pub struct BakeArgs {
     /// fine atlases it costs runs for nothing; reports/visibility.md).
     #[arg(long, default_value = "centred", value_name = "GRID")]
     pixel_grid: formats::cube::PixelGrid,
+    /// How every texel's cube map lies in the world: turned (the default: one fixed rotation
+    /// that takes the world's up axis to the cube's diagonal, so the vertical and horizontal
+    /// edges of rooms, columns and frames cross the pixel grid obliquely and the query's filter
+    /// places them better; beyond the paper, for as many runs; reports/visibility.md) or world
+    /// (the faces on the world's axes, as in the paper).
+    #[arg(long, default_value = "turned", value_name = "FRAME")]
+    cube_frame: formats::cube::CubeFrame,
     /// Where the depth maps' rays are cast: cpu (the default; --cube-renderer picks how), or gpu
     /// (a BVH traversal in a compute shader on the first GPU wgpu finds, Mesa's lavapipe where
     /// there is none; the CPU still orders the texels, quantises and compresses). A GPU may round
@@ -302,6 +309,7 @@ impl BakeArgs {
             cube_renderer: self.cube_renderer,
             device: self.device,
             pixel_grid: self.pixel_grid,
+            cube_frame: self.cube_frame,
         };
         options.check().map_err(|e| cssm::flag_error(&e))?;
         Ok(BakeConfig {

@@ -70,6 +70,8 @@ pub struct BakeSummary {
     pub second_layer: String,
     /// Where each texel's pixels sit ([`formats::cube::PixelGrid::name`]).
     pub pixel_grid: String,
+    /// How the cube maps lie in the world ([`formats::cube::CubeFrame::name`]).
+    pub cube_frame: String,
     /// How the file codes the runs ([`formats::cssm::FileCoding::name`]).
     pub file_coding: String,
     /// Atlas charts.
@@ -147,6 +149,7 @@ impl BakeSummary {
             merge_short_runs: options.merge_short_runs,
             second_layer: options.second_layer.name().into(),
             pixel_grid: options.pixel_grid.name().into(),
+            cube_frame: options.cube_frame.name().into(),
             file_coding: file_coding.name().into(),
             charts: s.charts,
             defined_texels: s.defined_texels,
@@ -192,8 +195,9 @@ impl fmt::Display for BakeSummary {
         )?;
         writeln!(
             f,
-            "  cube 6x{c}x{c} ({} pixel grid), {} traversal, {} rays ({:.1} M rays/s, {:.0} maps/s)",
+            "  cube 6x{c}x{c} ({} pixel grid, {} frame), {} traversal, {} rays ({:.1} M rays/s, {:.0} maps/s)",
             self.pixel_grid,
+            self.cube_frame,
             self.traversal,
             self.rays,
             self.rays_per_second / 1e6,
@@ -283,6 +287,8 @@ pub struct InspectSummary {
     pub traversal: String,
     /// Where each texel's pixels sit ([`formats::cube::PixelGrid::name`]).
     pub pixel_grid: String,
+    /// How the cube maps lie in the world ([`formats::cube::CubeFrame::name`]).
+    pub cube_frame: String,
     /// Defined texels: depth maps.
     pub defined_texels: u64,
     /// Runs.
@@ -324,6 +330,7 @@ impl InspectSummary {
             far: p.far,
             traversal: p.traversal.name().into(),
             pixel_grid: file.pixel_grid.name().into(),
+            cube_frame: file.cube_frame.name().into(),
             defined_texels: file.texels.len() as u64,
             runs: file.runs.runs.len() as u64,
             uncompressed_bytes: uncompressed,
@@ -377,6 +384,7 @@ impl fmt::Display for InspectSummary {
         )?;
         writeln!(f, "  traversal      {}", self.traversal)?;
         writeln!(f, "  pixel grid     {}", self.pixel_grid)?;
+        writeln!(f, "  cube frame     {}", self.cube_frame)?;
         writeln!(f, "  runs           {}", self.runs)?;
         writeln!(
             f,
@@ -703,6 +711,7 @@ mod tests {
             merge_short_runs: 0,
             second_layer: "any".into(),
             pixel_grid: "staggered".into(),
+            cube_frame: "turned".into(),
             file_coding: "packed".into(),
             charts: 30,
             defined_texels: 500,
@@ -741,6 +750,7 @@ mod tests {
                 "atlas_seconds",
                 "chart_order",
                 "charts",
+                "cube_frame",
                 "cube_resolution",
                 "defined_texels",
                 "file_bytes",
@@ -879,6 +889,7 @@ mod tests {
             far: 552.8,
             traversal: "hilbert".into(),
             pixel_grid: "centred".into(),
+            cube_frame: "world".into(),
             defined_texels: 500,
             runs: 9_000,
             uncompressed_bytes: 384_000,
@@ -902,6 +913,7 @@ mod tests {
             "far": i.far,
             "traversal": i.traversal,
             "pixel_grid": i.pixel_grid,
+            "cube_frame": i.cube_frame,
             "defined_texels": i.defined_texels,
             "runs": i.runs,
             "uncompressed_bytes": i.uncompressed_bytes,

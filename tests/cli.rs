@@ -1357,7 +1357,8 @@ fn chunks_merge_into_the_file_of_one_bake() {
     let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
     // Atlas 512: 179,761 maps, three segments of 65,536. Four chunks: chunk 0 empty, the others
     // a segment each, the last one short.
-    // Staggered pixel grids: the chunks' header flag reaches the merged file.
+    // Staggered pixel grids and the default turned cube frame: the chunks' header flags reach
+    // the merged file.
     let options = [
         "--atlas",
         "512",

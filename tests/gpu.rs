@@ -273,33 +273,43 @@ fn gpu_matches_cpu_reference() {
     );
 }
 
-/// The query on staggered pixel grids (`PixelGrid::Staggered`): each texel's lookups shift with
-/// its grid on the GPU as on the CPU.
+/// The query on staggered pixel grids (`PixelGrid::Staggered`, in the default turned cube frame)
+/// and on the paper's layout (centred grids, faces on the world's axes, `CubeFrame::World`):
+/// each texel's lookups shift with its grid and turn with its frame on the GPU as on the CPU.
 #[test]
-fn gpu_matches_cpu_on_staggered_grids() {
-    let staggered = baked(
-        "cornell-box",
-        BakeOptions {
-            atlas_resolution: 64,
-            cube_resolution: 16,
-            pixel_grid: cssm_formats::cube::PixelGrid::Staggered,
+fn gpu_matches_cpu_on_staggered_grids_and_in_either_frame() {
+    use cssm_formats::cube::{CubeFrame, PixelGrid};
+    for (pixel_grid, cube_frame) in [
+        (PixelGrid::Staggered, CubeFrame::Turned),
+        (PixelGrid::Centred, CubeFrame::World),
+    ] {
+        let file = baked(
+            "cornell-box",
+            BakeOptions {
+                atlas_resolution: 64,
+                cube_resolution: 16,
+                pixel_grid,
+                cube_frame,
+                ..Default::default()
+            },
+        );
+        assert_eq!(
+            (file.1.pixel_grid, file.1.cube_frame),
+            (pixel_grid, cube_frame)
+        );
+        let unfiltered = QueryOptions {
+            pcf: false,
+            sender_filter: false,
+            both_ends: false,
             ..Default::default()
-        },
-    );
-    assert_eq!(
-        staggered.1.pixel_grid,
-        cssm_formats::cube::PixelGrid::Staggered
-    );
-    let unfiltered = QueryOptions {
-        pcf: false,
-        sender_filter: false,
-        both_ends: false,
-        ..Default::default()
-    };
-    for (options, count) in [(QueryOptions::default(), 50_000), (unfiltered, 20_000)] {
-        let (n, differ, worst) = compare_on(&staggered, options, count, 13);
-        eprintln!("staggered: {differ} of {n} differ, largest difference {worst}");
-        assert!(differ as f64 <= 1e-4 * n as f64, "{differ} of {n} differ");
+        };
+        for (options, count) in [(QueryOptions::default(), 50_000), (unfiltered, 20_000)] {
+            let (n, differ, worst) = compare_on(&file, options, count, 13);
+            eprintln!(
+                "{pixel_grid}, {cube_frame}: {differ} of {n} differ, largest difference {worst}"
+            );
+            assert!(differ as f64 <= 1e-4 * n as f64, "{differ} of {n} differ");
+        }
     }
 }
 

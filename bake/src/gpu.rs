@@ -215,7 +215,7 @@ mod tests {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box");
         let scene = cssm_formats::Scene::load(&dir).expect("the built-in Cornell box");
         let atlas = crate::atlas::build(&scene, 32, &mut |_| {}).expect("atlas");
-        let geometry = TexelGeometry::new(&scene);
+        let geometry = TexelGeometry::new(&scene, cssm_formats::cube::CubeFrame::World);
         // A staggered grid: the kernel's rays follow each texel's offset as the CPU's do.
         let grid = PixelGrid::Staggered;
         let maps = GpuMaps::new(&geometry, grid).expect("a GPU (lavapipe where there is none)");

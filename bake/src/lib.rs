@@ -32,7 +32,7 @@ use std::time::{Duration, Instant};
 
 use cssm_formats::{
     BakeParams, CssmFile, Hierarchy, Scene, SceneRef, Traversal,
-    cube::{DepthQuantizer, PixelGrid},
+    cube::{CubeFrame, DepthQuantizer, PixelGrid},
 };
 use rayon::prelude::*;
 
@@ -172,6 +172,11 @@ pub struct BakeOptions {
     /// on detailed interiors for more runs, and costs runs for nothing on simple scenes at fine
     /// atlases (reports/visibility.md, "Staggered pixel grids").
     pub pixel_grid: PixelGrid,
+    /// How every texel's cube map lies in the world ([`CubeFrame`]): turned by default, so that
+    /// the vertical and horizontal edges of interiors cross the pixel grids obliquely (beyond the
+    /// paper: more agreement with exact ray casts for as many runs, reports/visibility.md,
+    /// "Turned cube maps"); [`CubeFrame::World`] is the paper's.
+    pub cube_frame: CubeFrame,
 }
 
 impl Default for BakeOptions {
@@ -193,6 +198,7 @@ impl Default for BakeOptions {
             cube_renderer: cubemap::CubeRenderer::Auto,
             device: BakeDevice::Cpu,
             pixel_grid: PixelGrid::Centred,
+            cube_frame: CubeFrame::Turned,
         }
     }
 }
@@ -445,7 +451,22 @@ fn bake_slice(
     }
 
     let t0 = Instant::now();
-    let geometry = TexelGeometry::new(scene);
+    let frame = options.cube_frame;
+    // The renderers work in the cube frame: the scene and the texels turned into it, so the
+    // maps are those of cube maps turned against the world; the file keeps the world's texels.
+    let geometry = TexelGeometry::new(scene, frame);
+    let frame_texels: std::borrow::Cow<[cssm_formats::Texel]> = match frame {
+        CubeFrame::World => std::borrow::Cow::Borrowed(&atlas.texels),
+        CubeFrame::Turned => atlas
+            .texels
+            .iter()
+            .map(|t| cssm_formats::Texel {
+                position: frame.to_cube(t.pos()).to_array(),
+                normal: frame.to_cube(t.nrm()).to_array(),
+                ..*t
+            })
+            .collect(),
+    };
     let grid = options.pixel_grid;
     let renderer = geometry.renderers(options.cube_renderer, grid);
     let gpu_maps = match options.device {
@@ -473,7 +494,7 @@ fn bake_slice(
         };
         fewest_runs(
             &renderer,
-            &atlas.texels,
+            &frame_texels,
             orders,
             near,
             &quantizer,
@@ -523,7 +544,7 @@ fn bake_slice(
     match &gpu_maps {
         Some(maps) => {
             stats.rays += maps.render_in_order(
-                &atlas.texels,
+                &frame_texels,
                 slice,
                 n,
                 near,
@@ -546,7 +567,7 @@ fn bake_slice(
                 let slots = &mut batch[..ids.len() * pixel_count as usize];
                 stats.rays += render_maps(
                     &renderer,
-                    &atlas.texels,
+                    &frame_texels,
                     ids,
                     n,
                     near,
@@ -608,6 +629,7 @@ fn bake_slice(
         runs,
         csms,
         pixel_grid: grid,
+        cube_frame: frame,
     };
     Ok((file, stats))
 }
@@ -623,20 +645,34 @@ struct TexelGeometry {
 }
 
 impl TexelGeometry {
-    fn new(scene: &Scene) -> Self {
+    /// The geometry of `scene` turned into the cube frame `frame`.
+    fn new(scene: &Scene, frame: CubeFrame) -> Self {
         let rigid = |o: &cssm_formats::SceneObject| o.kind == cssm_formats::ObjectKind::Rigid;
         if !scene.objects.iter().any(rigid) {
+            let bvh = match frame {
+                CubeFrame::World => raycast::SceneBvh::new(scene),
+                CubeFrame::Turned => raycast::SceneBvh::new(&Scene::from_triangles(
+                    scene.positions.iter().map(|&p| frame.to_cube(p)).collect(),
+                    scene.triangles.clone(),
+                )),
+            };
             return Self {
-                bvhs: vec![raycast::SceneBvh::new(scene)],
+                bvhs: vec![bvh],
                 bvh_of_object: vec![0; scene.objects.len()],
             };
         }
+        let turn = match frame {
+            CubeFrame::World => glam::Affine3A::IDENTITY,
+            CubeFrame::Turned => {
+                glam::Affine3A::from_mat3(glam::Mat3::from_cols_array_2d(&CubeFrame::TURN))
+            }
+        };
         // The static objects (all but the rigid ones) stand together: they never move apart.
         let mut fixed = Scene::from_triangles(Vec::new(), Vec::new());
         let mut bvhs = Vec::new();
         let mut bvh_of_object = Vec::with_capacity(scene.objects.len());
         for (i, o) in scene.objects.iter().enumerate() {
-            let mesh = scene.object_mesh(i, glam::Affine3A::IDENTITY);
+            let mesh = scene.object_mesh(i, turn);
             if rigid(o) {
                 bvh_of_object.push(bvhs.len());
                 bvhs.push(raycast::SceneBvh::new(&mesh));
@@ -816,7 +852,7 @@ pub(crate) mod tests {
             ],
             vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]],
         );
-        let geometry = super::TexelGeometry::new(&scene);
+        let geometry = super::TexelGeometry::new(&scene, super::CubeFrame::World);
         let renderer = geometry.renderers(
             super::cubemap::CubeRenderer::Bvh,
             super::PixelGrid::Staggered,

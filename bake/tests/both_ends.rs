@@ -21,18 +21,20 @@ fn a_blocked_end_says_how_near_its_occluder_is() {
     let query = VisibilityQuery::new(&file, QueryOptions::default());
     let p = &file.params;
     let (n, quantizer) = (p.cube_resolution, DepthQuantizer::new(p.near, p.far));
+    // The default turned cube frame: pixel directions come out of the cube frame.
+    let frame = file.cube_frame;
     let mut tested = 0;
     for (t, texel) in file.texels.iter().enumerate().step_by(3) {
         let offset = file.pixel_grid.offset(texel.x, texel.y);
         let normal = texel.nrm();
         let centre = query.cube_centre(t as u32);
         for pixel in 0..6 * n * n {
-            let dir = cube::pixel_direction_at(n, pixel, offset);
+            let dir = frame.to_world(cube::pixel_direction_at(n, pixel, offset));
             let code = query.depth_code(t as u32, pixel);
             // Pixels cast through their centre, with a stored depth well inside the range:
             // a point along the ray beyond the stored depth reads this pixel alone (see
             // pixel_grid.rs) and is blocked.
-            if cube::pixel_is_dont_care_at(n, pixel, normal, offset)
+            if cube::pixel_is_dont_care_at(n, pixel, frame.to_cube(normal), offset)
                 || dir.dot(normal) < 0.05
                 || !(64..=DEPTH_MAX / 8).contains(&code)
             {

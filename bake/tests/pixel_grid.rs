@@ -1,10 +1,11 @@
 //! The query looks each pixel up where the bake cast it, on either pixel grid
-//! (`cube::PixelGrid`): a receiver exactly along a pixel's cast ray reads that pixel alone.
+//! (`cube::PixelGrid`) and in either cube frame (`cube::CubeFrame`): a receiver exactly along a
+//! pixel's cast ray reads that pixel alone, and sees the depth the bake stored there.
 
 use cssm_bake::{BakeOptions, bake};
 use cssm_formats::{
     Scene,
-    cube::{self, DEPTH_MAX, DepthQuantizer, PixelGrid},
+    cube::{self, CubeFrame, DEPTH_MAX, DepthQuantizer, PixelGrid},
     visibility::{QueryOptions, VisibilityQuery},
 };
 
@@ -12,15 +13,21 @@ use cssm_formats::{
 fn the_query_reads_each_pixel_where_the_bake_cast_it() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box");
     let scene = Scene::load(&dir).expect("the built-in Cornell box");
-    for grid in PixelGrid::ALL {
+    for (grid, frame) in [
+        (PixelGrid::Centred, CubeFrame::World),
+        (PixelGrid::Staggered, CubeFrame::World),
+        (PixelGrid::Centred, CubeFrame::Turned),
+        (PixelGrid::Staggered, CubeFrame::Turned),
+    ] {
         let options = BakeOptions {
             atlas_resolution: 32,
             cube_resolution: 8,
             pixel_grid: grid,
+            cube_frame: frame,
             ..Default::default()
         };
         let file = bake(&scene, &options, &mut |_| {}).expect("bake").file;
-        assert_eq!(file.pixel_grid, grid);
+        assert_eq!((file.pixel_grid, file.cube_frame), (grid, frame));
         let query = VisibilityQuery::new(&file, QueryOptions::default());
         let p = &file.params;
         let (n, quantizer) = (p.cube_resolution, DepthQuantizer::new(p.near, p.far));
@@ -30,11 +37,13 @@ fn the_query_reads_each_pixel_where_the_bake_cast_it() {
             let normal = texel.nrm();
             let centre = query.cube_centre(t as u32);
             for pixel in 0..6 * n * n {
-                let dir = cube::pixel_direction_at(n, pixel, offset);
+                // The pixel's direction in the world (its major component in the cube frame is
+                // 1, so `stored` along it is the stored linear depth).
+                let dir = frame.to_world(cube::pixel_direction_at(n, pixel, offset));
                 let code = query.depth_code(t as u32, pixel);
                 // Pixels cast through their centre (not along the plane), with a stored depth
                 // well inside the range.
-                if cube::pixel_is_dont_care_at(n, pixel, normal, offset)
+                if cube::pixel_is_dont_care_at(n, pixel, frame.to_cube(normal), offset)
                     || dir.dot(normal) < 0.05
                     || !(64..=DEPTH_MAX / 2).contains(&code)
                 {
@@ -45,11 +54,15 @@ fn the_query_reads_each_pixel_where_the_bake_cast_it() {
                 let beyond = query.visibility(t as u32, centre + dir * (1.5 * stored));
                 tested += 1;
                 // The 2x2 filter's weights are the pixel's alone, give or take rounding; on
-                // the wrong grid they would share the answer with a neighbour.
+                // the wrong grid or in the wrong frame they would share the answer with a
+                // neighbour, or read another direction's depth.
                 between += usize::from(before < 0.999 || beyond > 0.001);
             }
         }
-        assert!(tested > 1000, "{grid}: {tested} pixels tested");
-        assert_eq!(between, 0, "{grid}: {between} of {tested} read a neighbour");
+        assert!(tested > 1000, "{grid}, {frame}: {tested} pixels tested");
+        assert_eq!(
+            between, 0,
+            "{grid}, {frame}: {between} of {tested} read a neighbour"
+        );
     }
 }

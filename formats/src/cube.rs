@@ -8,6 +8,10 @@
 //! `u = (col + 0.5) / N * 2 - 1` and likewise `v` from `row`. Directions are *not* normalised:
 //! their major component is ±1, so the ray parameter `t` of a hit is its linear depth (distance
 //! along the face axis), the depth the paper stores (§3.2.1, after Brabec et al.).
+//!
+//! These functions work in the *cube frame*. A file's [`CubeFrame`] says how it lies in the
+//! world: on the world's axes (the paper), or turned so that no world axis runs along a face
+//! axis; callers take world vectors into the cube frame with [`CubeFrame::to_cube`].
 
 use glam::{Vec2, Vec3};
 
@@ -114,6 +118,105 @@ impl std::str::FromStr for PixelGrid {
             "staggered" => Ok(PixelGrid::Staggered),
             other => Err(format!(
                 "unknown pixel grid '{other}': expected centred or staggered"
+            )),
+        }
+    }
+}
+
+/// How every texel's cube map lies in the world: the faces on the world's axes (the paper), or
+/// one fixed rotation of them for every texel.
+///
+/// Interiors are built of vertical and horizontal edges (columns, frames, mouldings, walls),
+/// and on cube faces aligned with the world those edges run along the pixel rows and columns.
+/// With one depth per pixel, a 2x2 filter then places such an edge half-way between two pixel
+/// centres wherever it truly lies, up to half a pixel off. On a turned cube the edges cross the
+/// pixel grid obliquely, the 2x2 neighbourhood samples them at several offsets, and the filtered
+/// edge lands nearer its true place (reports/visibility.md, "Turned cube maps").
+///
+/// [`CubeFrame::Turned`] takes the world's up axis (+y) to the cube's diagonal (1, 1, 1) / sqrt 3,
+/// +x to (1, -1, 0) / sqrt 2 and +z to (-1, -1, 2) / sqrt 6, so none of the three world axes is
+/// parallel to a face or to a face axis.
+///
+/// ```
+/// use cssm_formats::cube::CubeFrame;
+/// use glam::Vec3;
+/// let up = CubeFrame::Turned.to_cube(Vec3::Y);
+/// assert!((up - Vec3::splat(1.0 / 3f32.sqrt())).length() < 1e-6);
+/// assert_eq!(CubeFrame::World.to_cube(Vec3::Y), Vec3::Y);
+/// let v = Vec3::new(0.3, -1.2, 2.0);
+/// assert!((CubeFrame::Turned.to_world(CubeFrame::Turned.to_cube(v)) - v).length() < 1e-6);
+/// ```
+///
+/// `Default` is [`CubeFrame::World`], what a file without the header flag was baked with; the
+/// bake's default is [`CubeFrame::Turned`] (`BakeOptions`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CubeFrame {
+    /// Faces on the world's axes (the paper).
+    #[default]
+    World,
+    /// Every cube map turned by [`CubeFrame::TURN`].
+    Turned,
+}
+
+impl CubeFrame {
+    /// The turned frame's rotation, world to cube: the images of the world's x, y and z axes
+    /// (the columns of the matrix), as written in WGSL (`runtime/src/visibility/cssm.wgsl`).
+    pub const TURN: [[f32; 3]; 3] = [
+        [0.707_106_77, -0.707_106_77, 0.0],
+        [0.577_350_26, 0.577_350_26, 0.577_350_26],
+        [-0.408_248_3, -0.408_248_3, 0.816_496_6],
+    ];
+
+    /// Every choice, the bake's default ([`CubeFrame::Turned`]) first.
+    pub const ALL: [CubeFrame; 2] = [CubeFrame::Turned, CubeFrame::World];
+
+    /// A world vector in the cube frame (the identity for [`CubeFrame::World`]).
+    #[inline]
+    pub fn to_cube(self, v: Vec3) -> Vec3 {
+        match self {
+            CubeFrame::World => v,
+            CubeFrame::Turned => {
+                let [x, y, z] = Self::TURN.map(Vec3::from);
+                x * v.x + y * v.y + z * v.z
+            }
+        }
+    }
+
+    /// A cube-frame vector in the world (the inverse of [`CubeFrame::to_cube`]).
+    #[inline]
+    pub fn to_world(self, v: Vec3) -> Vec3 {
+        match self {
+            CubeFrame::World => v,
+            CubeFrame::Turned => {
+                let [x, y, z] = Self::TURN.map(Vec3::from);
+                Vec3::new(x.dot(v), y.dot(v), z.dot(v))
+            }
+        }
+    }
+
+    /// Lower-case name as used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            CubeFrame::World => "world",
+            CubeFrame::Turned => "turned",
+        }
+    }
+}
+
+impl std::fmt::Display for CubeFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for CubeFrame {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "world" => Ok(CubeFrame::World),
+            "turned" => Ok(CubeFrame::Turned),
+            other => Err(format!(
+                "unknown cube frame '{other}': expected turned or world"
             )),
         }
     }
@@ -355,6 +458,34 @@ impl DepthQuantizer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_turned_frame_is_a_rotation_with_no_world_axis_on_a_face_axis() {
+        let exact = [
+            [1.0 / 2f64.sqrt(), -1.0 / 2f64.sqrt(), 0.0],
+            [1.0 / 3f64.sqrt(); 3],
+            [-1.0 / 6f64.sqrt(), -1.0 / 6f64.sqrt(), 2.0 / 6f64.sqrt()],
+        ];
+        for (column, exact) in CubeFrame::TURN.iter().zip(exact) {
+            for (c, e) in column.iter().zip(exact) {
+                assert_eq!(*c, e as f32, "the nearest f32 of the exact entry");
+            }
+        }
+        let axes = [Vec3::X, Vec3::Y, Vec3::Z];
+        for a in axes {
+            let turned = CubeFrame::Turned.to_cube(a);
+            assert!((turned.length() - 1.0).abs() < 1e-6);
+            // No world axis along a cube axis.
+            assert!(turned.abs().max_element() < 0.82, "{a} -> {turned}");
+            for b in axes {
+                let dot = turned.dot(CubeFrame::Turned.to_cube(b));
+                assert!((dot - f32::from(u8::from(a == b))).abs() < 1e-6);
+            }
+            assert!((CubeFrame::Turned.to_world(turned) - a).length() < 1e-6);
+        }
+        assert_eq!("Turned".parse::<CubeFrame>(), Ok(CubeFrame::Turned));
+        assert!("tilted".parse::<CubeFrame>().is_err());
+    }
 
     /// On every grid a query finds each pixel where the bake cast it: the pixel's own
     /// direction lands in its own cell (`pixel_index_at`), and no shifted grid's direction is

@@ -246,6 +246,12 @@ impl<'a> VisibilityQuery<'a> {
         let centre = self.cube_centre(texel);
         // The texel's own pixel grid (`cube::PixelGrid`), in pixels.
         let offset = self.file.pixel_grid.offset(t.x, t.y);
+        // The cube map's own frame (`cube::CubeFrame`): the pixel directions and the faces are
+        // in it, so the lookup direction and both normals go into it; dot products between
+        // world vectors stay as they are.
+        let frame = self.file.cube_frame;
+        let cube_normal = frame.to_cube(normal);
+        let cube_n_i = n_i.map(|n_i| (n_i, frame.to_cube(n_i)));
         let mut d = p_i - centre;
         let below = d.dot(normal);
         if below < 0.0 {
@@ -257,14 +263,16 @@ impl<'a> VisibilityQuery<'a> {
                 nearness: 0.0,
             };
         }
-        let (face, u, v, depth) = cube::project(d);
+        let (face, u, v, depth) = cube::project(frame.to_cube(d));
         let bias =
             self.options.bias_near * self.file.params.near + self.options.bias_relative * depth;
         // Depth of the receiver along the ray the bake cast for `pixel`.
         let receiver_depth = |pixel: u32| -> f32 {
-            let Some(n_i) = n_i else { return depth };
-            let (ray, scale) = cube::cast_direction_at(n, pixel, normal, offset);
-            let denom = ray.dot(n_i);
+            let Some((n_i, cube_n_i)) = cube_n_i else {
+                return depth;
+            };
+            let (ray, scale) = cube::cast_direction_at(n, pixel, cube_normal, offset);
+            let denom = ray.dot(cube_n_i);
             if denom.abs() < 1e-4 {
                 return depth;
             }
@@ -277,7 +285,7 @@ impl<'a> VisibilityQuery<'a> {
         };
         // (visible, nearness) of one pixel.
         let test = |pixel: u32| -> (f32, f32) {
-            if cube::pixel_is_dont_care_at(n, pixel, normal, offset) {
+            if cube::pixel_is_dont_care_at(n, pixel, cube_normal, offset) {
                 return (0.0, 0.0);
             }
             let stored = self.quantizer.depth(self.depth_code(texel, pixel));

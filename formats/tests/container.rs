@@ -219,13 +219,23 @@ fn versions_and_flags() {
         "file version 1 is not supported (this build reads version 4); re-bake it"
     );
     // Bit 1 is a chunk of a chunked bake (FLAG_CHUNK), bit 2 staggered pixel grids, bit 3
-    // nothing yet.
+    // turned cube maps, bit 4 nothing yet.
     let mut flags = bytes.clone();
-    flags[12] = 8;
+    flags[12] = 16;
     assert!(matches!(
         cssm::decode(&flags),
-        Err(CssmError::UnsupportedFlags { flags: 8 })
+        Err(CssmError::UnsupportedFlags { flags: 16 })
     ));
+    flags[12] = bytes[12] | 8;
+    let turned = cssm::decode(&flags).unwrap();
+    assert_eq!(turned.cube_frame, cssm_formats::cube::CubeFrame::Turned);
+    assert_eq!(turned.pixel_grid, cssm_formats::cube::PixelGrid::Centred);
+    assert_eq!(cssm::encode(&turned).unwrap(), flags);
+    assert_eq!(
+        cssm::decode(&bytes).unwrap().cube_frame,
+        cssm_formats::cube::CubeFrame::World,
+        "a file without the flag has its faces on the world's axes"
+    );
     flags[12] = bytes[12] | 4;
     let staggered = cssm::decode(&flags).unwrap();
     assert_eq!(

@@ -820,6 +820,7 @@ pub fn tiny_file(scene: &Scene) -> CssmFile {
         },
         csms: Vec::new(),
         pixel_grid: Default::default(),
+        cube_frame: Default::default(),
     }
 }
 

@@ -168,7 +168,8 @@ pub struct GpuCssmParams {
     /// Bias proportional to the query depth.
     pub bias_relative: f32,
     /// Bit 0: PCF over 2x2 pixels; bit 1: filter over the 2x2 sender texels; bit 2: both ends;
-    /// bit 3: the file's cube maps sample staggered pixel grids.
+    /// bit 3: the file's cube maps sample staggered pixel grids; bit 4: they are turned against
+    /// the world (`cube::CubeFrame::Turned`).
     pub flags: u32,
     /// Number of scene triangles with atlas coordinates.
     pub triangle_count: u32,

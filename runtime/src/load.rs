@@ -351,7 +351,8 @@ impl CssmGpu {
             flags: u32::from(options.pcf)
                 | (u32::from(options.sender_filter) << 1)
                 | (u32::from(options.both_ends) << 2)
-                | (u32::from(file.pixel_grid == cssm_formats::cube::PixelGrid::Staggered) << 3),
+                | (u32::from(file.pixel_grid == cssm_formats::cube::PixelGrid::Staggered) << 3)
+                | (u32::from(file.cube_frame == cssm_formats::cube::CubeFrame::Turned) << 4),
             triangle_count: file.triangle_uvs.len() as u32,
             runs_per_binding,
         };

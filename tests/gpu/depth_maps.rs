@@ -156,13 +156,29 @@ fn gpu_bake_writes_the_cpu_file() {
     )
     .unwrap();
     let scene = Scene::load(dir.path()).expect("scene");
-    // Every layer, on both pixel grids between them.
-    for (k, second_layer) in SecondLayer::ALL.into_iter().enumerate() {
+    // Every layer, on both pixel grids between them, with the faces on the world's axes; then
+    // the default turned frame. Lavapipe writes the CPU's file exactly on the world's axes,
+    // where the Cornell box's walls and the block are axis-aligned (and for the teapot, turned
+    // or not). The Cornell box seen obliquely is another matter, not yet explained: its file
+    // differs in a few pixels (atlas 32, cube 16, `any`: 36,485 runs against the CPU's 36,410
+    // with the box's OBJ turned by a script and baked on the world's axes, so the bake's turn
+    // is not the cause). So in the turned frame the file is held to a real GPU's tolerance.
+    let layers = SecondLayer::ALL
+        .into_iter()
+        .enumerate()
+        .map(|(k, layer)| (layer, cube::PixelGrid::ALL[k % 2], cube::CubeFrame::World))
+        .chain([(
+            SecondLayer::Exchange,
+            cube::PixelGrid::Centred,
+            cube::CubeFrame::Turned,
+        )]);
+    for (second_layer, pixel_grid, cube_frame) in layers {
         let options = BakeOptions {
             atlas_resolution: 32,
             cube_resolution: 16,
             second_layer,
-            pixel_grid: cube::PixelGrid::ALL[k % 2],
+            pixel_grid,
+            cube_frame,
             ..Default::default()
         };
         let bake = |device| {
@@ -181,7 +197,7 @@ fn gpu_bake_writes_the_cpu_file() {
         assert!(gpu_stats.gpu.is_some() && cpu_stats.gpu.is_none());
         assert_eq!(gpu_stats.rays, cpu_stats.rays);
         assert!(cpu_stats.csms == 1, "the block is a rigid object");
-        if exact_device() {
+        if exact_device() && cube_frame == cube::CubeFrame::World {
             assert!(cpu_file == gpu_file, "{second_layer}: the files differ");
         } else {
             let runs = |s: &cssm_bake::BakeStats| s.runs as f64;

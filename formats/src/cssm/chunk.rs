@@ -25,8 +25,8 @@ use super::framing::{compress_payload, decode_body, unframe};
 use super::validate::{validate_csms, validate_params, validate_runs, validate_tables};
 use super::write::write_atomic_by;
 use super::{
-    CssmError, CssmFile, FLAG_STAGGERED_GRID, FileCoding, HEADER_LEN, RunData, SEGMENT_MAPS,
-    grid_flag, grid_of_flags,
+    CssmError, CssmFile, FLAG_STAGGERED_GRID, FLAG_TURNED_FRAME, FileCoding, HEADER_LEN, RunData,
+    SEGMENT_MAPS, apply_layout_flags, layout_flags,
 };
 
 /// Header flag of a chunk file (payload: a [`CssmChunk`]).
@@ -224,7 +224,7 @@ impl CssmChunk {
 /// [`CssmError::Invalid`] for an inconsistent chunk, [`CssmError::Encode`] when encoding fails.
 pub fn encode_chunk(chunk: &CssmChunk) -> Result<Vec<u8>, CssmError> {
     chunk.validate()?;
-    let flags = FLAG_CHUNK | grid_flag(chunk.file.pixel_grid);
+    let flags = FLAG_CHUNK | layout_flags(&chunk.file);
     let (mut bytes, head) = compress_payload(flags, chunk, vec![0u8; HEADER_LEN])?;
     bytes[..HEADER_LEN].copy_from_slice(&head);
     Ok(bytes)
@@ -252,7 +252,7 @@ pub fn write_chunk_atomic(path: &Path, chunk: &CssmChunk) -> Result<u64, CssmErr
 /// [`CssmError::NotAChunk`] for a whole `.cssm` file, or any error of [`super::decode`].
 pub fn decode_chunk(bytes: &[u8]) -> Result<CssmChunk, CssmError> {
     let (flags, raw) = unframe(bytes)?;
-    if flags & !FLAG_STAGGERED_GRID != FLAG_CHUNK {
+    if flags & !(FLAG_STAGGERED_GRID | FLAG_TURNED_FRAME) != FLAG_CHUNK {
         return Err(if flags & FLAG_CHUNK == 0 {
             CssmError::NotAChunk
         } else {
@@ -260,7 +260,7 @@ pub fn decode_chunk(bytes: &[u8]) -> Result<CssmChunk, CssmError> {
         });
     }
     let mut chunk: CssmChunk = decode_body(&raw)?;
-    chunk.file.pixel_grid = grid_of_flags(flags);
+    apply_layout_flags(&mut chunk.file, flags);
     chunk.validate()?;
     Ok(chunk)
 }
@@ -409,6 +409,7 @@ pub fn merge_chunks(
             (a.hierarchy != b.hierarchy, "hierarchies"),
             (a.csms != b.csms, "coherent shadow maps"),
             (a.pixel_grid != b.pixel_grid, "pixel grids (--pixel-grid)"),
+            (a.cube_frame != b.cube_frame, "cube frames (--cube-frame)"),
             (first.coding != chunk.coding, "file codings (--coding)"),
         ];
         if let Some(&(_, what)) = differs.iter().find(|(d, _)| *d) {

@@ -40,6 +40,10 @@ pub const FLAG_PACKED_RUNS: u32 = 1;
 /// ([`crate::cube::PixelGrid::Staggered`]); without it, the paper's centred grid. A build that
 /// predates staggered grids refuses such a file as an unknown flag rather than misread it.
 pub const FLAG_STAGGERED_GRID: u32 = 4;
+/// Header flag of a file (or chunk) whose cube maps are turned against the world
+/// ([`crate::cube::CubeFrame::Turned`]); without it, faces on the world's axes (the paper). A
+/// build that predates turned cube maps refuses such a file as an unknown flag.
+pub const FLAG_TURNED_FRAME: u32 = 8;
 /// Size of the fixed header in bytes.
 pub const HEADER_LEN: usize = 8 + 4 + 4 + 8 + 8 + 16;
 
@@ -218,7 +222,9 @@ pub(super) fn check_header(bytes: &[u8]) -> Result<(), CssmError> {
         return Err(CssmError::UnsupportedVersion { version });
     }
     let flags = u32_at(bytes, 12);
-    if flags & !(FLAG_PACKED_RUNS | super::FLAG_CHUNK | FLAG_STAGGERED_GRID) != 0 {
+    if flags & !(FLAG_PACKED_RUNS | super::FLAG_CHUNK | FLAG_STAGGERED_GRID | FLAG_TURNED_FRAME)
+        != 0
+    {
         return Err(CssmError::UnsupportedFlags { flags });
     }
     let (uncompressed_len, compressed_len) = (u64_at(bytes, 16), u64_at(bytes, 24));

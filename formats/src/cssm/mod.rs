@@ -9,7 +9,7 @@
 //! |-------|-------|
 //! | 8     | [`MAGIC`] |
 //! | 4     | format version, `u32` little-endian ([`FORMAT_VERSION`]) |
-//! | 4     | flags, `u32` LE: 0, [`FLAG_PACKED_RUNS`], [`FLAG_STAGGERED_GRID`], or both |
+//! | 4     | flags, `u32` LE: any of [`FLAG_PACKED_RUNS`], [`FLAG_STAGGERED_GRID`], [`FLAG_TURNED_FRAME`] |
 //! | 8     | uncompressed payload length, `u64` LE (at most [`MAX_UNCOMPRESSED_BYTES`]) |
 //! | 8     | compressed payload length, `u64` LE (= the rest of the file) |
 //! | 16    | checksum: first 16 bytes of BLAKE3 of the compressed payload |
@@ -27,6 +27,8 @@
 //!
 //! [`FLAG_STAGGERED_GRID`] says the cube maps sample staggered pixel grids ([`CssmFile::pixel_grid`]);
 //! files without it (every file before it) sample the paper's centred grid and read as before.
+//! [`FLAG_TURNED_FRAME`] says the cube maps are turned against the world
+//! ([`CssmFile::cube_frame`]); files without it have their faces on the world's axes.
 //!
 //! Encoding is deterministic: the same [`CssmFile`] always gives the same bytes. Decoding checks
 //! every field before trusting it, bounds every allocation, and finishes with [`validate`].
@@ -52,7 +54,7 @@ pub use chunk::{
     merge_chunks, read_chunk, write_chunk_atomic,
 };
 pub use framing::{
-    FLAG_PACKED_RUNS, FLAG_STAGGERED_GRID, FORMAT_VERSION, HEADER_LEN, MAGIC,
+    FLAG_PACKED_RUNS, FLAG_STAGGERED_GRID, FLAG_TURNED_FRAME, FORMAT_VERSION, HEADER_LEN, MAGIC,
     MAX_UNCOMPRESSED_BYTES, MAX_ZSTD_RATIO, PLAUSIBLE_NEWER_VERSIONS, RATIO_FREE_BYTES, ZSTD_LEVEL,
     frame_payload,
 };
@@ -182,6 +184,11 @@ pub struct CssmFile {
     /// the centred grid it was baked with.
     #[serde(skip)]
     pub pixel_grid: crate::cube::PixelGrid,
+    /// How every texel's cube map lies in the world ([`crate::cube::CubeFrame`]): stored as the
+    /// header's [`FLAG_TURNED_FRAME`], so that every older file reads as the world frame it was
+    /// baked in.
+    #[serde(skip)]
+    pub cube_frame: crate::cube::CubeFrame,
 }
 
 /// Everything that can go wrong reading, writing or validating a `.cssm` file. Every message is
@@ -246,7 +253,8 @@ pub enum CssmError {
     /// Reserved flag bits are set.
     #[error(
         "unknown header flags {flags:#x} (this build knows {FLAG_PACKED_RUNS:#x}, packed runs, \
-         {FLAG_CHUNK:#x}, a chunk, and {FLAG_STAGGERED_GRID:#x}, staggered pixel grids): a \
+         {FLAG_CHUNK:#x}, a chunk, {FLAG_STAGGERED_GRID:#x}, staggered pixel grids, and \
+         {FLAG_TURNED_FRAME:#x}, turned cube maps): a \
          corrupted file or one from a newer build"
     )]
     UnsupportedFlags {
@@ -359,7 +367,7 @@ fn encode_into<W: Write>(
     out: W,
 ) -> Result<(W, Vec<u8>), CssmError> {
     validate(file)?;
-    let grid = grid_flag(file.pixel_grid);
+    let grid = layout_flags(file);
     match coding {
         FileCoding::Plain => compress_payload(grid, file, out),
         FileCoding::Packed => {
@@ -419,30 +427,41 @@ pub fn decode(bytes: &[u8]) -> Result<CssmFile, CssmError> {
             runs,
             csms: p.csms,
             pixel_grid: Default::default(),
+            cube_frame: Default::default(),
         }
     } else {
         decode_body(&raw)?
     };
-    file.pixel_grid = grid_of_flags(flags);
+    apply_layout_flags(&mut file, flags);
     validate(&file)?;
     Ok(file)
 }
 
-/// The header flag that stores `grid`.
-fn grid_flag(grid: crate::cube::PixelGrid) -> u32 {
-    match grid {
+/// The header flags that store `file`'s pixel grid and cube frame.
+fn layout_flags(file: &CssmFile) -> u32 {
+    let grid = match file.pixel_grid {
         crate::cube::PixelGrid::Centred => 0,
         crate::cube::PixelGrid::Staggered => FLAG_STAGGERED_GRID,
-    }
+    };
+    let frame = match file.cube_frame {
+        crate::cube::CubeFrame::World => 0,
+        crate::cube::CubeFrame::Turned => FLAG_TURNED_FRAME,
+    };
+    grid | frame
 }
 
-/// The pixel grid header flags `flags` store.
-fn grid_of_flags(flags: u32) -> crate::cube::PixelGrid {
-    if flags & FLAG_STAGGERED_GRID != 0 {
+/// Sets `file`'s pixel grid and cube frame from the header flags `flags`.
+fn apply_layout_flags(file: &mut CssmFile, flags: u32) {
+    file.pixel_grid = if flags & FLAG_STAGGERED_GRID != 0 {
         crate::cube::PixelGrid::Staggered
     } else {
         crate::cube::PixelGrid::Centred
-    }
+    };
+    file.cube_frame = if flags & FLAG_TURNED_FRAME != 0 {
+        crate::cube::CubeFrame::Turned
+    } else {
+        crate::cube::CubeFrame::World
+    };
 }
 
 /// Reads and decodes the `.cssm` file at `path`. Every error names the path.

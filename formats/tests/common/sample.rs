@@ -56,5 +56,6 @@ pub fn sample() -> CssmFile {
         },
         csms: Vec::new(),
         pixel_grid: Default::default(),
+        cube_frame: Default::default(),
     }
 }

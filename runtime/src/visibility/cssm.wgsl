@@ -50,6 +50,23 @@ const CSSM_FLAG_SENDER_FILTER: u32 = 2u;
 const CSSM_FLAG_BOTH_ENDS: u32 = 4u;
 // The file's cube maps sample staggered pixel grids (cube::PixelGrid::Staggered).
 const CSSM_FLAG_STAGGERED_GRID: u32 = 8u;
+const CSSM_FLAG_TURNED_FRAME: u32 = 16u;
+
+// cube::CubeFrame::TURN: the turned cube frame's rotation, world to cube (columns: the images of
+// the world's x, y and z axes).
+const CSSM_TURN: mat3x3f = mat3x3f(
+    vec3f(0.70710677, -0.70710677, 0.0),
+    vec3f(0.57735026, 0.57735026, 0.57735026),
+    vec3f(-0.4082483, -0.4082483, 0.8164966),
+);
+
+// CubeFrame::to_cube: a world vector in the file's cube frame.
+fn cssm_to_cube(v: vec3f) -> vec3f {
+    if (cssm.flags & CSSM_FLAG_TURNED_FRAME) == 0u {
+        return v;
+    }
+    return CSSM_TURN * v;
+}
 // cube::PixelGrid::STAGGER.
 const CSSM_STAGGER: f32 = 0.125;
 // Stands for "nothing within the far plane": larger than any receiver depth.
@@ -243,16 +260,17 @@ fn cssm_pixel_index(n: u32, face: u32, u_centred: f32, v_centred: f32, offset: v
 }
 
 // Depth of the receiver along the ray the bake cast for `pixel` (receiver-plane depth);
-// `n_i` = vec3f(0) when the receiver's normal is unknown.
+// `n_i` = vec3f(0) when the receiver's normal is unknown. `normal` (the texel's) and `n_cube`
+// (the receiver's) are in the cube frame, `p_i`, `centre` and `n_i` in the world.
 fn cssm_receiver_depth(
     n: u32, pixel: u32, normal: vec3f, offset: vec2f, centre: vec3f, p_i: vec3f, n_i: vec3f,
-    depth: f32,
+    n_cube: vec3f, depth: f32,
 ) -> f32 {
     if all(n_i == vec3f(0.0)) {
         return depth;
     }
     let ray = cssm_cast_direction(n, pixel, normal, offset);
-    let denom = dot(ray.xyz, n_i);
+    let denom = dot(ray.xyz, n_cube);
     if abs(denom) < 1e-4 {
         return depth;
     }
@@ -265,16 +283,18 @@ fn cssm_receiver_depth(
 }
 
 // One pixel's test: (visible, nearness), as VisibilityQuery::answer_oriented's `test`.
+// `texel`'s normal and `n_cube` in the cube frame (cssm_answer_texel), `p_i` and `n_i` in the world.
 fn cssm_pixel_test(
-    texel: Texel, offset: vec2f, pixel: u32, centre: vec3f, p_i: vec3f, n_i: vec3f, depth: f32,
-    bias: f32,
+    texel: Texel, offset: vec2f, pixel: u32, centre: vec3f, p_i: vec3f, n_i: vec3f, n_cube: vec3f,
+    depth: f32, bias: f32,
 ) -> vec2f {
     let n = cssm.cube_resolution;
     if cssm_pixel_is_dont_care(n, pixel, texel.normal, offset) {
         return vec2f(0.0);
     }
     let stored = cssm_depth(cssm_lookup(texel.map, pixel));
-    let receiver = cssm_receiver_depth(n, pixel, texel.normal, offset, centre, p_i, n_i, depth);
+    let receiver =
+        cssm_receiver_depth(n, pixel, texel.normal, offset, centre, p_i, n_i, n_cube, depth);
     if stored >= receiver - bias {
         return vec2f(1.0, 0.0);
     }
@@ -306,11 +326,16 @@ fn cssm_answer_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> vec2f {
     if dot(d, d) < near * near * 1e-6 {
         return vec2f(1.0, 0.0);
     }
-    let q = cssm_project(d);
+    // The cube map's own frame (VisibilityQuery::answer_oriented): the lookup direction, the
+    // texel's normal and the receiver's go into it; dot products of world vectors stay.
+    var tc = t;
+    tc.normal = cssm_to_cube(t.normal);
+    let n_c = cssm_to_cube(n_i);
+    let q = cssm_project(cssm_to_cube(d));
     let bias = cssm.bias_near * near + cssm.bias_relative * q.depth;
     if (cssm.flags & CSSM_FLAG_PCF) == 0u {
         let pixel = cssm_pixel_index(n, q.face, q.u, q.v, offset);
-        return cssm_pixel_test(t, offset, pixel, centre, p_i, n_i, q.depth, bias);
+        return cssm_pixel_test(tc, offset, pixel, centre, p_i, n_i, n_c, q.depth, bias);
     }
     // §3.2.2 PCF: bilinear weights over the 2x2 pixel centres around the projection.
     let nf = f32(n);
@@ -323,10 +348,10 @@ fn cssm_answer_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> vec2f {
     let wx = fx - f32(x0);
     let wy = fy - f32(y0);
     let base = q.face * n * n;
-    let t00 = cssm_pixel_test(t, offset, base + y0 * n + x0, centre, p_i, n_i, q.depth, bias);
-    let t10 = cssm_pixel_test(t, offset, base + y0 * n + x1, centre, p_i, n_i, q.depth, bias);
-    let t01 = cssm_pixel_test(t, offset, base + y1 * n + x0, centre, p_i, n_i, q.depth, bias);
-    let t11 = cssm_pixel_test(t, offset, base + y1 * n + x1, centre, p_i, n_i, q.depth, bias);
+    let t00 = cssm_pixel_test(tc, offset, base + y0 * n + x0, centre, p_i, n_i, n_c, q.depth, bias);
+    let t10 = cssm_pixel_test(tc, offset, base + y0 * n + x1, centre, p_i, n_i, n_c, q.depth, bias);
+    let t01 = cssm_pixel_test(tc, offset, base + y1 * n + x0, centre, p_i, n_i, n_c, q.depth, bias);
+    let t11 = cssm_pixel_test(tc, offset, base + y1 * n + x1, centre, p_i, n_i, n_c, q.depth, bias);
     return (1.0 - wy) * ((1.0 - wx) * t00 + wx * t10) + wy * ((1.0 - wx) * t01 + wx * t11);
 }
 
