@@ -208,7 +208,7 @@ measure() {
     local c=$carry
     local sibenik=$c/scenes/sibenik-view
     # The bake on the GPU against the device's cores (issue 25): the same flags, whole process
-    # (`total_seconds` of --json), the two files compared byte for byte. Arguments NAME:FLAGS,
+    # (`total_seconds` of --json), the two files compared (byte for byte, or their runs). Arguments NAME:FLAGS,
     # the flags comma-separated; NAME is a carried scene or cornell-* (the built-in box).
     bakes_on_both() {
         local spec name flags scene device
@@ -221,7 +221,17 @@ measure() {
                 run "bake-$name-$device" "$c/cssm" bake $scene ${flags//,/ } --device $device \
                     -o "$work/bake-$name-$device.cssm" --json
             done
-            run "bake-$name-same" cmp "$work/bake-$name-gpu.cssm" "$work/bake-$name-cpu.cssm"
+            # Byte for byte where the GPU rounds as the CPU does; otherwise (a GPU that fuses
+            # multiply-adds, or lavapipe on the turned Cornell box: reports/bake.md) the same
+            # runs to within 0.5%, as tests/gpu/depth_maps.rs holds them.
+            # shellcheck disable=SC2016
+            run "bake-$name-same" bash -c '
+                if cmp -s "$1" "$2"; then echo "identical"; exit 0; fi
+                runs() { "$3" inspect "$1" | awk "/^ *runs /{print \$2}"; }
+                g=$(runs "$1" "" "$3") c=$(runs "$2" "" "$3")
+                echo "the files differ: $g runs on the GPU, $c on the CPU"
+                awk -v g="$g" -v c="$c" "BEGIN { d = g / c - 1; exit !(d < 0.005 && d > -0.005) }"
+            ' _ "$work/bake-$name-gpu.cssm" "$work/bake-$name-cpu.cssm" "$c/cssm"
             rm -f "$work/bake-$name-"*.cssm
         done
     }
