@@ -661,12 +661,7 @@ impl TexelGeometry {
                 bvh_of_object: vec![0; scene.objects.len()],
             };
         }
-        let turn = match frame {
-            CubeFrame::World => glam::Affine3A::IDENTITY,
-            CubeFrame::Turned => {
-                glam::Affine3A::from_mat3(glam::Mat3::from_cols_array_2d(&CubeFrame::TURN))
-            }
-        };
+        let turn = glam::Affine3A::from_mat3(frame.rotation());
         // The static objects (all but the rigid ones) stand together: they never move apart.
         let mut fixed = Scene::from_triangles(Vec::new(), Vec::new());
         let mut bvhs = Vec::new();

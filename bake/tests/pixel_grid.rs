@@ -13,12 +13,10 @@ use cssm_formats::{
 fn the_query_reads_each_pixel_where_the_bake_cast_it() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box");
     let scene = Scene::load(&dir).expect("the built-in Cornell box");
-    for (grid, frame) in [
-        (PixelGrid::Centred, CubeFrame::World),
-        (PixelGrid::Staggered, CubeFrame::World),
-        (PixelGrid::Centred, CubeFrame::Turned),
-        (PixelGrid::Staggered, CubeFrame::Turned),
-    ] {
+    let layouts = CubeFrame::ALL
+        .into_iter()
+        .flat_map(|frame| PixelGrid::ALL.map(|grid| (grid, frame)));
+    for (grid, frame) in layouts {
         let options = BakeOptions {
             atlas_resolution: 32,
             cube_resolution: 8,

@@ -170,6 +170,15 @@ impl CubeFrame {
     /// Every choice, the bake's default ([`CubeFrame::Turned`]) first.
     pub const ALL: [CubeFrame; 2] = [CubeFrame::Turned, CubeFrame::World];
 
+    /// The rotation, world to cube, as a matrix (the identity for [`CubeFrame::World`]), for
+    /// a caller that turns whole meshes (`glam::Affine3A::from_mat3`).
+    pub fn rotation(self) -> glam::Mat3 {
+        match self {
+            CubeFrame::World => glam::Mat3::IDENTITY,
+            CubeFrame::Turned => glam::Mat3::from_cols_array_2d(&Self::TURN),
+        }
+    }
+
     /// A world vector in the cube frame (the identity for [`CubeFrame::World`]).
     #[inline]
     pub fn to_cube(self, v: Vec3) -> Vec3 {
