@@ -7,9 +7,10 @@
 #   SHARED_SCENES_DIR defaults to ../shared/scenes (teapot/, bunny/, sibenik/).
 #   e.g. reports/compression.sh ../shared/scenes --scene cornell   # the Cornell box's rows only
 #
-# Run it on a quiet machine: rows are timed. On a 2-core Intel Xeon the whole grid took 59 minutes:
-# the Cornell box's rows 14, the heads 13, the church 19, the church at 3,700 faces 12 (see the
-# report's "Time per table"; on this shared machine the same rows' times vary by 10-20% from run to run).
+# Run it on a quiet machine: rows are timed. On a 2-core AMD EPYC (2026-12-05) the whole grid took
+# 30 minutes: the Cornell box's rows 2, the heads 8, the church 14, the church at 3,700 faces 5 (see
+# the report's "Time per table"; on this shared machine the same rows' times vary by 10-20% from run
+# to run). On a 2-core Intel Xeon, before the rasteriser and the faster compressor, it took 59.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scenes=${1:-../shared/scenes}
