@@ -4,7 +4,11 @@
 //! (the pairs of `cssm check`, seed 1, 100,000; only the exchanging pairs with texels at both
 //! ends). Each end is asked as the query asks it (sender filter, 2x2 PCF, receiver-plane depth)
 //! and, besides, with what the rules below need: where its blocking pixels' stored depths put
-//! the occluder, and wider pixel filters.
+//! the occluder, wider pixel filters, a parallax-corrected second look and probes of the
+//! segment near the sender ("What else was tried on the turned church"; `PROBES=0.5,1,2` sets
+//! the probes' distances in texel sizes). With `ENDS_CSV=FILE` it also writes one line per pair:
+//! truth, both ends' answers, blocked weights, occluder ratios, nearness, pixel angles, the
+//! segment's length and where along it the exact ray is blocked (-1 when it is not).
 use cssm::{
     bake::check::{exact_visible, exchanges_light},
     formats::{
@@ -32,6 +36,35 @@ struct End {
     tent_1_5: f32,
     /// Visible fraction with a tent of radius 2 pixels (up to 4x4 taps).
     tent_2: f32,
+    /// Weight of the blocked taps.
+    blocked: f32,
+    /// Visible fraction with each texel's lookup turned towards where its blocked taps put the
+    /// occluder on the segment from the sender point (not the texel's centre): parallax.
+    v_parallax: f32,
+    /// Visible fraction with each texel also probing points of the segment from the sender
+    /// point at a few texel sizes out (occluders nearer the sender than a texel).
+    v_probe: f32,
+    /// Angle one pixel spans at the lookup direction (radians, mean over the senders).
+    pixel_angle: f32,
+}
+
+/// The 2x2 pixels around the projection of the cube-frame direction `d` on a map of
+/// resolution `n` whose grid is shifted by `offset`, with their bilinear weights (clamped to
+/// the face), as the query takes them.
+fn bilinear_taps(d: Vec3, n: u32, offset: glam::Vec2) -> [(u32, f32); 4] {
+    let (face, u, v, _) = cube::project(d);
+    let fx = ((u + 1.0) * 0.5 * n as f32 - 0.5 - offset.x).clamp(0.0, n as f32 - 1.0);
+    let fy = ((v + 1.0) * 0.5 * n as f32 - 0.5 - offset.y).clamp(0.0, n as f32 - 1.0);
+    let base = face * n * n;
+    let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
+    let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
+    let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
+    [
+        (base + y0 * n + x0, (1.0 - wx) * (1.0 - wy)),
+        (base + y0 * n + x1, wx * (1.0 - wy)),
+        (base + y1 * n + x0, (1.0 - wx) * wy),
+        (base + y1 * n + x1, wx * wy),
+    ]
 }
 
 struct Ends<'a> {
@@ -43,7 +76,7 @@ struct Ends<'a> {
 impl Ends<'_> {
     /// What the cube maps of `senders` say of the point `p_i` with normal `n_i`; the
     /// arithmetic of `VisibilityQuery::visibility_oriented`, keeping each tap.
-    fn answer(&self, senders: &[(u32, f32)], p_i: Vec3, n_i: Vec3) -> End {
+    fn answer(&self, senders: &[(u32, f32)], p_j: Vec3, p_i: Vec3, n_i: Vec3) -> End {
         let n = self.file.params.cube_resolution;
         let near = self.file.params.near;
         let mut e = End::default();
@@ -66,11 +99,14 @@ impl Ends<'_> {
             }
             if d.length_squared() < near * near * 1e-6 {
                 e.v += ws;
+                e.v_parallax += ws;
+                e.v_probe += ws;
                 e.tent_1_5 += ws;
                 e.tent_2 += ws;
                 continue;
             }
             let (face, u, v, depth) = cube::project(frame.to_cube(d));
+            e.pixel_angle += ws * (2.0 / n as f32) / (1.0 + u * u + v * v).powf(0.75);
             let receiver_depth = |pixel: u32| -> f32 {
                 let (ray, scale) = cube::cast_direction_at(n, pixel, cube_normal, offset);
                 let denom = ray.dot(cube_n_i);
@@ -93,20 +129,9 @@ impl Ends<'_> {
                 let receiver = receiver_depth(pixel);
                 (stored >= receiver, stored / receiver)
             };
-            let fx = ((u + 1.0) * 0.5 * n as f32 - 0.5 - offset.x).clamp(0.0, n as f32 - 1.0);
-            let fy = ((v + 1.0) * 0.5 * n as f32 - 0.5 - offset.y).clamp(0.0, n as f32 - 1.0);
-            let base = face * n * n;
-            let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
-            let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
-            let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
-            for (x, y, wp) in [
-                (x0, y0, (1.0 - wx) * (1.0 - wy)),
-                (x1, y0, wx * (1.0 - wy)),
-                (x0, y1, (1.0 - wx) * wy),
-                (x1, y1, wx * wy),
-            ] {
+            for (pixel, wp) in bilinear_taps(frame.to_cube(d), n, offset) {
                 let w = ws * wp;
-                let (visible, ratio) = tap(base + y * n + x);
+                let (visible, ratio) = tap(pixel);
                 if visible {
                     e.v += w;
                 } else {
@@ -118,7 +143,65 @@ impl Ends<'_> {
                     }
                 }
             }
+            // Parallax: the 2x2 PCF again, looking towards where the segment from p_j passes
+            // the occluder the first lookup found.
+            let pcf = |d: Vec3| -> (f32, f32, f32) {
+                let (mut vis, mut blk, mut rs) = (0.0, 0.0, 0.0);
+                for (pixel, wp) in bilinear_taps(frame.to_cube(d), n, offset) {
+                    let (visible, ratio) = tap(pixel);
+                    if visible {
+                        vis += wp;
+                    } else {
+                        blk += wp;
+                        rs += wp * ratio;
+                    }
+                }
+                (vis, blk, rs)
+            };
+            let (v0, b0, rs0) = pcf(d);
+            let v1 = if b0 > 0.0 {
+                let r = (rs0 / b0).clamp(PARALLAX_MIN_R, 1.0);
+                let mut d2 = (p_j - centre) / r + (p_i - p_j);
+                let below = d2.dot(normal);
+                if below < 0.0 {
+                    d2 -= normal * below;
+                }
+                pcf(d2).0
+            } else {
+                v0
+            };
+            e.v_parallax += ws * v1;
+            // Probes: is the segment's point s out from p_j behind a stored depth?
+            let segment = p_i - p_j;
+            let length = segment.length();
+            let size = t.area.sqrt();
+            let mut probe_v = v0;
+            for k in probes() {
+                let s = k * size;
+                if s > 0.5 * length {
+                    break;
+                }
+                let x = p_j + segment * (s / length);
+                let dx = x - centre;
+                if dx.dot(normal) <= 0.0 {
+                    continue;
+                }
+                let depth = cube::project(frame.to_cube(dx)).3;
+                let mut vis = 0.0;
+                for (pixel, wp) in bilinear_taps(frame.to_cube(dx), n, offset) {
+                    if cube::pixel_is_dont_care_at(n, pixel, cube_normal, offset)
+                        || self.quantizer.depth(self.q.depth_code(texel, pixel)) >= depth
+                    {
+                        vis += wp;
+                    }
+                }
+                probe_v = probe_v.min(vis);
+            }
+            e.v_probe += ws * probe_v;
             // Wider tents over the face's pixels (clamped to the face, as the 2x2 is).
+            let fx = ((u + 1.0) * 0.5 * n as f32 - 0.5 - offset.x).clamp(0.0, n as f32 - 1.0);
+            let fy = ((v + 1.0) * 0.5 * n as f32 - 0.5 - offset.y).clamp(0.0, n as f32 - 1.0);
+            let base = face * n * n;
             let (cx, cy) = (fx.round() as i64, fy.round() as i64);
             for (radius, slot) in [(1.5f32, &mut e.tent_1_5), (2.0, &mut e.tent_2)] {
                 let (mut visible, mut total) = (0.0, 0.0);
@@ -142,6 +225,7 @@ impl Ends<'_> {
                 }
             }
         }
+        e.blocked = blocked;
         e.occluder_ratio = if blocked > 0.0 {
             ratio_sum / blocked
         } else {
@@ -158,7 +242,48 @@ fn weighted(a: f32, wa: f32, b: f32, wb: f32) -> f32 {
     (wa * a + wb * b) / (wa + wb)
 }
 
-const RULES: [Rule; 12] = [
+/// Where the occluder lies along the segment, as a fraction from `a`'s end to `b`'s: what the
+/// blocked taps' stored depths say (each an upper bound of the distance from its own end).
+fn occluder_at(a: &End, b: &End) -> Option<f32> {
+    match (a.blocked > 0.0, b.blocked > 0.0) {
+        (true, true) => Some(0.5 * (a.occluder_ratio + 1.0 - b.occluder_ratio)),
+        (true, false) => Some(a.occluder_ratio),
+        (false, true) => Some(1.0 - b.occluder_ratio),
+        (false, false) => None,
+    }
+}
+
+/// Each end weighted by the inverse of its edge's uncertainty in world units at the
+/// occluder: pixel angle (to the power `angle_power`) times distance to the occluder.
+fn by_footprint(a: &End, b: &End, angle_power: f32, distance_power: f32) -> f32 {
+    let Some(r) = occluder_at(a, b) else {
+        return 0.5 * (a.v + b.v);
+    };
+    let r = r.clamp(0.02, 0.98);
+    // An end whose senders all lie behind the other point has no lookup and no angle.
+    let angle = |e: &End| {
+        if e.pixel_angle > 0.0 {
+            e.pixel_angle
+        } else {
+            1.0
+        }
+    };
+    let wa = 1.0 / (angle(a).powf(angle_power) * r.powf(distance_power));
+    let wb = 1.0 / (angle(b).powf(angle_power) * (1.0 - r).powf(distance_power));
+    weighted(a.v, wa, b.v, wb)
+}
+
+/// The parallax look's nearest occluder, as a fraction of the way to the other point.
+const PARALLAX_MIN_R: f32 = 0.05;
+
+/// The probes' distances from the sender point, in texel sizes (`PROBES`, default 1, 2, 4).
+fn probes() -> Vec<f32> {
+    std::env::var("PROBES").map_or(vec![1.0, 2.0, 4.0], |v| {
+        v.split(',').map(|x| x.parse().unwrap()).collect()
+    })
+}
+
+const RULES: [Rule; 21] = [
     ("the mean (today)", |a, b| 0.5 * (a.v + b.v)),
     ("an end blocked in its own half decides", |a, b| {
         if a.blocked_near >= 0.5 || b.blocked_near >= 0.5 {
@@ -214,6 +339,41 @@ const RULES: [Rule; 12] = [
             weighted(a.v, w(a), b.v, w(b))
         },
     ),
+    ("probes, nearer end weighs more", |a, b| {
+        weighted(
+            a.v_probe,
+            (2.0 * a.nearness).exp(),
+            b.v_probe,
+            (2.0 * b.nearness).exp(),
+        )
+    }),
+    ("parallax, nearer end weighs more", |a, b| {
+        weighted(
+            a.v_parallax,
+            (2.0 * a.nearness).exp(),
+            b.v_parallax,
+            (2.0 * b.nearness).exp(),
+        )
+    }),
+    ("parallax, mean", |a, b| 0.5 * (a.v_parallax + b.v_parallax)),
+    ("footprint: 1 / (angle x distance)", |a, b| {
+        by_footprint(a, b, 1.0, 1.0)
+    }),
+    ("footprint: 1 / distance", |a, b| {
+        by_footprint(a, b, 0.0, 1.0)
+    }),
+    ("footprint: 1 / (angle x distance)^2", |a, b| {
+        by_footprint(a, b, 2.0, 2.0)
+    }),
+    ("footprint: 1 / distance^2", |a, b| {
+        by_footprint(a, b, 0.0, 2.0)
+    }),
+    ("footprint: 1 / (angle x distance^0.5)", |a, b| {
+        by_footprint(a, b, 1.0, 0.5)
+    }),
+    ("footprint: 1 / distance^0.5", |a, b| {
+        by_footprint(a, b, 0.0, 0.5)
+    }),
 ];
 
 fn main() {
@@ -245,6 +405,8 @@ fn main() {
     // and their squared error against the 0/1 truth.
     let (mut bias, mut squared) = ([0f64; RULES.len()], [0f64; RULES.len()]);
     let mut visible = 0u32;
+    let mut csv = std::env::var_os("ENDS_CSV")
+        .map(|p| std::io::BufWriter::new(std::fs::File::create(p).unwrap()));
     for (pj, pi) in &pairs {
         if !exchanges_light(pj, pi, eps) {
             continue;
@@ -257,14 +419,41 @@ fn main() {
         count += 1;
         let truth = exact_visible(&bvh, pj, pi, eps);
         visible += u32::from(truth);
-        let a = ends.answer(&sj, pi.position, pi.normal);
-        let b = ends.answer(&si, pj.position, pj.normal);
+        let a = ends.answer(&sj, pj.position, pi.position, pi.normal);
+        let b = ends.answer(&si, pi.position, pj.position, pj.normal);
         let library = ends
             .q
             .visibility_between(&sj, pj.position, pj.normal, &si, pi.position, pi.normal)
             .unwrap_or(f32::NAN);
         query += u32::from((library >= 0.5) == truth);
         let (a_right, b_right) = ((a.v >= 0.5) == truth, (b.v >= 0.5) == truth);
+        if let Some(out) = csv.as_mut() {
+            use std::io::Write;
+            let from = pj.position + pj.normal * eps;
+            let seg = pi.position - from;
+            let length = seg.length();
+            let r_true = bvh
+                .closest_hit(from, seg / length, 0.0, length)
+                .map_or(-1.0, |(t, _)| t / length);
+            writeln!(
+                out,
+                "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                u8::from(truth),
+                a.v,
+                b.v,
+                a.blocked,
+                b.blocked,
+                a.occluder_ratio,
+                b.occluder_ratio,
+                a.nearness,
+                b.nearness,
+                a.pixel_angle,
+                b.pixel_angle,
+                length,
+                r_true
+            )
+            .unwrap();
+        }
         either += u32::from(a_right || b_right);
         both += u32::from(a_right && b_right);
         if a_right != b_right {

@@ -221,9 +221,10 @@ measure() {
                 run "bake-$name-$device" "$c/cssm" bake $scene ${flags//,/ } --device $device \
                     -o "$work/bake-$name-$device.cssm" --json
             done
-            # Byte for byte where the GPU rounds as the CPU does; otherwise (a GPU that fuses
-            # multiply-adds, or lavapipe on the turned Cornell box: reports/bake.md) the same
-            # runs to within 0.5%, as tests/gpu/depth_maps.rs holds them.
+            # Byte for byte where the GPU rounds as the CPU does (lavapipe); otherwise (a GPU
+            # that fuses multiply-adds may decide a ray through an edge otherwise:
+            # reports/bake.md) the same runs to within 0.5%, as tests/gpu/depth_maps.rs holds
+            # them off lavapipe.
             # shellcheck disable=SC2016
             run "bake-$name-same" bash -c '
                 if cmp -s "$1" "$2"; then echo "identical"; exit 0; fi

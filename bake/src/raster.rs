@@ -509,17 +509,9 @@ fn render_with(
                 centre_lanes.intersect_permuted(first..first + hits.len(), &permuted, hits);
                 for (col, &t) in (c0..=c1).zip(hits.iter()) {
                     let pixel = base + row * n + col;
-                    if kind[pixel as usize] == CENTRE {
-                        // NaN: on an edge within `f32`'s rounding; the ray's own test decides.
-                        let t = if t.is_nan() {
-                            centre_rays[pixel as usize].intersect_permuted(&permuted)
-                        } else {
-                            t
-                        };
-                        if t > min_hit {
-                            let faces = any || normal_of.dot(centre_dirs[pixel as usize]) < 0.0;
-                            reducers[(row * n + col) as usize].add(t, faces, separation);
-                        }
+                    if kind[pixel as usize] == CENTRE && t > min_hit {
+                        let faces = any || normal_of.dot(centre_dirs[pixel as usize]) < 0.0;
+                        reducers[(row * n + col) as usize].add(t, faces, separation);
                     }
                 }
                 let cells = (face * n + row) as usize;

@@ -3,8 +3,9 @@
 // Ray casting against obvhs' binary BVH in a compute shader, shared by the exact segment
 // visibility baseline (`bvh.wgsl`) and the bake's depth cube maps on the GPU
 // (`depth_maps.wgsl`). The triangle test is the watertight test of Woop, Benthin and Wald
-// (JCGT 2013) as in the CPU reference `cssm_raycast::WatertightRay` (without its
-// double-precision fallback on exact edge hits: WGSL has no f64 everywhere).
+// (JCGT 2013), the very arithmetic of the CPU reference `cssm_raycast::WatertightRay`: neither
+// takes the paper's double-precision fallback on exact edge hits (WGSL has no f64), so the two
+// devices decide a ray through an edge alike where both round as IEEE f32.
 
 struct BvhNode {
     min: vec3f,
@@ -60,6 +61,14 @@ fn watertight_ray(origin: vec3f, dir: vec3f) -> WatertightRay {
     return WatertightRay(origin, kx, ky, kz, axis(dir, kx) / dz, axis(dir, ky) / dz, 1.0 / dz);
 }
 
+// The ray runs in the triangle's plane to within rounding: the triangle seen along it is a
+// sliver at most 1 / 65536 as wide as its corners' largest offset from the ray. A miss (CPU twin:
+// `cssm_raycast`'s `seen_edge_on`, the same powers of two and `max`).
+fn seen_edge_on(ax: f32, ay: f32, bx: f32, by: f32, cx: f32, cy: f32, det: f32) -> bool {
+    let reach = max(max(max(abs(ax), abs(ay)), max(abs(bx), abs(by))), max(abs(cx), abs(cy)));
+    return abs(det) <= reach * reach * (1.0 / 65536.0);
+}
+
 fn intersect(r: WatertightRay, i: u32) -> f32 {
     let a = tri_vertices[3u * i].xyz - r.origin;
     let b = tri_vertices[3u * i + 1u].xyz - r.origin;
@@ -80,7 +89,7 @@ fn intersect(r: WatertightRay, i: u32) -> f32 {
         return -1.0;
     }
     let det = u + v + w;
-    if det == 0.0 {
+    if det == 0.0 || seen_edge_on(ax, ay, bx, by, cx, cy, det) {
         return -1.0;
     }
     return (u * r.sz * az + v * r.sz * bz + w * r.sz * cz) / det;
