@@ -770,7 +770,8 @@ mod tests {
         assert!(bvh.segment_clear(Vec3::new(0.0, 0.0, 1.5), Vec3::new(0.0, 0.0, 2.5)));
     }
 
-    /// A ray in a triangle's plane misses it, whatever rounding makes of its edge functions:
+    /// A ray in a triangle's plane misses it, whatever rounding makes of its edge functions, in
+    /// its own test and in [`SharedAxisRays`]' lanes:
     /// triangles and rays exactly in an oblique plane, `x + y + z = k` (every coordinate a
     /// multiple of 1/64, so the plane holds them exactly in `f32`), as turned cube maps cast
     /// horizontal rays along a box's top.
@@ -798,6 +799,11 @@ mod tests {
             rounded += usize::from(one_sign && u + v + w != 0.0);
             tested += 1;
             assert!(ray.intersect(&tri).is_infinite(), "{tri:?} from {origin}");
+            // The rasteriser's lanes too.
+            let mut lane = [0.0];
+            let permuted = rel.map(|p| ray.axes().map(|k| p[k]));
+            SharedAxisRays::new(&[ray]).intersect_permuted(0..1, &permuted, &mut lane);
+            assert!(lane[0].is_infinite(), "{tri:?} from {origin}, in a lane");
         }
         // Without the edge-on test, rounding alone would have let these through.
         assert!(rounded > 10, "{rounded} of {tested}");
