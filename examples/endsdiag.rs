@@ -14,7 +14,7 @@ use cssm::{
     formats::{
         self,
         cube::{self, DepthQuantizer},
-        visibility::{QueryOptions, VisibilityQuery},
+        visibility::{EndAnswer, QueryOptions, VisibilityQuery, combine_ends},
     },
     raycast::{SceneBvh, SplitMix64, SurfacePoint, SurfaceSampler},
 };
@@ -129,12 +129,18 @@ impl Ends<'_> {
                 let receiver = receiver_depth(pixel);
                 (stored >= receiver, stored / receiver)
             };
+            // This texel's own first look: visible and blocked weights, and the blocked taps'
+            // ratio sum (the parallax look below starts from it).
+            let (mut v0, mut b0, mut rs0) = (0.0, 0.0, 0.0);
             for (pixel, wp) in bilinear_taps(frame.to_cube(d), n, offset) {
                 let w = ws * wp;
                 let (visible, ratio) = tap(pixel);
                 if visible {
+                    v0 += wp;
                     e.v += w;
                 } else {
+                    b0 += wp;
+                    rs0 += wp * ratio;
                     blocked += w;
                     ratio_sum += w * ratio;
                     e.nearness += w * (1.0 - ratio).max(0.0);
@@ -145,20 +151,13 @@ impl Ends<'_> {
             }
             // Parallax: the 2x2 PCF again, looking towards where the segment from p_j passes
             // the occluder the first lookup found.
-            let pcf = |d: Vec3| -> (f32, f32, f32) {
-                let (mut vis, mut blk, mut rs) = (0.0, 0.0, 0.0);
-                for (pixel, wp) in bilinear_taps(frame.to_cube(d), n, offset) {
-                    let (visible, ratio) = tap(pixel);
-                    if visible {
-                        vis += wp;
-                    } else {
-                        blk += wp;
-                        rs += wp * ratio;
-                    }
-                }
-                (vis, blk, rs)
+            let visible_from = |d: Vec3| -> f32 {
+                bilinear_taps(frame.to_cube(d), n, offset)
+                    .iter()
+                    .filter(|&&(pixel, _)| tap(pixel).0)
+                    .map(|&(_, wp)| wp)
+                    .sum()
             };
-            let (v0, b0, rs0) = pcf(d);
             let v1 = if b0 > 0.0 {
                 let r = (rs0 / b0).clamp(PARALLAX_MIN_R, 1.0);
                 let mut d2 = (p_j - centre) / r + (p_i - p_j);
@@ -166,7 +165,7 @@ impl Ends<'_> {
                 if below < 0.0 {
                     d2 -= normal * below;
                 }
-                pcf(d2).0
+                visible_from(d2)
             } else {
                 v0
             };
@@ -242,6 +241,21 @@ fn weighted(a: f32, wa: f32, b: f32, wb: f32) -> f32 {
     (wa * a + wb * b) / (wa + wb)
 }
 
+/// The visible fractions `va` and `vb` of the ends `a` and `b` combined as the query combines
+/// its ends (`visibility::combine_ends`: weights from each end's nearness).
+fn as_the_query(va: f32, a: &End, vb: f32, b: &End) -> f32 {
+    combine_ends(
+        EndAnswer {
+            visible: va,
+            nearness: a.nearness,
+        },
+        EndAnswer {
+            visible: vb,
+            nearness: b.nearness,
+        },
+    )
+}
+
 /// Where the occluder lies along the segment, as a fraction from `a`'s end to `b`'s: what the
 /// blocked taps' stored depths say (each an upper bound of the distance from its own end).
 fn occluder_at(a: &End, b: &End) -> Option<f32> {
@@ -279,7 +293,16 @@ const PARALLAX_MIN_R: f32 = 0.05;
 /// The probes' distances from the sender point, in texel sizes (`PROBES`, default 1, 2, 4).
 fn probes() -> Vec<f32> {
     std::env::var("PROBES").map_or(vec![1.0, 2.0, 4.0], |v| {
-        v.split(',').map(|x| x.parse().unwrap()).collect()
+        v.split(',')
+            .map(|x| {
+                x.trim().parse().unwrap_or_else(|_| {
+                    eprintln!(
+                        "endsdiag: PROBES: '{x}' is not a number (texel sizes, e.g. 0.5,1,2)"
+                    );
+                    std::process::exit(2)
+                })
+            })
+            .collect()
     })
 }
 
@@ -314,7 +337,7 @@ const RULES: [Rule; 21] = [
         },
     ),
     ("the nearer end weighs more: exp(2 nearness)", |a, b| {
-        weighted(a.v, (2.0 * a.nearness).exp(), b.v, (2.0 * b.nearness).exp())
+        as_the_query(a.v, a, b.v, b)
     }),
     ("leaning to the lower: 0.9 mean + 0.1 min", |a, b| {
         0.9 * 0.5 * (a.v + b.v) + 0.1 * a.v.min(b.v)
@@ -340,20 +363,10 @@ const RULES: [Rule; 21] = [
         },
     ),
     ("probes, nearer end weighs more", |a, b| {
-        weighted(
-            a.v_probe,
-            (2.0 * a.nearness).exp(),
-            b.v_probe,
-            (2.0 * b.nearness).exp(),
-        )
+        as_the_query(a.v_probe, a, b.v_probe, b)
     }),
     ("parallax, nearer end weighs more", |a, b| {
-        weighted(
-            a.v_parallax,
-            (2.0 * a.nearness).exp(),
-            b.v_parallax,
-            (2.0 * b.nearness).exp(),
-        )
+        as_the_query(a.v_parallax, a, b.v_parallax, b)
     }),
     ("parallax, mean", |a, b| 0.5 * (a.v_parallax + b.v_parallax)),
     ("footprint: 1 / (angle x distance)", |a, b| {
@@ -405,8 +418,16 @@ fn main() {
     // and their squared error against the 0/1 truth.
     let (mut bias, mut squared) = ([0f64; RULES.len()], [0f64; RULES.len()]);
     let mut visible = 0u32;
-    let mut csv = std::env::var_os("ENDS_CSV")
-        .map(|p| std::io::BufWriter::new(std::fs::File::create(p).unwrap()));
+    let mut csv = std::env::var_os("ENDS_CSV").map(|p| {
+        let file = std::fs::File::create(&p).unwrap_or_else(|e| {
+            eprintln!(
+                "endsdiag: cannot create ENDS_CSV {}: {e}",
+                std::path::Path::new(&p).display()
+            );
+            std::process::exit(2)
+        });
+        std::io::BufWriter::new(file)
+    });
     for (pj, pi) in &pairs {
         if !exchanges_light(pj, pi, eps) {
             continue;
