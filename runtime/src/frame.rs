@@ -443,7 +443,7 @@ impl FrameContext {
                     scene,
                     &scene_gpu.motion,
                 )?,
-                hierarchy: HierarchyGpu::new(device, &file.hierarchy)?,
+                hierarchy: HierarchyGpu::new(device, &file.hierarchy, &file.texels)?,
                 moving_texels: crate::radiosity::MovingTexels::new(file, scene.objects.len()),
             }),
             None => None,

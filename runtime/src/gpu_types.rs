@@ -183,6 +183,25 @@ pub struct GpuCssmParams {
 /// `#[repr(C)]`, `Pod`); its WGSL twin is `Node` in `types.wgsl`.
 pub use cssm_formats::hierarchy::HierarchyNode as GpuNode;
 
+/// What a cluster's transfer needs beyond its [`GpuNode`], computed at load from the texels
+/// where they stand ([`crate::radiosity::transfer::node_spreads`]; not in the file): the second
+/// moment of its texels' normals, `sum area n n^T`, which with the mean normal gives the area
+/// the cluster shows in any direction, and the texel whose normal is the most opposite to the
+/// representative's, whose visibility stands for the cluster's where the representative faces
+/// away from a receiver. Its WGSL twin is `NodeSpread` in `types.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuNodeSpread {
+    /// The moment's xx, yy, zz and xy entries.
+    pub moment_a: [f32; 4],
+    /// Its xz and yz entries.
+    pub moment_b: [f32; 2],
+    /// The texel of the node whose normal is the most opposite to its representative's.
+    pub other: u32,
+    /// Padding to 32 bytes.
+    pub padding: u32,
+}
+
 /// Constants of one hierarchy traversal pass (radiosity gather or final gather).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -318,6 +337,15 @@ mod tests {
                 ("first", offset_of!(GpuNode, first)),
                 ("count", offset_of!(GpuNode, count)),
                 ("representative", offset_of!(GpuNode, representative)),
+            ],
+        );
+        check(
+            "NodeSpread",
+            size_of::<GpuNodeSpread>(),
+            &[
+                ("moment_a", offset_of!(GpuNodeSpread, moment_a)),
+                ("moment_b", offset_of!(GpuNodeSpread, moment_b)),
+                ("other", offset_of!(GpuNodeSpread, other)),
             ],
         );
         check(

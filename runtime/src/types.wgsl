@@ -84,6 +84,15 @@ struct Node {
     padding_c: u32,
 }
 
+// gpu_types::GpuNodeSpread: the second moment of a node's texel normals (sum area n n^T: xx,
+// yy, zz, xy; xz, yz) and its texel facing the most away from its representative.
+struct NodeSpread {
+    moment_a: vec4f,
+    moment_b: vec2f,
+    other: u32,
+    padding: u32,
+}
+
 struct TraversalParams {
     receiver_count: u32,
     node_count: u32,

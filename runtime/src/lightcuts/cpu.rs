@@ -9,8 +9,9 @@ use crate::{
     gpu_types::GpuMaterial,
     radiosity::cpu::TwinScene,
     radiosity::transfer::{
-        brdf_bound, phong_lobe, in_near_field, irradiance_bound, irradiance_from,
-        irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped,
+        brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_cluster,
+        irradiance_from_footprint, jitter_in_disk, jitter_leaf, phong_lobe, tone_mapped,
+        visibility_sender,
     },
 };
 
@@ -117,10 +118,21 @@ pub fn gather_planes(
             // The texel's footprint integrated exactly: what jittering would average to.
             let (e, w) = if near {
                 irradiance_from_footprint(p, n, position, y.nrm(), node.area, l)
+            } else if node.count > 1 {
+                irradiance_from_cluster(p, n, position, node, &scene.spreads[s], l)
             } else {
                 irradiance_from(p, n, position, Vec3::from(node.normal), node.area, l)
             };
             if e.cmpgt(Vec3::ZERO).any() {
+                // Unjittered, a cluster seen from the other side than its representative's:
+                // the visibility of its texel facing the receiver (transfer.rs).
+                let (sender, y, position) = if jitter.is_none() {
+                    let sender = visibility_sender(node, &scene.spreads[s], texels, p);
+                    let y = &texels[sender as usize];
+                    (sender, y, y.pos())
+                } else {
+                    (sender, y, position)
+                };
                 // The pixel's texels and the sender's (both ends, when the options ask), each
                 // object's own and the other moving objects' CSMs (§3.3).
                 let visibility = scene

@@ -1,9 +1,9 @@
-#import cssm::types::{Material, Node, TraversalParams, View}
+#import cssm::types::{Material, Node, NodeSpread, TraversalParams, View}
 #import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
 #import cssm::lowres::lowres_representative
-#import cssm::transfer::{phong_lobe, brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
+#import cssm::transfer::{phong_lobe, brdf_bound, faces, in_near_field, irradiance_bound, irradiance_from, irradiance_from_cluster, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
 
 // Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
 // pixel instead of a receiver leaf, the oracle bounding the normalised Phong BRDF so glossy
@@ -30,6 +30,8 @@
 // filters when the gather runs at a reduced resolution).
 @group(0) @binding(10) var<storage, read_write> planes: array<vec4f>;
 @group(0) @binding(11) var<uniform> grid: GatherGrid;
+// Per node: its normals' second moment and other-side texel (transfer.rs::node_spreads).
+@group(0) @binding(12) var<storage, read> spreads: array<NodeSpread>;
 
 struct GatherGrid {
     // The gather's resolution: the G-buffer's reduced by `factor` per side.
@@ -89,12 +91,30 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                     if params.jitter != 0u {
                         y_position = jitter_in_disk(params.seed, receiver, s, y.position, y.normal, y.area);
                     }
-                    e = irradiance_from(p, n, y_position, node.normal, node.area, l);
+                    if node.count > 1u {
+                        e = irradiance_from_cluster(p, n, y_position, node, spreads[s], l);
+                    } else {
+                        e = irradiance_from(p, n, y_position, node.normal, node.area, l);
+                    }
                 }
                 if any(e > vec3f(0.0)) {
+                    // Unjittered, a cluster seen from the other side than its representative's:
+                    // the visibility of its texel facing the receiver
+                    // (transfer.rs::visibility_sender).
+                    var v_sender = sender;
+                    var v_y = y;
+                    var v_position = y_position;
+                    if params.jitter == 0u && node.count > 1u && !faces(y, p) {
+                        let other = posed_texel(cssm_texels[spreads[s].other]);
+                        if faces(other, p) {
+                            v_sender = spreads[s].other;
+                            v_y = other;
+                            v_position = other.position;
+                        }
+                    }
                     // The pixel's texels and the sender's (both ends, CSSM_FLAG_BOTH_ENDS), each
                     // object's own and the other moving objects' CSMs (§3.3).
-                    var visibility = moving_visibility_between(senders, p, n, object, cssm_senders_texel(sender), y_position, y.normal, y.object);
+                    var visibility = moving_visibility_between(senders, p, n, object, cssm_senders_texel(v_sender), v_position, v_y.normal, v_y.object);
                     // No texel stands for the point (far outside its chart): unshadowed.
                     if visibility < 0.0 {
                         visibility = 1.0;

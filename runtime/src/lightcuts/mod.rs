@@ -109,6 +109,7 @@ impl FinalGather {
             layout::texture(9, d2, c),
             layout::storage(10, false, c),
             layout::uniform(11, c),
+            layout::storage(12, true, c),
         ];
         let bind_layout = layout::bind_group_layout(device, "final gather", &entries);
         let pipeline = layout::compute_pipeline(
@@ -172,6 +173,7 @@ impl FinalGather {
         resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
         resources.push(planes.as_entire_binding());
         resources.push(grid.as_entire_binding());
+        resources.push(hierarchy.spreads.as_entire_binding());
         Ok(layout::bind_group(
             &ctx.device,
             "final gather",

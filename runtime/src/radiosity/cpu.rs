@@ -21,8 +21,11 @@ use cssm_raycast::SceneBvh;
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
-use super::transfer::{irradiance_bound, irradiance_from, irradiance_from_texel, tone_mapped};
-use crate::gpu_types::GpuNode;
+use super::transfer::{
+    irradiance_bound, irradiance_from_cluster, irradiance_from_texel, node_spreads, tone_mapped,
+    visibility_sender,
+};
+use crate::gpu_types::{GpuNode, GpuNodeSpread};
 
 const PI: f32 = std::f32::consts::PI;
 
@@ -67,6 +70,9 @@ pub struct TwinScene<'q, 'a> {
     pub texels: Cow<'q, [Texel]>,
     /// The hierarchy over them.
     pub hierarchy: Cow<'q, Hierarchy>,
+    /// Every node's normals' spread and other-side texel over `texels` as they stand
+    /// ([`super::transfer::node_spreads`]; the GPU's `HierarchyGpu::spreads`).
+    pub spreads: Vec<GpuNodeSpread>,
 }
 
 impl<'q, 'a> TwinScene<'q, 'a> {
@@ -77,6 +83,7 @@ impl<'q, 'a> TwinScene<'q, 'a> {
             visibility: TwinVisibility::Baked(query),
             texels: Cow::Borrowed(&file.texels),
             hierarchy: Cow::Borrowed(&file.hierarchy),
+            spreads: node_spreads(&file.hierarchy, &file.texels),
         }
     }
 
@@ -91,6 +98,7 @@ impl<'q, 'a> TwinScene<'q, 'a> {
         hierarchy.refit(&texels);
         Self {
             visibility: TwinVisibility::Moving(query),
+            spreads: node_spreads(&hierarchy, &texels),
             texels: Cow::Owned(texels),
             hierarchy: Cow::Owned(hierarchy),
         }
@@ -151,13 +159,18 @@ pub fn gather_texel(
         let sender = node.representative;
         if sender != receiver && l.cmpgt(Vec3::ZERO).any() {
             let y = &texels[sender as usize];
+            let spread = &scene.spreads[s];
             // A single texel's footprint is integrated in its near field.
             let (unoccluded, _) = if node.count == 1 {
                 irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, l)
             } else {
-                irradiance_from(p, n, y.pos(), Vec3::from(node.normal), node.area, l)
+                irradiance_from_cluster(p, n, y.pos(), node, spread, l)
             };
             if unoccluded.cmpgt(Vec3::ZERO).any() {
+                // A cluster seen from the other side than its representative's: the
+                // visibility of its texel facing the receiver (transfer.rs).
+                let sender = visibility_sender(node, spread, texels, p);
+                let y = &texels[sender as usize];
                 // Both ends' cube maps when the options ask (QueryOptions::both_ends), each
                 // object's own and the other moving objects' CSMs (§3.3).
                 let visibility = scene

@@ -1,8 +1,8 @@
-#import cssm::types::{Node, TraversalParams}
+#import cssm::types::{Node, NodeSpread, TraversalParams}
 #import cssm::visibility::{cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
-#import cssm::transfer::{TRANSFER_PI, irradiance_bound, irradiance_from, irradiance_from_texel, tone_mapped}
+#import cssm::transfer::{TRANSFER_PI, faces, irradiance_bound, irradiance_from_cluster, irradiance_from_texel, tone_mapped}
 
 // GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
 // (texel) walks the hierarchy without a stack from the root, refining a sender while the oracle
@@ -29,6 +29,8 @@
 @group(0) @binding(6) var<storage, read_write> radiance_out: array<vec4f>;
 // Per texel: rgb indirect irradiance gathered in this iteration.
 @group(0) @binding(7) var<storage, read_write> texel_irradiance: array<vec4f>;
+// Per node: its normals' second moment and other-side texel (transfer.rs::node_spreads).
+@group(0) @binding(8) var<storage, read> spreads: array<NodeSpread>;
 
 // Irradiance at texel `receiver` (position p, normal n, albedo rho) from the whole scene.
 fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
@@ -54,12 +56,23 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
             if node.count == 1u {
                 unoccluded = irradiance_from_texel(p, n, y.position, y.normal, node.area, radiance);
             } else {
-                unoccluded = irradiance_from(p, n, y.position, node.normal, node.area, radiance);
+                unoccluded = irradiance_from_cluster(p, n, y.position, node, spreads[s], radiance);
             }
             if any(unoccluded > vec3f(0.0)) {
+                // A cluster seen from the other side than its representative's: the visibility
+                // of its texel facing the receiver (transfer.rs::visibility_sender).
+                var v_sender = sender;
+                var v_y = y;
+                if node.count > 1u && !faces(y, p) {
+                    let other = posed_texel(cssm_texels[spreads[s].other]);
+                    if faces(other, p) {
+                        v_sender = spreads[s].other;
+                        v_y = other;
+                    }
+                }
                 // Both ends' cube maps when the flags ask (CSSM_FLAG_BOTH_ENDS), each object's
                 // own and the other moving objects' CSMs (§3.3).
-                let visibility = moving_visibility_between(cssm_senders_texel(receiver), p, n, cssm_texels[receiver].object, cssm_senders_texel(sender), y.position, y.normal, y.object);
+                let visibility = moving_visibility_between(cssm_senders_texel(receiver), p, n, cssm_texels[receiver].object, cssm_senders_texel(v_sender), v_y.position, v_y.normal, v_y.object);
                 e += unoccluded * visibility;
             }
         }

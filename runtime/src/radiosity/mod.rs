@@ -76,6 +76,8 @@ pub fn node_depths(nodes: &[GpuNode]) -> Vec<u32> {
 pub struct HierarchyGpu {
     /// [`GpuNode`] per node, depth-first.
     pub nodes: wgpu::Buffer,
+    /// [`crate::gpu_types::GpuNodeSpread`] per node ([`transfer::node_spreads`]), as `nodes`.
+    pub spreads: wgpu::Buffer,
     /// Per leaf in leaf order: `(texel, node index)`.
     pub leaves: wgpu::Buffer,
     /// Inner nodes ordered by depth, deepest first.
@@ -89,11 +91,15 @@ pub struct HierarchyGpu {
 }
 
 impl HierarchyGpu {
-    /// Uploads `hierarchy` (validated with its file).
+    /// Uploads `hierarchy` (validated with its file) and its nodes' spreads over `texels`.
     ///
     /// # Errors
     /// [`RuntimeError::TooLarge`] when the node array exceeds the device's binding limit.
-    pub fn new(device: &wgpu::Device, hierarchy: &Hierarchy) -> Result<Self, RuntimeError> {
+    pub fn new(
+        device: &wgpu::Device,
+        hierarchy: &Hierarchy,
+        texels: &[Texel],
+    ) -> Result<Self, RuntimeError> {
         let nodes = &hierarchy.nodes;
         limit_check(
             device,
@@ -127,8 +133,15 @@ impl HierarchyGpu {
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
         });
+        let spreads = transfer::node_spreads(hierarchy, texels);
+        let spreads = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("hierarchy node spreads"),
+            contents: bytemuck::cast_slice(&spreads),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        });
         Ok(Self {
             nodes: nodes_buffer,
+            spreads,
             leaves: storage_buffer(device, "hierarchy leaves", bytemuck::cast_slice(&leaves)),
             pull_order: storage_buffer(
                 device,
@@ -146,7 +159,8 @@ impl HierarchyGpu {
 /// that the hierarchy follows the objects (§3.3): when an object moves, its texels move with it
 /// (`posed.wgsl` on the GPU; [`cssm_formats::moving::posed_texels`] here) and every node's
 /// bounds are refitted around them ([`Hierarchy::refit`]), so the oracle's bounds (§4.3) and
-/// the nodes' mean normals and areas are those of the texels where they are now.
+/// the nodes' mean normals, areas and spreads ([`transfer::node_spreads`]) are those of the
+/// texels where they are now.
 pub struct MovingTexels {
     /// The texels as baked.
     baked: Vec<Texel>,
@@ -181,9 +195,11 @@ impl MovingTexels {
         motion: Affine3A,
     ) {
         self.motions[index] = motion;
-        self.hierarchy
-            .refit(&posed_texels(&self.baked, &self.motions));
+        let texels = posed_texels(&self.baked, &self.motions);
+        self.hierarchy.refit(&texels);
         queue.write_buffer(&gpu.nodes, 0, bytemuck::cast_slice(&self.hierarchy.nodes));
+        let spreads = transfer::node_spreads(&self.hierarchy, &texels);
+        queue.write_buffer(&gpu.spreads, 0, bytemuck::cast_slice(&spreads));
     }
 
     /// The hierarchy as refitted (what the GPU's nodes hold).
@@ -266,6 +282,7 @@ impl Radiosity {
             layout::storage(5, true, c),
             layout::storage(6, false, c),
             layout::storage(7, false, c),
+            layout::storage(8, true, c),
         ];
         let gather_layout = layout::bind_group_layout(device, "radiosity gather", &entries);
         let gather_pipeline = layout::compute_pipeline(
@@ -305,6 +322,7 @@ impl Radiosity {
                     node_radiance[1 - written].as_entire_binding(),
                     node_radiance[written].as_entire_binding(),
                     texel_irradiance.as_entire_binding(),
+                    hierarchy.spreads.as_entire_binding(),
                 ],
             )
         };
