@@ -63,7 +63,7 @@ fn main() {
     let bvh = SceneBvh::new(&scene);
     let materials = runtime::load::cpu_materials(&scene).unwrap().0;
     let direct = render_atlas(&scene, &materials, &file.texels, &bvh);
-    let albedo: Vec<Vec3> = radiosity::texel_albedo(&scene, &file)
+    let albedo: Vec<Vec3> = radiosity::texel_albedo(&materials, &file)
         .iter()
         .map(|a| Vec3::new(a[0], a[1], a[2]))
         .collect();

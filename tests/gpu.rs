@@ -912,7 +912,10 @@ fn radiosity_matches_cpu_twin() {
         };
         let gpu_result = solve_atlas(scene, file, 2, options).expect("radiosity");
         let direct = vec3s(&gpu_result.direct);
-        let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
+        let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
+            &materials(scene),
+            file,
+        ));
         let query = VisibilityQuery::new(file, QueryOptions::default());
         let traversal = cpu::Traversal {
             threshold: options.threshold,
@@ -948,7 +951,10 @@ fn radiosity_error(threshold: f32) -> (f64, u64) {
     let bvh = cssm_raycast::SceneBvh::new(scene);
     let exact_direct =
         cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), &file.texels, &bvh);
-    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
+        &materials(scene),
+        file,
+    ));
     static BRUTE: OnceLock<Vec<glam::Vec3>> = OnceLock::new();
     let brute = BRUTE
         .get_or_init(|| cpu::brute_force(file, &bvh, scene.diameter(), &exact_direct, &albedo, 2));
@@ -989,7 +995,10 @@ fn radiosity_matches_brute_force() {
     let bvh = cssm_raycast::SceneBvh::new(scene);
     let exact_direct =
         cssm_runtime::direct::cpu::render_atlas(scene, &materials(scene), &file.texels, &bvh);
-    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
+        &materials(scene),
+        file,
+    ));
     let brute = cpu::brute_force(file, &bvh, scene.diameter(), &exact_direct, &albedo, 2);
     let query = VisibilityQuery::new(file, QueryOptions::default());
     let flat = cpu::Traversal {

@@ -60,6 +60,12 @@ pub struct GpuMaterial {
     /// Layer of the tangent-space normal map in the same texture array (a height map turned
     /// into one on load, [`crate::normal_map`]), or -1 for none: it tilts the shading normal.
     pub normal_texture: i32,
+    /// `kd` times the mean of its albedo texture (`kd` without one): what an atlas texel of the
+    /// material reflects in the bounces, the atlas sampling no textures
+    /// ([`crate::direct::cpu::bounce_albedo`]).
+    pub kd_mean: [f32; 3],
+    /// Padding to 80 bytes.
+    pub padding: u32,
 }
 
 impl Default for GpuMaterial {
@@ -188,7 +194,7 @@ pub use cssm_formats::hierarchy::HierarchyNode as GpuNode;
 /// moment of its texels' normals, `sum area n n^T`, which with the mean normal gives the area
 /// the cluster shows in any direction, and the texel whose normal is the most opposite to the
 /// representative's, whose visibility stands for the cluster's where the representative faces
-/// away from a receiver. Its WGSL twin is `NodeSpread` in `types.wgsl`.
+/// away from a receiver. On the GPU it follows its node ([`GpuHierarchyNode`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuNodeSpread {
@@ -200,6 +206,18 @@ pub struct GpuNodeSpread {
     pub other: u32,
     /// Padding to 32 bytes.
     pub padding: u32,
+}
+
+/// A node as the GPU holds it: the file's node, then its spread (96 bytes, `Pod`); its WGSL twin
+/// is `Node` in `types.wgsl`, whose fields are both parts' in this order (one storage binding:
+/// the radiosity gather is at the 12 a device must allow).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuHierarchyNode {
+    /// The file's node.
+    pub node: GpuNode,
+    /// Its spread.
+    pub spread: GpuNodeSpread,
 }
 
 /// Constants of one hierarchy traversal pass (radiosity gather or final gather).
@@ -275,6 +293,7 @@ mod tests {
                     offset_of!(GpuMaterial, emission_texture),
                 ),
                 ("emission_mean", offset_of!(GpuMaterial, emission_mean)),
+                ("kd_mean", offset_of!(GpuMaterial, kd_mean)),
                 ("normal_texture", offset_of!(GpuMaterial, normal_texture)),
             ],
         );
@@ -324,9 +343,10 @@ mod tests {
                 ("object", offset_of!(GpuTexel, object)),
             ],
         );
+        let spread = offset_of!(GpuHierarchyNode, spread);
         check(
             "Node",
-            size_of::<GpuNode>(),
+            size_of::<GpuHierarchyNode>(),
             &[
                 ("center", offset_of!(GpuNode, center)),
                 ("radius", offset_of!(GpuNode, radius)),
@@ -337,15 +357,9 @@ mod tests {
                 ("first", offset_of!(GpuNode, first)),
                 ("count", offset_of!(GpuNode, count)),
                 ("representative", offset_of!(GpuNode, representative)),
-            ],
-        );
-        check(
-            "NodeSpread",
-            size_of::<GpuNodeSpread>(),
-            &[
-                ("moment_a", offset_of!(GpuNodeSpread, moment_a)),
-                ("moment_b", offset_of!(GpuNodeSpread, moment_b)),
-                ("other", offset_of!(GpuNodeSpread, other)),
+                ("moment_a", spread + offset_of!(GpuNodeSpread, moment_a)),
+                ("moment_b", spread + offset_of!(GpuNodeSpread, moment_b)),
+                ("other", spread + offset_of!(GpuNodeSpread, other)),
             ],
         );
         check(

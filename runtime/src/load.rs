@@ -159,14 +159,17 @@ pub fn cpu_materials(
         .iter()
         .zip(&layers)
         .map(|(m, layers)| {
-            // The atlas samples no texture: an emission texture enters it by its mean.
-            let emission_mean = match layers.emission {
-                -1 => m.emission,
+            // The atlas samples no texture: an emission or albedo texture enters it by its
+            // mean.
+            let times_mean = |value: [f32; 3], layer: i32| match layer {
+                -1 => value,
                 layer => {
                     let mean = textures[layer as usize].mean();
-                    std::array::from_fn(|c| m.emission[c] * mean[c])
+                    std::array::from_fn(|c| value[c] * mean[c])
                 }
             };
+            let emission_mean = times_mean(m.emission, layers.emission);
+            let kd_mean = times_mean(m.kd, layers.albedo);
             GpuMaterial {
                 kd: m.kd,
                 ns: m.ns,
@@ -176,6 +179,8 @@ pub fn cpu_materials(
                 emission_texture: layers.emission,
                 emission_mean,
                 normal_texture: layers.normal,
+                kd_mean,
+                padding: 0,
             }
         })
         .collect();
@@ -571,10 +576,10 @@ pub fn load_textures(
 /// [`RuntimeError::Texture`] naming the file (or the scene file that embeds the image) when it
 /// cannot be read or decoded.
 pub fn decode_texture(source: &TextureSource) -> Result<Vec<[f32; 3]>, RuntimeError> {
-    Ok(decode_image(source, "")?
-        .into_iter()
-        .map(|c| c.map(srgb_to_linear))
-        .collect())
+    // Linear before resampling: an sRGB-space filter darkens every edge between light and dark
+    // (a stripe of sRGB 255 and 0 resampled there keeps a linear mean of 0.36, not 0.5), and the
+    // atlas takes a texture by its mean (`GpuMaterial::kd_mean`).
+    resampled(source, "", srgb_to_linear)
 }
 
 /// Decodes the image of `source` and resamples it to [`TEXTURE_SIZE`]² texels, each channel
@@ -586,6 +591,16 @@ pub fn decode_texture(source: &TextureSource) -> Result<Vec<[f32; 3]>, RuntimeEr
 /// [`RuntimeError::Texture`] naming the file (or the scene file that embeds the image) when it
 /// cannot be read or decoded.
 pub fn decode_image(source: &TextureSource, what: &str) -> Result<Vec<[f32; 3]>, RuntimeError> {
+    resampled(source, what, |c| c)
+}
+
+/// The image of `source`, each channel in `[0, 1]` through `transfer`, then resampled to
+/// [`TEXTURE_SIZE`]² texels (16 bits per channel while resampling).
+fn resampled(
+    source: &TextureSource,
+    what: &str,
+    transfer: fn(f32) -> f32,
+) -> Result<Vec<[f32; 3]>, RuntimeError> {
     let texture_error = |reason: String| {
         let reason = if what.is_empty() {
             reason
@@ -632,15 +647,23 @@ pub fn decode_image(source: &TextureSource, what: &str) -> Result<Vec<[f32; 3]>,
         }
     }
     .map_err(|e| texture_error(e.to_string()))?;
-    let rgb = image::imageops::resize(
-        &img.to_rgb8(),
+    let rgb = img.to_rgb8();
+    let table: Vec<u16> = (0..=255u8)
+        .map(|c| (transfer(f32::from(c) / 255.0).clamp(0.0, 1.0) * 65535.0).round() as u16)
+        .collect();
+    let wide: image::ImageBuffer<image::Rgb<u16>, Vec<u16>> =
+        image::ImageBuffer::from_fn(rgb.width(), rgb.height(), |x, y| {
+            image::Rgb(rgb.get_pixel(x, y).0.map(|c| table[c as usize]))
+        });
+    let resized = image::imageops::resize(
+        &wide,
         TEXTURE_SIZE,
         TEXTURE_SIZE,
         image::imageops::FilterType::Triangle,
     );
-    Ok(rgb
+    Ok(resized
         .pixels()
-        .map(|p| p.0.map(|c| c as f32 / 255.0))
+        .map(|p| p.0.map(|c| f32::from(c) / 65535.0))
         .collect())
 }
 
@@ -833,5 +856,46 @@ impl SceneGpu {
             cpu_textures,
             cpu_materials,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A textured material reflects in the atlas Kd times its texture's linear mean (the
+    /// G-buffer and the path tracer see Kd times the texture); an untextured one its Kd.
+    #[test]
+    fn the_atlas_albedo_of_a_textured_material_is_kd_times_the_texture_mean() {
+        let dir = tempfile::tempdir().unwrap();
+        // Half the pixels sRGB 255 (linear 1), half sRGB 0: a linear mean of one half.
+        let mut stripes = image::RgbImage::new(4, 4);
+        for (x, _, p) in stripes.enumerate_pixels_mut() {
+            *p = image::Rgb(if x % 2 == 0 { [255; 3] } else { [0; 3] });
+        }
+        stripes.save(dir.path().join("stripes.png")).unwrap();
+        std::fs::write(
+            dir.path().join("quad.mtl"),
+            "newmtl tex\nKd 0.8 0.6 0.4\nmap_Kd stripes.png\nnewmtl plain\nKd 0.5 0.5 0.5\n",
+        )
+        .unwrap();
+        std::fs::write(
+            dir.path().join("quad.obj"),
+            "mtllib quad.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\n\
+             vt 0 1\nusemtl tex\nf 1/1 2/2 3/3\nusemtl plain\nf 1/1 3/3 4/4\n",
+        )
+        .unwrap();
+        let scene = Scene::load(dir.path()).unwrap();
+        let (materials, _) = cpu_materials(&scene).unwrap();
+        let by_name = |name: &str| {
+            let i = scene.materials.iter().position(|m| m.name == name).unwrap();
+            materials[i]
+        };
+        let textured = by_name("tex");
+        assert_eq!(textured.kd, [0.8, 0.6, 0.4], "the G-buffer's Kd stays");
+        for (mean, kd) in textured.kd_mean.iter().zip([0.8, 0.6, 0.4]) {
+            assert!((mean - 0.5 * kd).abs() < 1e-6, "{:?}", textured.kd_mean);
+        }
+        assert_eq!(by_name("plain").kd_mean, [0.5; 3]);
     }
 }

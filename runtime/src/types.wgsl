@@ -14,6 +14,9 @@ struct Material {
     emission_mean: vec3f,
     // Layer of the tangent-space normal map in the albedo array, or -1 (gpu_types.rs).
     normal_texture: i32,
+    // Kd times its albedo texture's mean: what an atlas texel reflects in the bounces.
+    kd_mean: vec3f,
+    padding: u32,
 }
 
 struct SpotLight {
@@ -82,15 +85,13 @@ struct Node {
     padding_a: u32,
     padding_b: u32,
     padding_c: u32,
-}
-
-// gpu_types::GpuNodeSpread: the second moment of a node's texel normals (sum area n n^T: xx,
-// yy, zz, xy; xz, yz) and its texel facing the most away from its representative.
-struct NodeSpread {
+    // Its spread (gpu_types::GpuNodeSpread, computed at load): the second moment of its texel
+    // normals, sum area n n^T (xx, yy, zz, xy; xz, yz), and its texel facing the most away from
+    // its representative.
     moment_a: vec4f,
     moment_b: vec2f,
     other: u32,
-    padding: u32,
+    padding_d: u32,
 }
 
 struct TraversalParams {

@@ -348,7 +348,7 @@ fn atlas_emission_and_radiosity_match_cpu_twins() {
         }
     }
     assert!(emitting.iter().all(|&n| n > 0), "{emitting:?}");
-    let albedo = super::vec3s(&texel_albedo(scene, file));
+    let albedo = super::vec3s(&texel_albedo(&materials(scene), file));
     let query = VisibilityQuery::new(file, QueryOptions::default());
     let traversal = radiosity_cpu::Traversal {
         threshold: options.threshold,

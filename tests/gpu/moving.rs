@@ -338,7 +338,10 @@ fn moved_object_radiosity_matches_cpu_twin() {
     let (scene, file) = (&fixture.scene, &fixture.file);
     let gpu_result = fixture.solve(true, 2);
     let direct = vec3s(&gpu_result.direct);
-    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(scene, file));
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
+        &super::materials(scene),
+        file,
+    ));
     let mut query = MovingQuery::new(file, scene, QueryOptions::default()).unwrap();
     query.set_poses(&fixture.poses()).unwrap();
     let twin_scene = cpu::TwinScene::moving(&query, &fixture.motions());
@@ -476,7 +479,7 @@ fn moved_object_final_gather_matches_cpu_twin() {
 fn placing_an_object_refits_the_gpu_hierarchy() {
     use cssm_runtime::{
         frame::{FrameContext, FrameSettings},
-        gpu_types::GpuNode,
+        gpu_types::{GpuHierarchyNode, GpuNode},
     };
     let fixture = flipped_block();
     let (scene, file) = (&fixture.scene, &fixture.file);
@@ -496,15 +499,25 @@ fn placing_an_object_refits_the_gpu_hierarchy() {
         &gpu.queue,
         &cssm.hierarchy.nodes,
         0,
-        std::mem::size_of_val(file.hierarchy.nodes.as_slice()) as u64,
+        (file.hierarchy.nodes.len() * std::mem::size_of::<GpuHierarchyNode>()) as u64,
     )
     .unwrap();
-    let nodes: &[GpuNode] = bytemuck::cast_slice(&bytes);
+    let on_gpu: &[GpuHierarchyNode] = bytemuck::cast_slice(&bytes);
+    let nodes: Vec<GpuNode> = on_gpu.iter().map(|n| n.node).collect();
     let posed = cssm_formats::moving::posed_texels(&file.texels, &fixture.motions());
     let mut refitted = file.hierarchy.clone();
     refitted.refit(&posed);
-    assert_eq!(nodes, refitted.nodes.as_slice());
-    assert_ne!(nodes, file.hierarchy.nodes.as_slice());
+    assert_eq!(nodes, refitted.nodes);
+    assert_ne!(nodes, file.hierarchy.nodes);
+    // The spreads (the normals' moments turn with the block) are refitted with them.
+    assert_eq!(
+        on_gpu,
+        cssm_runtime::radiosity::gpu_nodes(&refitted, &posed).as_slice()
+    );
+    assert_ne!(
+        on_gpu,
+        cssm_runtime::radiosity::gpu_nodes(&refitted, &file.texels).as_slice()
+    );
     let root = &nodes[0];
     // The block shrank from scale 3 to 2.5: its texels' areas by (5/6)^2.
     let block = fixture.block as u32;

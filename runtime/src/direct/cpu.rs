@@ -279,8 +279,8 @@ pub fn barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3] {
     [1.0 - v - w, v, w]
 }
 
-/// What a texel reflects in the view-independent bounces of the atlas (§4.1): Kd plus Ks,
-/// clamped to 1, the glossy lobe's energy (Ks of light along the normal, for the normalised
+/// What a texel reflects in the view-independent bounces of the atlas (§4.1): Kd (times its
+/// texture's mean: pass [`crate::gpu_types::GpuMaterial::kd_mean`]) plus Ks, clamped to 1, the glossy lobe's energy (Ks of light along the normal, for the normalised
 /// Phong) sent out diffusely instead of lost. `light.wgsl`: `bounce_albedo`.
 ///
 /// ```
@@ -314,7 +314,7 @@ pub fn render_atlas(
                 .filter_map(|l| spot_irradiance(l, bvh, eps, p, n).map(|(e, _)| e))
                 .sum();
             let m = &materials[t.material as usize];
-            bounce_albedo(m.kd, m.ks) / std::f32::consts::PI * e + Vec3::from(m.emission_mean)
+            bounce_albedo(m.kd_mean, m.ks) / std::f32::consts::PI * e + Vec3::from(m.emission_mean)
         })
         .collect()
 }

@@ -17,12 +17,12 @@ const PI: f32 = 3.14159265358979;
 
 // Irradiance at `p` (normal `n`) from light `i`, shadowed, and the unit direction to the light.
 // What a texel reflects of the light it receives in the view-independent bounces (the atlas,
-// §4.1): Kd, plus Ks as a diffuse stand-in for the glossy lobe, whose normalised Phong
+// §4.1): Kd times its texture's mean (kd_mean; the atlas samples no textures), plus Ks as a diffuse stand-in for the glossy lobe, whose normalised Phong
 // reflects Ks of light arriving along the normal. The paper's bounces are diffuse only and lose
 // the glossy part (a glossy floor's Ks never reaches the walls: reports/final-gather.md).
 // Twin: direct/cpu.rs::bounce_albedo.
 fn bounce_albedo(m: Material) -> vec3f {
-    return min(m.kd + m.ks, vec3f(1.0));
+    return min(m.kd_mean + m.ks, vec3f(1.0));
 }
 
 fn spot_irradiance(i: u32, p: vec3f, n: vec3f) -> vec4f {

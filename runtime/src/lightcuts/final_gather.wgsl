@@ -1,4 +1,4 @@
-#import cssm::types::{Material, Node, NodeSpread, TraversalParams, View}
+#import cssm::types::{Material, Node, TraversalParams, View}
 #import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
@@ -30,8 +30,6 @@
 // filters when the gather runs at a reduced resolution).
 @group(0) @binding(10) var<storage, read_write> planes: array<vec4f>;
 @group(0) @binding(11) var<uniform> grid: GatherGrid;
-// Per node: its normals' second moment and other-side texel (transfer.rs::node_spreads).
-@group(0) @binding(12) var<storage, read> spreads: array<NodeSpread>;
 
 struct GatherGrid {
     // The gather's resolution: the G-buffer's reduced by `factor` per side.
@@ -92,7 +90,7 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                         y_position = jitter_in_disk(params.seed, receiver, s, y.position, y.normal, y.area);
                     }
                     if node.count > 1u {
-                        e = irradiance_from_cluster(p, n, y_position, node, spreads[s], l);
+                        e = irradiance_from_cluster(p, n, y_position, node, l);
                     } else {
                         e = irradiance_from(p, n, y_position, node.normal, node.area, l);
                     }
@@ -105,9 +103,9 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
                     var v_y = y;
                     var v_position = y_position;
                     if params.jitter == 0u && node.count > 1u && !faces(y, p) {
-                        let other = posed_texel(cssm_texels[spreads[s].other]);
+                        let other = posed_texel(cssm_texels[node.other]);
                         if faces(other, p) {
-                            v_sender = spreads[s].other;
+                            v_sender = node.other;
                             v_y = other;
                             v_position = other.position;
                         }

@@ -109,7 +109,6 @@ impl FinalGather {
             layout::texture(9, d2, c),
             layout::storage(10, false, c),
             layout::uniform(11, c),
-            layout::storage(12, true, c),
         ];
         let bind_layout = layout::bind_group_layout(device, "final gather", &entries);
         let pipeline = layout::compute_pipeline(
@@ -173,7 +172,6 @@ impl FinalGather {
         resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
         resources.push(planes.as_entire_binding());
         resources.push(grid.as_entire_binding());
-        resources.push(hierarchy.spreads.as_entire_binding());
         Ok(layout::bind_group(
             &ctx.device,
             "final gather",
@@ -411,7 +409,7 @@ impl Lightcuts {
             threshold: options.threshold,
             exposure: ctx.settings.exposure,
         };
-        let gi = AtlasGi::new(ctx, setup.scene, setup.cssm_file()?, radiosity_options)?;
+        let gi = AtlasGi::new(ctx, setup.cssm_file()?, radiosity_options)?;
         let iterations = options.bounces.saturating_sub(1);
         let planes = Planes::new(ctx, &options)?;
         let gather = FinalGather::new(

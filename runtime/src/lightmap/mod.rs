@@ -261,7 +261,7 @@ impl AtlasGiLookup {
             threshold: options.threshold,
             exposure: ctx.settings.exposure,
         };
-        let gi = AtlasGi::new(ctx, setup.scene, file, radiosity_options)?;
+        let gi = AtlasGi::new(ctx, file, radiosity_options)?;
         let lookup = AtlasLookup::new(
             ctx,
             &ctx.cssm()?.query,

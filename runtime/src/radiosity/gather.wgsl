@@ -1,4 +1,4 @@
-#import cssm::types::{Node, NodeSpread, TraversalParams}
+#import cssm::types::{Node, TraversalParams}
 #import cssm::visibility::{cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
@@ -29,8 +29,6 @@
 @group(0) @binding(6) var<storage, read_write> radiance_out: array<vec4f>;
 // Per texel: rgb indirect irradiance gathered in this iteration.
 @group(0) @binding(7) var<storage, read_write> texel_irradiance: array<vec4f>;
-// Per node: its normals' second moment and other-side texel (transfer.rs::node_spreads).
-@group(0) @binding(8) var<storage, read> spreads: array<NodeSpread>;
 
 // Irradiance at texel `receiver` (position p, normal n, albedo rho) from the whole scene.
 fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
@@ -56,7 +54,7 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
             if node.count == 1u {
                 unoccluded = irradiance_from_texel(p, n, y.position, y.normal, node.area, radiance);
             } else {
-                unoccluded = irradiance_from_cluster(p, n, y.position, node, spreads[s], radiance);
+                unoccluded = irradiance_from_cluster(p, n, y.position, node, radiance);
             }
             if any(unoccluded > vec3f(0.0)) {
                 // A cluster seen from the other side than its representative's: the visibility
@@ -64,9 +62,9 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
                 var v_sender = sender;
                 var v_y = y;
                 if node.count > 1u && !faces(y, p) {
-                    let other = posed_texel(cssm_texels[spreads[s].other]);
+                    let other = posed_texel(cssm_texels[node.other]);
                     if faces(other, p) {
-                        v_sender = spreads[s].other;
+                        v_sender = node.other;
                         v_y = other;
                     }
                 }

@@ -32,7 +32,7 @@ use crate::{
     common::{layout, readback, timestamps::PassTimer},
     direct::AtlasDirect,
     frame::{FrameContext, FrameEncoder, FrameSettings, PassInfo, Slot, Stage},
-    gpu_types::{GpuNode, GpuTraversalParams},
+    gpu_types::{GpuHierarchyNode, GpuMaterial, GpuNode, GpuTraversalParams},
     load::{CssmGpu, limit_check, storage_buffer},
     shaders::{self, Shader},
 };
@@ -74,10 +74,9 @@ pub fn node_depths(nodes: &[GpuNode]) -> Vec<u32> {
 
 /// The hierarchy of a loaded CSSM in GPU memory.
 pub struct HierarchyGpu {
-    /// [`GpuNode`] per node, depth-first.
+    /// [`GpuHierarchyNode`] per node (the file's node and its spread, [`transfer::node_spreads`]),
+    /// depth-first.
     pub nodes: wgpu::Buffer,
-    /// [`crate::gpu_types::GpuNodeSpread`] per node ([`transfer::node_spreads`]), as `nodes`.
-    pub spreads: wgpu::Buffer,
     /// Per leaf in leaf order: `(texel, node index)`.
     pub leaves: wgpu::Buffer,
     /// Inner nodes ordered by depth, deepest first.
@@ -104,7 +103,7 @@ impl HierarchyGpu {
         limit_check(
             device,
             "hierarchy nodes",
-            (nodes.len() * size_of::<GpuNode>()) as u64,
+            (nodes.len() * size_of::<GpuHierarchyNode>()) as u64,
         )?;
         let mut leaves = vec![[0u32; 2]; hierarchy.leaf_texels.len()];
         for (i, n) in nodes.iter().enumerate() {
@@ -128,20 +127,13 @@ impl HierarchyGpu {
         // COPY_DST: moving objects refit the nodes ([`MovingTexels::place`]).
         let nodes_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("hierarchy nodes"),
-            contents: bytemuck::cast_slice(nodes),
+            contents: bytemuck::cast_slice(&gpu_nodes(hierarchy, texels)),
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
         });
-        let spreads = transfer::node_spreads(hierarchy, texels);
-        let spreads = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("hierarchy node spreads"),
-            contents: bytemuck::cast_slice(&spreads),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        });
         Ok(Self {
             nodes: nodes_buffer,
-            spreads,
             leaves: storage_buffer(device, "hierarchy leaves", bytemuck::cast_slice(&leaves)),
             pull_order: storage_buffer(
                 device,
@@ -153,6 +145,16 @@ impl HierarchyGpu {
             leaf_count: leaves.len() as u32,
         })
     }
+}
+
+/// Every node of `hierarchy` as the GPU holds it, with its spread over `texels`.
+pub fn gpu_nodes(hierarchy: &Hierarchy, texels: &[Texel]) -> Vec<GpuHierarchyNode> {
+    hierarchy
+        .nodes
+        .iter()
+        .zip(transfer::node_spreads(hierarchy, texels))
+        .map(|(&node, spread)| GpuHierarchyNode { node, spread })
+        .collect()
 }
 
 /// The texels of a file with moving objects and the hierarchy over them, kept on the CPU so
@@ -197,9 +199,11 @@ impl MovingTexels {
         self.motions[index] = motion;
         let texels = posed_texels(&self.baked, &self.motions);
         self.hierarchy.refit(&texels);
-        queue.write_buffer(&gpu.nodes, 0, bytemuck::cast_slice(&self.hierarchy.nodes));
-        let spreads = transfer::node_spreads(&self.hierarchy, &texels);
-        queue.write_buffer(&gpu.spreads, 0, bytemuck::cast_slice(&spreads));
+        queue.write_buffer(
+            &gpu.nodes,
+            0,
+            bytemuck::cast_slice(&gpu_nodes(&self.hierarchy, &texels)),
+        );
     }
 
     /// The hierarchy as refitted (what the GPU's nodes hold).
@@ -282,7 +286,6 @@ impl Radiosity {
             layout::storage(5, true, c),
             layout::storage(6, false, c),
             layout::storage(7, false, c),
-            layout::storage(8, true, c),
         ];
         let gather_layout = layout::bind_group_layout(device, "radiosity gather", &entries);
         let gather_pipeline = layout::compute_pipeline(
@@ -322,7 +325,6 @@ impl Radiosity {
                     node_radiance[1 - written].as_entire_binding(),
                     node_radiance[written].as_entire_binding(),
                     texel_irradiance.as_entire_binding(),
-                    hierarchy.spreads.as_entire_binding(),
                 ],
             )
         };
@@ -454,14 +456,14 @@ pub const PREPARE_PASSES: [PassInfo; 4] = [
 ];
 
 /// Bounce albedo of every texel of `file` ([`crate::direct::cpu::bounce_albedo`] of its
-/// material: Kd plus Ks; textures are not sampled in the atlas), as the radiosity iteration
-/// takes it.
-pub fn texel_albedo(scene: &Scene, file: &CssmFile) -> Vec<[f32; 4]> {
+/// material of `materials` ([`crate::load::cpu_materials`]): Kd times its texture's mean, plus
+/// Ks; textures are not sampled in the atlas), as the radiosity iteration takes it.
+pub fn texel_albedo(materials: &[GpuMaterial], file: &CssmFile) -> Vec<[f32; 4]> {
     file.texels
         .iter()
         .map(|t| {
-            let m = &scene.materials[t.material as usize];
-            crate::direct::cpu::bounce_albedo(m.kd, m.ks)
+            let m = &materials[t.material as usize];
+            crate::direct::cpu::bounce_albedo(m.kd_mean, m.ks)
                 .extend(0.0)
                 .to_array()
         })
@@ -479,13 +481,13 @@ pub struct AtlasGi {
 }
 
 impl AtlasGi {
-    /// The passes over the context's `.cssm`, whose file `file` was baked from `scene`.
+    /// The passes over the context's `.cssm`, whose file is `file`, with its scene's materials
+    /// (`ctx.scene`).
     ///
     /// # Errors
     /// No `.cssm` in the context, or buffers beyond the device's limits.
     pub fn new(
         ctx: &FrameContext,
-        scene: &Scene,
         file: &CssmFile,
         options: RadiosityOptions,
     ) -> Result<Self, RuntimeError> {
@@ -497,7 +499,7 @@ impl AtlasGi {
             &cssm.moving,
             &cssm.hierarchy,
             &atlas.texel_radiance,
-            &texel_albedo(scene, file),
+            &texel_albedo(&ctx.scene.cpu_materials, file),
             options,
         )?;
         Ok(Self { atlas, radiosity })
@@ -596,7 +598,7 @@ pub fn atlas_radiosity_posed(
     for &(index, transform) in placed {
         ctx.place_object(index, transform)?;
     }
-    let gi = AtlasGi::new(&ctx, scene, file, options)?;
+    let gi = AtlasGi::new(&ctx, file, options)?;
     let mut timer = PassTimer::new(device, queue);
     let mut encoder = device.create_command_encoder(&Default::default());
     let mut frame = FrameEncoder {

@@ -1,6 +1,6 @@
 #define_import_path cssm::transfer
 
-#import cssm::types::{Node, NodeSpread, Texel}
+#import cssm::types::{Node, Texel}
 
 // Light transfer from a hierarchy node to a receiver point and the oracle's upper bound of it
 // (§4.3, §4.4). Twin of radiosity/transfer.rs, function by function; read its docs for the
@@ -78,16 +78,16 @@ fn irradiance_from(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, area: f32
 }
 
 // transfer::cluster_projected_area.
-fn cluster_projected_area(node: Node, spread: NodeSpread, w: vec3f) -> f32 {
+fn cluster_projected_area(node: Node, w: vec3f) -> f32 {
     let net = -node.area * dot(node.normal, w);
-    let m = spread.moment_a;
+    let m = node.moment_a;
     let q = m.x * w.x * w.x + m.y * w.y * w.y + m.z * w.z * w.z
-        + 2.0 * (m.w * w.x * w.y + spread.moment_b.x * w.x * w.z + spread.moment_b.y * w.y * w.z);
+        + 2.0 * (m.w * w.x * w.y + node.moment_b.x * w.x * w.z + node.moment_b.y * w.y * w.z);
     return max(0.5 * (net + sqrt(max(node.area * q, 0.0))), 0.0);
 }
 
 // transfer::irradiance_from_cluster.
-fn irradiance_from_cluster(p: vec3f, n: vec3f, y: vec3f, node: Node, spread: NodeSpread, radiance: vec3f) -> vec3f {
+fn irradiance_from_cluster(p: vec3f, n: vec3f, y: vec3f, node: Node, radiance: vec3f) -> vec3f {
     let d = y - p;
     let dist2 = dot(d, d);
     if dist2 <= 0.0 {
@@ -95,7 +95,7 @@ fn irradiance_from_cluster(p: vec3f, n: vec3f, y: vec3f, node: Node, spread: Nod
     }
     let w = d / sqrt(dist2);
     let cos_r = max(dot(n, w), 0.0);
-    return radiance * (cluster_projected_area(node, spread, w) * cos_r / (dist2 + node.area / TRANSFER_PI));
+    return radiance * (cluster_projected_area(node, w) * cos_r / (dist2 + node.area / TRANSFER_PI));
 }
 
 // transfer::faces.
