@@ -185,8 +185,8 @@ pub struct GpuCssmParams {
     pub runs_per_binding: u32,
 }
 
-/// One node of the texel hierarchy (§4.2.1): the file's own node, uploaded as it is (64 bytes,
-/// `#[repr(C)]`, `Pod`); its WGSL twin is `Node` in `types.wgsl`.
+/// One node of the texel hierarchy (§4.2.1): the file's own node (64 bytes, `#[repr(C)]`,
+/// `Pod`), uploaded with its spread as a [`GpuHierarchyNode`] (WGSL `Node` in `types.wgsl`).
 pub use cssm_formats::hierarchy::HierarchyNode as GpuNode;
 
 /// What a cluster's transfer needs beyond its [`GpuNode`], computed at load from the texels
