@@ -24,6 +24,9 @@
 //!   the links each gathers per receiver.
 //!
 //! It prints each one's area-weighted sum against the path traced one, by receivers' material.
+//! With `LEAK=1` it prints instead where the light the CSSM query lets through and an exact ray
+//! cast stops is stopped: the receiver's, the sender's and the blocker's materials, and where
+//! along the segment the blocker lies.
 use cssm::{
     formats::{
         self, Texel,
@@ -115,6 +118,9 @@ fn main() {
             sum * (PI / rays as f32)
         })
         .collect();
+    if std::env::var_os("LEAK").is_some() {
+        return print_leaks(&scene, &file, &bvh, &query, &direct, &chosen, eps);
+    }
     eprintln!("texel senders, exact and CSSM");
     let (exact, cssm): (Vec<Vec3>, Vec<Vec3>) = chosen
         .par_iter()
@@ -363,4 +369,73 @@ fn threshold() -> f32 {
         .ok()
         .and_then(|t| t.parse().ok())
         .unwrap_or(radiosity::DEFAULT_THRESHOLD)
+}
+
+/// `LEAK=1`: the light that the CSSM query lets through (visible fraction > 0) where the exact
+/// ray between the texel centres is blocked, by (receiver, sender, blocker) materials, and by
+/// where along the segment the blocker lies (sixths, from the receiver).
+fn print_leaks(
+    scene: &formats::Scene,
+    file: &formats::CssmFile,
+    bvh: &SceneBvh,
+    query: &VisibilityQuery,
+    direct: &[Vec3],
+    chosen: &[u32],
+    eps: f32,
+) {
+    let name = |m: u32| scene.materials[m as usize].name.clone();
+    let lum = |c: Vec3| f64::from(c.dot(Vec3::new(0.2126, 0.7152, 0.0722)));
+    let mut combos: std::collections::BTreeMap<(String, String, String), (f64, u32)> =
+        Default::default();
+    let mut along = [0f64; 6];
+    for &r in chosen {
+        let t = &file.texels[r as usize];
+        let (p, n) = (t.pos(), t.nrm());
+        for (s, ts) in file.texels.iter().enumerate() {
+            let (y, m) = (ts.pos(), ts.nrm());
+            if s == r as usize || n.dot(y - p) <= 0.0 || m.dot(p - y) <= 0.0 {
+                continue;
+            }
+            let gathered = irradiance_from_texel(p, n, y, m, ts.area, direct[s]).0;
+            if gathered == Vec3::ZERO {
+                continue;
+            }
+            let (a, b) = (p + n * eps, y + m * eps);
+            let length = (b - a).length();
+            let Some((hit, triangle)) =
+                bvh.closest_hit(a, (b - a) / length, 1e-5 * length, length * (1.0 - 1e-5))
+            else {
+                continue;
+            };
+            let v = query
+                .visibility_between(&[(s as u32, 1.0)], y, m, &[(r, 1.0)], p, n)
+                .unwrap_or(0.0);
+            if v <= 0.0 {
+                continue;
+            }
+            let w = lum(gathered) * f64::from(v);
+            let blocker = scene.triangle_materials[triangle as usize];
+            let entry = combos
+                .entry((name(t.material), name(ts.material), name(blocker)))
+                .or_default();
+            entry.0 += w;
+            entry.1 += 1;
+            along[((hit / length).clamp(0.0, 0.999) * 6.0) as usize] += w;
+        }
+    }
+    let total: f64 = along.iter().sum();
+    let mut rows: Vec<_> = combos.into_iter().collect();
+    rows.sort_by(|a, b| b.1.0.total_cmp(&a.1.0));
+    println!("light let through where an exact ray is blocked: {total:.4} in all");
+    for ((receiver, sender, blocker), (w, pairs)) in rows.iter().take(15) {
+        println!("{receiver:>20} <- {sender:>20} through {blocker:>20}: {w:.4} ({pairs} pairs)");
+    }
+    let shares: Vec<String> = along
+        .iter()
+        .map(|w| format!("{:.0}%", 100.0 * w / total))
+        .collect();
+    println!(
+        "where the blocker lies, sixths of the segment from the receiver: {}",
+        shares.join(" ")
+    );
 }
