@@ -638,8 +638,19 @@ fn changes(file: &formats::CssmFile, keep: &dyn Fn(u32) -> bool) -> u64 {
 /// resolution), for several fractions of the texels; what a per-texel cube resolution could
 /// buy and what its runs would cost.
 fn mix(coarse: &formats::CssmFile, fine_path: &std::path::Path) {
-    let fine = formats::cssm::read(fine_path).unwrap();
-    assert_eq!(coarse.texels.len(), fine.texels.len(), "the same atlas");
+    let fine = formats::cssm::read(fine_path).unwrap_or_else(|e| {
+        eprintln!("endsdiag: MIX {}: {e}", fine_path.display());
+        std::process::exit(2)
+    });
+    if fine.texels != coarse.texels
+        || fine.params.cube_resolution != 2 * coarse.params.cube_resolution
+    {
+        eprintln!(
+            "endsdiag: MIX {} must be the same scene and atlas at twice the cube resolution",
+            fine_path.display()
+        );
+        std::process::exit(2);
+    }
     let scene = formats::Scene::load(std::path::Path::new(&coarse.scene.dir)).unwrap();
     let bvh = SceneBvh::new(&scene);
     let eps = 1e-4 * scene.diameter();

@@ -62,9 +62,17 @@ fn main() {
         eprintln!("radiositybias: {path}: {e}");
         std::process::exit(2)
     });
-    let scene = formats::Scene::load(std::path::Path::new(&file.scene.dir)).unwrap();
+    let scene = formats::Scene::load(std::path::Path::new(&file.scene.dir)).unwrap_or_else(|e| {
+        eprintln!("radiositybias: the scene of {path}: {e}");
+        std::process::exit(2)
+    });
     let bvh = SceneBvh::new(&scene);
-    let materials = runtime::load::cpu_materials(&scene).unwrap().0;
+    let materials = runtime::load::cpu_materials(&scene)
+        .unwrap_or_else(|e| {
+            eprintln!("radiositybias: the scene's textures: {e}");
+            std::process::exit(2)
+        })
+        .0;
     let direct = render_atlas(&scene, &materials, &file.texels, &bvh);
     let albedo: Vec<Vec3> = radiosity::texel_albedo(&materials, &file)
         .iter()
