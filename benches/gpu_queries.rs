@@ -7,7 +7,7 @@
 //! ```text
 //! cargo bench --bench gpu_queries -- [--scenes DIR] [--atlas 128] [--cube 32]
 //!     [--pairs 4194304] [--receivers 65536] [--senders 256] [--reps 5] [--csv FILE]
-//!     [--only cornell-box,heads,church3700,sibenik] [--baked NAME=FILE.cssm]
+//!     [--only cornell-box,heads,church3700,sibenik] [--baked NAME=FILE.cssm] [--h200 FILE]
 //! ```
 //!
 //! `--baked NAME=FILE` takes scene NAME's bake from FILE instead of baking it here (the device
@@ -18,6 +18,20 @@
 //! Sibenik cathedral's 6,913 charts need 256); the row names the atlas used and how many
 //! storage bindings its runs span. The pair and receiver counts are cut to what one storage
 //! binding of the adapter holds (the row says so), so the harness runs on any device.
+//!
+//! The CSSM rows come in both forms of the query's search (`CSSM_SEARCH_LOOP`): `loop`, what
+//! every driver but llvmpipe runs, and `unrolled`, what llvmpipe runs (`shaders::CssmShape`).
+//! Beside each, the work of one query as its CPU twin counts it on a sample of the same queries
+//! (`cssm_formats::visibility::QueryWork`, which the kernel's own counters match query for
+//! query in `tests/gpu/query.rs`): taps, search steps and texel loads per query, bytes read;
+//! the warp replay of the sample (`runtime::work::warp`: lane efficiency, distinct 32-byte
+//! sectors per warp load) and the H200 milliseconds the cost model predicts for the row's
+//! launch (`runtime::work::cost::CostModel::H200`; a prediction, whatever the device).
+//!
+//! `--h200 FILE` (the table an earlier H200 run printed: reports/h200-2026-12-04/
+//! runtime-queries.txt) adds the cost model's check: for each scene and pattern, the H200's
+//! measurement of the query before the lean rewrite beside the model's prediction for that
+//! kernel (its loads replayed, `Kernel::Before`) and for today's, at the H200 run's sizes.
 //!
 //! Times come from GPU timestamp queries (best of `--reps`). They mean something only on a real
 //! GPU: on lavapipe this checks that the harness runs. Run `../shared/tools/gpu-limit` in the
@@ -39,7 +53,11 @@ use runtime::{
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{best_ms, parsed as arg};
+use common::{
+    best_ms, parsed as arg,
+    query_work::{self, Kernel},
+};
+use runtime::work::cost::CostModel;
 
 /// The largest atlas a scene is tried at before its rows are skipped.
 const LARGEST_ATLAS: u32 = 1024;
@@ -71,6 +89,28 @@ fn scenes(scenes_dir: &Path, work: &Path) -> Vec<(&'static str, Result<PathBuf, 
         ("sibenik", full),
     ]
 }
+
+/// Queries the CPU twin counts and replays per row: enough for stable means, quick on the CPU.
+const COUNTED_QUERIES: usize = 1 << 16;
+
+/// The H200's figures of the query before the lean rewrite (`--h200 FILE`, the benchmark's
+/// markdown table from the device: reports/h200-2026-12-04/runtime-queries.txt), by scene and
+/// pattern: GPU ms.
+fn h200_rows(path: &Path) -> Vec<(String, String, f64)> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines()
+        .filter_map(|line| {
+            let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+            // | scene | atlas | pattern | queries | GPU ms | queries/s |
+            let ms: f64 = cells.get(5)?.parse().ok()?;
+            Some((cells[1].to_string(), cells[3].to_string(), ms))
+        })
+        .collect()
+}
+
+/// One row of the table: pattern, queries, the CPU twin's counts (CSSM rows), threads
+/// launched, GPU ms.
+type Row = (String, u64, Option<query_work::Counted>, u64, Option<f64>);
 
 /// Bakes `scene` at `atlas`, doubling it while the charts do not fit: the file and its atlas.
 fn bake_fitting(
@@ -128,6 +168,15 @@ fn main() {
             Some((name, file)) => (name.to_string(), PathBuf::from(file)),
             None => panic!("--baked takes NAME=FILE, not {v}"),
         });
+    let h200: Option<PathBuf> = args
+        .iter()
+        .position(|a| a == "--h200")
+        .and_then(|i| args.get(i + 1))
+        .map(PathBuf::from);
+    let mut model_check = vec![
+        "| scene | pattern | H200 ms measured (before the lean query) | predicted, same kernel | predicted, lean query |".to_string(),
+        "| --- | --- | ---: | ---: | ---: |".to_string(),
+    ];
     let csv: Option<PathBuf> = args
         .iter()
         .position(|a| a == "--csv")
@@ -155,10 +204,14 @@ fn main() {
     let receivers = fits(asked_receivers, size_of::<Receiver>(), "receivers");
     let work = tempfile::tempdir().expect("a temporary directory");
     let mut rows = vec![
-        "scene,atlas,cube,maps,gpu_bytes,run_bindings,pattern,queries,ms,queries_per_s".to_string(),
+        "scene,atlas,cube,maps,gpu_bytes,run_bindings,search_steps,pattern,queries,ms,queries_per_s,\
+         taps_per_query,steps_per_tap,texel_loads_per_query,bytes_per_query,lane_efficiency,\
+         sectors_per_load,predicted_h200_ms"
+            .to_string(),
     ];
     println!(
-        "| scene | atlas | pattern | queries | GPU ms | queries/s |\n| --- | --- | --- | --- | --- | --- |"
+        "| scene | atlas | pattern | queries | GPU ms | queries/s | taps/query | steps/tap | texels/query | bytes/query | lane efficiency | sectors/load | H200 ms (model) |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );
     for (name, dir) in scenes(&scenes_dir, work.path()) {
         if only
@@ -194,7 +247,7 @@ fn main() {
             }
         };
         let cube = file.params.cube_resolution;
-        let cssm = match CssmGpu::new(&gpu.device, &gpu.queue, &file, Default::default()) {
+        let mut cssm = match CssmGpu::new(&gpu.device, &gpu.queue, &file, Default::default()) {
             Ok(cssm) => cssm,
             Err(e) => {
                 skipped(&e.to_string());
@@ -202,9 +255,7 @@ fn main() {
             }
         };
         let (query_pairs, segments) = runtime::visibility::random_pairs(&scene, pairs, 1);
-        let query = QueryKernel::new(&gpu, &cssm);
         let bvh = BvhKernel::new(&gpu, &scene).expect("bvh");
-        let gather = GatherKernel::new(&gpu, &cssm);
         let texels = file.texels.len() as u32;
         let receiver_list: Vec<Receiver> = query_pairs
             .iter()
@@ -218,45 +269,136 @@ fn main() {
                 _pad: 0,
             })
             .collect();
-        let measured = [
-            (
-                "cssm random",
+        // The data the queries read: run data, texel records, grid, triangles' coordinates.
+        let r = file.params.atlas_resolution as u64;
+        let data_bytes =
+            cssm.run_bytes + 64 * texels as u64 + 4 * r * r + 24 * file.triangle_uvs.len() as u64;
+        let sample_receivers = (COUNTED_QUERIES / senders.max(1) as usize).max(32);
+        let random = query_work::random(&file, &query_pairs, COUNTED_QUERIES, Kernel::Lean);
+        let gathered = query_work::gather(
+            &file,
+            &receiver_list,
+            senders,
+            sample_receivers,
+            Kernel::Lean,
+        );
+        let model = CostModel::H200;
+        if let Some(path) = &h200 {
+            let before_random =
+                query_work::random(&file, &query_pairs, COUNTED_QUERIES, Kernel::Before);
+            let before_gather = query_work::gather(
+                &file,
+                &receiver_list,
+                senders,
+                sample_receivers,
+                Kernel::Before,
+            );
+            // The H200 ran 4,194,304 pairs and 65,536 receivers x 256 senders.
+            for (pattern, before, lean, threads) in [
+                ("cssm random", before_random, random, 1u64 << 22),
+                ("cssm gather", before_gather, gathered, 1u64 << 16),
+            ] {
+                let scale = if pattern == "cssm gather" {
+                    256.0 / senders as f64
+                } else {
+                    1.0
+                };
+                let measured = h200_rows(path)
+                    .into_iter()
+                    .find(|(s, p, _)| s == name && p == pattern)
+                    .map_or("-".to_string(), |(_, _, ms)| format!("{ms:.3}"));
+                model_check.push(format!(
+                    "| {name} | {pattern} | {measured} | {:.3} | {:.3} |",
+                    scale * before.predicted_ms(&model, threads, data_bytes),
+                    scale * lean.predicted_ms(&model, threads, data_bytes)
+                ));
+            }
+        }
+        let mut measured: Vec<Row> = Vec::new();
+        // Both forms of the search: llvmpipe's loop limit is far off for these kernels (at
+        // most 16 taps x 16 steps a random query, 4 x 16 a gather's sender).
+        for (form, search_loop) in [("loop", true), ("unrolled", false)] {
+            cssm.search_loop = search_loop;
+            let query = QueryKernel::new(&gpu, &cssm);
+            let gather = GatherKernel::new(&gpu, &cssm);
+            measured.push((
+                format!("cssm random ({form})"),
+                pairs as u64,
+                Some(random),
                 pairs as u64,
                 best_ms(&gpu, reps, |t| {
                     query
                         .run(&gpu, &cssm, &query_pairs, Some(t))
                         .expect("query");
                 }),
-            ),
-            (
-                "cssm gather",
+            ));
+            measured.push((
+                format!("cssm gather ({form})"),
                 receiver_list.len() as u64 * senders as u64,
+                Some(gathered),
+                receiver_list.len() as u64,
                 best_ms(&gpu, reps, |t| {
                     gather
                         .run(&gpu, &cssm, &receiver_list, senders, Some(t))
                         .expect("gather");
                 }),
-            ),
-            (
-                "bvh random",
-                pairs as u64,
-                best_ms(&gpu, reps, |t| {
-                    bvh.run(&gpu, &segments, Some(t)).expect("bvh");
-                }),
-            ),
-        ];
-        for (pattern, queries, ms) in measured {
-            let ms = ms.unwrap_or(f64::NAN);
-            let rate = queries as f64 / (ms * 1e-3);
-            println!(
-                "| {name} | {atlas} | {pattern} | {queries} | {ms:.3} | {:.3e} |",
-                rate
-            );
-            rows.push(format!(
-                "{name},{atlas},{cube},{},{},{},{pattern},{queries},{ms:.4},{rate:.4e}",
-                file.runs.map_count, cssm.run_bytes, cssm.run_bindings
             ));
         }
+        measured.push((
+            "bvh random".to_string(),
+            pairs as u64,
+            None,
+            pairs as u64,
+            best_ms(&gpu, reps, |t| {
+                bvh.run(&gpu, &segments, Some(t)).expect("bvh");
+            }),
+        ));
+        for (pattern, queries, counted, threads, ms) in measured {
+            let ms = ms.unwrap_or(f64::NAN);
+            let rate = queries as f64 / (ms * 1e-3);
+            let per = |value: u64, over: usize| value as f64 / over.max(1) as f64;
+            let [
+                taps,
+                steps,
+                texel_loads,
+                bytes,
+                efficiency,
+                sectors,
+                predicted,
+            ] = match counted {
+                Some(c) => {
+                    let w = c.work;
+                    [
+                        per(w.taps, c.queries),
+                        per(w.search_steps, w.taps as usize),
+                        per(w.texel_loads, c.queries),
+                        per(w.bytes(), c.queries),
+                        c.stats.lane_efficiency(),
+                        c.stats.sectors_per_load(),
+                        c.predicted_ms(&model, threads, data_bytes),
+                    ]
+                }
+                None => [f64::NAN; 7],
+            };
+            println!(
+                "| {name} | {atlas} | {pattern} | {queries} | {ms:.3} | {rate:.3e} | {taps:.2} | {steps:.2} | {texel_loads:.2} | {bytes:.0} | {efficiency:.2} | {sectors:.2} | {predicted:.3} |"
+            );
+            rows.push(format!(
+                "{name},{atlas},{cube},{},{},{},{},{pattern},{queries},{ms:.4},{rate:.4e},\
+                 {taps:.4},{steps:.4},{texel_loads:.4},{bytes:.1},{efficiency:.4},{sectors:.3},\
+                 {predicted:.4}",
+                file.runs.map_count, cssm.run_bytes, cssm.run_bindings, cssm.search_steps
+            ));
+        }
+    }
+    if h200.is_some() {
+        println!(
+            "\nThe cost model ({}) against the H200's measurements of the query before the lean \
+             rewrite, at this run's sizes scaled to the H200 run's (4,194,304 pairs, 65,536 \
+             receivers x 256 senders); predictions, not measurements:\n{}",
+            CostModel::H200.device,
+            model_check.join("\n")
+        );
     }
     if let Some(path) = csv {
         let mut f = std::fs::File::create(&path).expect("csv");

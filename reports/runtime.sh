@@ -248,8 +248,9 @@ measure() {
     # shellcheck disable=SC2086
     bakes_on_both $gpu_bakes
     # shellcheck disable=SC2086
+    # With the cost model's check against the query before the lean rewrite (issue 48).
     run queries "$c/gpu_queries" --scenes "$c/scenes" $queries --only cornell-box,heads,church3700 \
-        --csv "$out/runtime-queries.csv"
+        --h200 reports/h200-2026-12-04/runtime-queries.txt --csv "$out/runtime-queries.csv"
     if [ -x "$c/gpu-limit" ]; then
         # shellcheck disable=SC2086
         run gpu-limit "$c/gpu-limit" $limit_args

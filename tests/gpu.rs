@@ -18,6 +18,8 @@ mod moving;
 mod normal_maps;
 #[path = "gpu/octree.rs"]
 mod octree;
+#[path = "gpu/query.rs"]
+mod query;
 #[path = "gpu/rsm.rs"]
 mod rsm;
 #[path = "gpu/ssil.rs"]

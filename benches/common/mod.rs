@@ -6,6 +6,8 @@
 // Each benchmark includes this module and uses a part of it.
 #![allow(dead_code)]
 
+pub mod query_work;
+
 use std::{
     path::{Path, PathBuf},
     str::FromStr,

@@ -61,6 +61,7 @@ pub mod radiosity;
 mod renderer;
 pub mod shaders;
 pub mod visibility;
+pub mod work;
 
 /// Declares each method's module (its folder under `runtime/src/`) and lists its entries in
 /// [`METHODS`], in order: adding a method is its folder and one line here.

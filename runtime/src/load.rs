@@ -217,6 +217,13 @@ pub struct CssmGpu {
     pub params: GpuCssmParams,
     /// Bytes of the run data on the GPU (offsets + runs), the figure of the compression tables.
     pub run_bytes: u64,
+    /// Steps of the query's search over one pixel's runs: the bit length of this file's longest
+    /// run list ([`crate::shaders::search_steps`]).
+    pub search_steps: u32,
+    /// The query's search compiles as a loop ([`crate::shaders::search_loop_allowed`] on the
+    /// device it was loaded on; a test may set it to build the looped form on llvmpipe, whose
+    /// loop limit only long gathers reach).
+    pub search_loop: bool,
 }
 
 /// Most storage bindings the runs of one `.cssm` may span (`CSSM_RUN_BINDINGS` in
@@ -272,9 +279,20 @@ impl CssmGpu {
     }
 
     /// The WGSL visibility library for this file's layout, its bindings at `@group(group)`:
-    /// [`crate::visibility::library_wgsl`] with [`Self::run_bindings`].
+    /// [`crate::visibility::library_wgsl`] with [`Self::shape`].
     pub fn library_wgsl(&self, group: u32) -> String {
-        crate::visibility::library_wgsl(group, self.run_bindings)
+        crate::visibility::library_wgsl(group, self.shape())
+    }
+
+    /// How the modules that import the query are composed for this file
+    /// ([`crate::shaders::Shader::create_for`]).
+    pub fn shape(&self) -> crate::shaders::CssmShape {
+        crate::shaders::CssmShape {
+            run_bindings: self.run_bindings,
+            search_steps: self.search_steps,
+            search_loop: self.search_loop,
+            counters: false,
+        }
     }
 
     /// Uploads `file` (which `cssm::read` or `cssm::decode` validated) with query `options`.
@@ -433,6 +451,8 @@ impl CssmGpu {
             bind_group,
             params,
             run_bytes: file.runs.gpu_bytes(),
+            search_steps: crate::shaders::search_steps(&file.runs),
+            search_loop: crate::shaders::search_loop_allowed(device),
         })
     }
 }

@@ -101,13 +101,59 @@ pub const MOVING_GROUP: u32 = 2;
 /// Bind group of the sparse voxel octree library (`cssm::svo`) in the modules that read it.
 pub const SVO_GROUP: u32 = 1;
 
+/// How the CSSM library (`visibility/cssm.wgsl`) is composed for one loaded `.cssm`: what the
+/// modules importing it are built with ([`crate::load::CssmGpu::shape`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CssmShape {
+    /// Storage bindings the run data spans (`CSSM_RUN_BINDINGS`; 1 unless the file's runs
+    /// exceed one binding: [`crate::load::CssmGpu::run_bindings`]).
+    pub run_bindings: u32,
+    /// Steps of the binary search over one pixel's runs (`CSSM_SEARCH_STEPS`): enough for the
+    /// file's longest run list ([`search_steps`]), at most [`MAX_SEARCH_STEPS`].
+    pub search_steps: u32,
+    /// The search as a loop (`CSSM_SEARCH_LOOP`) rather than unrolled: every driver but
+    /// llvmpipe, whose loop limit per invocation a final gather's searches would pass
+    /// ([`search_loop_allowed`]).
+    pub search_loop: bool,
+    /// The query counts its work per invocation (`CSSM_COUNTERS`: taps, search steps, texel and
+    /// sender loads), for the counting kernels ([`crate::visibility::QueryKernel::run_counted`]).
+    pub counters: bool,
+}
+
+/// The most search steps a file can need: a segment's pixel holds at most 2^16 runs.
+pub const MAX_SEARCH_STEPS: u32 = 17;
+
+impl Default for CssmShape {
+    /// One run binding, the search unrolled to [`MAX_SEARCH_STEPS`]: right for any file.
+    fn default() -> Self {
+        Self {
+            run_bindings: 1,
+            search_steps: MAX_SEARCH_STEPS,
+            search_loop: false,
+            counters: false,
+        }
+    }
+}
+
+/// Steps of the query's binary search over a file's run lists (`CSSM_SEARCH_STEPS`): enough
+/// for the longest list ([`cssm_formats::cssm::RunData::search_steps`]).
+pub fn search_steps(runs: &cssm_formats::cssm::RunData) -> u32 {
+    runs.search_steps().min(MAX_SEARCH_STEPS)
+}
+
+/// Whether the query's search may be a loop on `device`: not on llvmpipe (Mesa's CPU driver,
+/// behind lavapipe), which ends an invocation's loops after 65,535 iterations in all.
+pub fn search_loop_allowed(device: &wgpu::Device) -> bool {
+    let info = device.adapter_info();
+    !(info.device_type == wgpu::DeviceType::Cpu || info.name.contains("llvmpipe"))
+}
+
 /// The shader definitions every module is composed with: the workgroup sizes
-/// (`#{WORKGROUP_1D}`, `#{WORKGROUP_2D}`), the CSSM library's bind group (`#{CSSM_GROUP}`) and
-/// the number of storage bindings its run data spans (`CSSM_RUN_BINDINGS`, 1 unless a loaded
-/// file's runs exceed one binding: [`crate::load::CssmGpu::run_bindings`]).
+/// (`#{WORKGROUP_1D}`, `#{WORKGROUP_2D}`), the CSSM library's bind group (`#{CSSM_GROUP}`), its
+/// shape for the loaded file ([`CssmShape`]) and the moving objects' CSMs (`MOVING_CSMS`).
 fn shader_defs(
     cssm_group: u32,
-    run_bindings: u32,
+    shape: CssmShape,
     moving_csms: u32,
 ) -> HashMap<String, ShaderDefValue> {
     HashMap::from([
@@ -116,13 +162,36 @@ fn shader_defs(
         ("CSSM_GROUP".into(), ShaderDefValue::UInt(cssm_group)),
         (
             "CSSM_RUN_BINDINGS".into(),
-            ShaderDefValue::UInt(run_bindings),
+            ShaderDefValue::UInt(shape.run_bindings),
+        ),
+        (
+            "CSSM_SEARCH_STEPS".into(),
+            ShaderDefValue::UInt(shape.search_steps),
+        ),
+        (
+            "CSSM_SEARCH_LOOP".into(),
+            ShaderDefValue::UInt(u32::from(shape.search_loop)),
+        ),
+        (
+            "CSSM_COUNTERS".into(),
+            ShaderDefValue::UInt(u32::from(shape.counters)),
         ),
         ("SVO_GROUP".into(), ShaderDefValue::UInt(SVO_GROUP)),
         ("MOVING_GROUP".into(), ShaderDefValue::UInt(MOVING_GROUP)),
         ("MOVING_CSMS".into(), ShaderDefValue::UInt(moving_csms)),
     ])
 }
+
+/// The definitions each composed module gives its libraries, not fixed when they are added
+/// (naga_oil refuses a definition whose value differs between a library and the module
+/// importing it).
+const PER_MODULE_DEFS: [&str; 5] = [
+    "CSSM_RUN_BINDINGS",
+    "CSSM_SEARCH_STEPS",
+    "CSSM_SEARCH_LOOP",
+    "CSSM_COUNTERS",
+    "MOVING_CSMS",
+];
 
 /// A naga_oil composer holding every library.
 ///
@@ -134,12 +203,11 @@ pub fn composer() -> Result<Composer, String> {
         let added = composer.add_composable_module(ComposableModuleDescriptor {
             source,
             file_path,
-            // CSSM_RUN_BINDINGS is left to each composed module (naga_oil refuses a definition
-            // whose value differs between a library and the module importing it).
             shader_defs: {
-                let mut defs = shader_defs(CSSM_GROUP, 1, 0);
-                defs.remove("CSSM_RUN_BINDINGS");
-                defs.remove("MOVING_CSMS");
+                let mut defs = shader_defs(CSSM_GROUP, CssmShape::default(), 0);
+                for name in PER_MODULE_DEFS {
+                    defs.remove(name);
+                }
                 defs
             },
             ..Default::default()
@@ -440,16 +508,16 @@ impl Shader {
     /// # Errors
     /// naga_oil's message (a bug: the registry test composes every module).
     pub fn module(self) -> Result<naga::Module, String> {
-        self.module_for(1)
+        self.module_for(CssmShape::default())
     }
 
-    /// The module composed for a CSSM whose run data spans `run_bindings` storage bindings
-    /// ([`crate::load::CssmGpu::run_bindings`]; [`Self::module`] is `module_for(1)`).
+    /// The module composed for a CSSM of shape `shape` ([`crate::load::CssmGpu::shape`];
+    /// [`Self::module`] is `module_for(CssmShape::default())`).
     ///
     /// # Errors
     /// naga_oil's message (a bug: the registry test composes every module).
-    pub fn module_for(self, run_bindings: u32) -> Result<naga::Module, String> {
-        self.module_for_scene(run_bindings, 0)
+    pub fn module_for(self, shape: CssmShape) -> Result<naga::Module, String> {
+        self.module_for_scene(shape, 0)
     }
 
     /// [`Self::module_for`] for a scene whose `.cssm` holds `moving_csms` coherent shadow maps
@@ -460,7 +528,7 @@ impl Shader {
     /// naga_oil's message (a bug: the registry test composes every module).
     pub fn module_for_scene(
         self,
-        run_bindings: u32,
+        shape: CssmShape,
         moving_csms: u32,
     ) -> Result<naga::Module, String> {
         // One composer for the process: the libraries are parsed once, and naga_oil keeps each
@@ -477,7 +545,7 @@ impl Shader {
             .make_naga_module(NagaModuleDescriptor {
                 source,
                 file_path,
-                shader_defs: shader_defs(CSSM_GROUP, run_bindings, moving_csms),
+                shader_defs: shader_defs(CSSM_GROUP, shape, moving_csms),
                 ..Default::default()
             })
             .map_err(|e| e.emit_to_string(&composer))
@@ -486,14 +554,13 @@ impl Shader {
     /// The module on `device`. Should composition fail (a bug the registry test catches), the
     /// uncomposed source goes to wgpu, whose validation error names the module.
     pub fn create(self, device: &wgpu::Device) -> wgpu::ShaderModule {
-        self.create_for(device, 1)
+        self.create_for(device, CssmShape::default())
     }
 
-    /// The module on `device` for a CSSM whose run data spans `run_bindings` storage bindings:
-    /// what the modules that import `cssm::visibility` are built with
-    /// (`Shader::Query.create_for(device, cssm.run_bindings)`).
-    pub fn create_for(self, device: &wgpu::Device, run_bindings: u32) -> wgpu::ShaderModule {
-        self.create_for_scene(device, run_bindings, 0)
+    /// The module on `device` for a CSSM of shape `shape`: what the modules that import
+    /// `cssm::visibility` are built with (`Shader::Query.create_for(device, cssm.shape())`).
+    pub fn create_for(self, device: &wgpu::Device, shape: CssmShape) -> wgpu::ShaderModule {
+        self.create_for_scene(device, shape, 0)
     }
 
     /// [`Self::create_for`] for a `.cssm` with `moving_csms` coherent shadow maps
@@ -501,10 +568,10 @@ impl Shader {
     pub fn create_for_scene(
         self,
         device: &wgpu::Device,
-        run_bindings: u32,
+        shape: CssmShape,
         moving_csms: u32,
     ) -> wgpu::ShaderModule {
-        let source = match self.module_for_scene(run_bindings, moving_csms) {
+        let source = match self.module_for_scene(shape, moving_csms) {
             Ok(module) => wgpu::ShaderSource::Naga(Cow::Owned(module)),
             Err(_) => wgpu::ShaderSource::Wgsl(self.source().1.into()),
         };
@@ -582,7 +649,7 @@ pub(crate) mod tests {
         ] {
             for csms in [0, 1, MOVING_MAX_CSMS_FOR_TEST] {
                 let module = shader
-                    .module_for_scene(1, csms)
+                    .module_for_scene(CssmShape::default(), csms)
                     .unwrap_or_else(|e| panic!("{}: {e}", shader.label()));
                 naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
                     .validate(&module)

@@ -50,6 +50,62 @@ impl RunData {
         (runs[idx.max(1) - 1] & 0xFFFF) as u16
     }
 
+    /// [`Self::lookup`] by the search the GPU query runs (`cssm_lookup_slot` in the runtime's
+    /// `visibility/cssm.wgsl`): a binary search of at most `steps` steps (at least
+    /// [`Self::search_steps`] find every map), which keeps the last run found at or before the
+    /// map as it goes, telling `probed` the index of every run it loads, in order.
+    pub fn lookup_traced(
+        &self,
+        map: u32,
+        pixel: u32,
+        steps: u32,
+        mut probed: impl FnMut(u32),
+    ) -> u16 {
+        let local = map % SEGMENT_MAPS;
+        let slot = self.slot(map, pixel) as usize;
+        let mut first = self.offsets[slot] as usize;
+        let mut count = self.offsets[slot + 1] as usize - first;
+        let mut found = u32::from(u16::MAX);
+        for _ in 0..steps {
+            if count == 0 {
+                break;
+            }
+            let half = count / 2;
+            let i = first + half;
+            probed(i as u32);
+            let run = self.runs[i];
+            if run >> 16 <= local {
+                first = i + 1;
+                count -= half + 1;
+                found = run;
+            } else {
+                count = half;
+            }
+        }
+        (found & 0xFFFF) as u16
+    }
+
+    /// The (segment, pixel) slot of map `map` at `pixel`: its runs are
+    /// `runs[offsets[slot]..offsets[slot + 1]]`.
+    pub fn slot(&self, map: u32, pixel: u32) -> u32 {
+        map / SEGMENT_MAPS * self.pixel_count + pixel
+    }
+
+    /// Runs in the longest list of one (segment, pixel) slot.
+    pub fn longest_list(&self) -> u32 {
+        self.offsets
+            .windows(2)
+            .map(|w| w[1].saturating_sub(w[0]))
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Steps of [`Self::lookup_traced`] that find every map's run: the bit length of the
+    /// [`Self::longest_list`] (a step leaves at most half the range).
+    pub fn search_steps(&self) -> u32 {
+        u32::BITS - self.longest_list().leading_zeros()
+    }
+
     /// Bytes the random-access run data occupies in GPU memory: offsets plus runs.
     pub fn gpu_bytes(&self) -> u64 {
         4 * (self.offsets.len() as u64 + self.runs.len() as u64)
@@ -250,5 +306,63 @@ impl PackedRuns {
             offsets,
             runs,
         })
+    }
+}
+
+#[cfg(test)]
+mod lookup_tests {
+    use super::*;
+
+    /// Pixel lists of 1 to 300 runs with random starts; every map of the segment looked up.
+    fn random_runs(seed: u64) -> RunData {
+        let mut state = seed;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32
+        };
+        let (pixel_count, map_count) = (24, 2000);
+        let mut offsets = vec![0];
+        let mut runs = Vec::new();
+        for _ in 0..pixel_count {
+            let count = 1 + next() % 300;
+            let mut starts: Vec<u32> = (1..count).map(|_| 1 + next() % (map_count - 1)).collect();
+            starts.push(0);
+            starts.sort_unstable();
+            starts.dedup();
+            runs.extend(starts.iter().map(|&s| s << 16 | (next() & 0xFFFF)));
+            offsets.push(runs.len() as u32);
+        }
+        RunData {
+            map_count,
+            pixel_count,
+            offsets,
+            runs,
+        }
+    }
+
+    #[test]
+    fn the_traced_lookup_finds_what_lookup_finds_in_search_steps_and_no_fewer() {
+        for seed in 1..4 {
+            let data = random_runs(seed);
+            let steps = data.search_steps();
+            assert!(1 << steps > data.longest_list());
+            let mut missed_with_fewer = 0;
+            for pixel in 0..data.pixel_count {
+                for map in 0..data.map_count {
+                    let code = data.lookup(map, pixel);
+                    let mut loads = 0;
+                    assert_eq!(data.lookup_traced(map, pixel, steps, |_| loads += 1), code);
+                    assert!(loads >= 1 && loads <= steps);
+                    // More steps change nothing: the search has ended.
+                    assert_eq!(data.lookup_traced(map, pixel, steps + 3, |_| {}), code);
+                    missed_with_fewer +=
+                        usize::from(data.lookup_traced(map, pixel, steps - 1, |_| {}) != code);
+                }
+            }
+            // The bound is tight: one step fewer misses some maps.
+            assert!(missed_with_fewer > 0);
+        }
     }
 }

@@ -186,7 +186,7 @@ impl AtlasDirect {
             mapped_at_creation: false,
         });
         // Composed for the file's moving objects: a static scene's texels read no motion.
-        let module = Shader::DirectAtlas.create_for_scene(device, 1, moving.csm_count);
+        let module = Shader::DirectAtlas.create_for_scene(device, Default::default(), moving.csm_count);
         let c = wgpu::ShaderStages::COMPUTE;
         let mut entries = light_entries().to_vec();
         entries.extend([layout::storage(5, true, c), layout::storage(6, false, c)]);

@@ -93,7 +93,7 @@ impl FinalGather {
         let d2 = wgpu::TextureViewDimension::D2;
         let module = Shader::FinalGather.create_for_scene(
             device,
-            cssm.query.run_bindings,
+            cssm.query.shape(),
             cssm.moving.csm_count,
         );
         let entries = [

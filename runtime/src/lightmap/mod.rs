@@ -114,7 +114,7 @@ impl AtlasLookup {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = Shader::AtlasLookup.create_for(device, cssm.run_bindings);
+        let module = Shader::AtlasLookup.create_for(device, cssm.shape());
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),

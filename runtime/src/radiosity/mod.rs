@@ -276,7 +276,7 @@ impl Radiosity {
 
         // Gather: group 0 its own buffers, group 1 the CSSM, group 2 the moving objects.
         let module =
-            Shader::RadiosityGather.create_for_scene(device, cssm.run_bindings, moving.csm_count);
+            Shader::RadiosityGather.create_for_scene(device, cssm.shape(), moving.csm_count);
         let entries = [
             layout::uniform(0, c),
             layout::storage(1, true, c),

@@ -105,51 +105,116 @@ fn cssm_run(i: u32) -> u32 {
 #endif
 }
 
-// One step of cssm_lookup's binary search over runs [first, first + count).
-fn cssm_search_step(first: ptr<function, u32>, count: ptr<function, u32>, local: u32) {
+// Work counters of the query (issue 48: GPU work you can count), per invocation: composed in only
+// for the counting kernels (`CSSM_COUNTERS`), where the kernel writes them out after its query;
+// `cssm_formats::visibility::QueryWork` counts the same on the CPU.
+#if CSSM_COUNTERS > 0
+struct CssmWork {
+    // Pixel tests that read the run data (don't-care pixels read nothing).
+    taps: u32,
+    // Binary-search steps that loaded a run.
+    search_steps: u32,
+    // Texel records loaded (one per sender texel asked).
+    texel_loads: u32,
+    // Atlas grid cells and texels' charts read, finding the senders.
+    sender_loads: u32,
+}
+var<private> cssm_work: CssmWork;
+#endif
+
+// One step of cssm_lookup_slot's binary search over runs [first, first + count): the last run
+// starting at or before `local` is kept in `found` as it is met, so no load follows the search.
+// A lane whose range is empty loads nothing (a short list's lanes idle while a long one's search).
+fn cssm_search_step(first: ptr<function, u32>, count: ptr<function, u32>, found: ptr<function, u32>, local: u32) {
     if *count > 0u {
-        let step = *count / 2u;
-        let i = *first + step;
-        if (cssm_run(i) >> 16u) <= local {
+        let half = *count >> 1u;
+        let i = *first + half;
+        let run = cssm_run(i);
+#if CSSM_COUNTERS > 0
+        cssm_work.search_steps += 1u;
+#endif
+        if (run >> 16u) <= local {
             *first = i + 1u;
-            *count -= step + 1u;
+            *count -= half + 1u;
+            *found = run;
         } else {
-            *count = step;
+            *count = half;
         }
     }
 }
 
-// RunData::lookup: binary search for the last run starting at or before the map (§3.1).
-// Unrolled to 17 steps, enough for the 65,536 runs a segment's pixel can hold, rather than
-// looped: llvmpipe ends every loop of an invocation once all its loops together have run
-// 65,535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS), and a final gather's long cut, with 16
-// lookups per sender, went past that and silently lost most of its senders.
-fn cssm_lookup(map: u32, pixel: u32) -> u32 {
-    let segment = map >> 16u;
-    let local = map & 0xffffu;
-    let slot = segment * cssm.pixel_count + pixel;
-    let lo = cssm_offsets[slot];
-    let hi = cssm_offsets[slot + 1u];
-    var first = lo;
-    var count = hi - lo;
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    cssm_search_step(&first, &count, local);
-    return cssm_run(max(first, lo + 1u) - 1u) & 0xffffu;
+// RunData::lookup for the runs of slot `slot` (segment * pixel_count + pixel): the depth code of
+// the last run starting at or before the map's place `local` in its segment (§3.1). A validated
+// file starts every slot's runs at 0, so a step always finds one and `found`'s initial value is
+// never returned.
+//
+// The search takes CSSM_SEARCH_STEPS steps, enough for the file's longest run list
+// (`shaders::search_steps`: a list of c runs needs the bit length of c). As a loop where the
+// driver allows; unrolled on llvmpipe, which ends every loop of an invocation once all its loops
+// together have run 65,535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS): a final gather's long cut,
+// with 16 lookups per sender, went past that and silently lost most of its senders.
+fn cssm_lookup_slot(slot: u32, local: u32) -> u32 {
+    var first = cssm_offsets[slot];
+    var count = cssm_offsets[slot + 1u] - first;
+    var found = CSSM_DEPTH_MAX;
+#if CSSM_SEARCH_LOOP > 0
+    for (var s = 0u; s < #{CSSM_SEARCH_STEPS}u; s++) {
+        cssm_search_step(&first, &count, &found, local);
+    }
+#else
+#if CSSM_SEARCH_STEPS > 0
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 1
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 2
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 3
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 4
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 5
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 6
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 7
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 8
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 9
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 10
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 11
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 12
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 13
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 14
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 15
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#if CSSM_SEARCH_STEPS > 16
+    cssm_search_step(&first, &count, &found, local);
+#endif
+#endif
+    return found & 0xffffu;
 }
 
 // DepthQuantizer::depth.
@@ -169,10 +234,8 @@ fn cssm_axis(v: vec3f, axis: u32) -> f32 {
     return v.z;
 }
 
-// cube::face_direction.
-fn cssm_face_direction(face: u32, u: f32, v: f32) -> vec3f {
-    let major = face / 2u;
-    let s = select(-1.0, 1.0, face % 2u == 0u);
+// cube::face_direction for a face of major axis `major` and sign `s`.
+fn cssm_face_direction(major: u32, s: f32, u: f32, v: f32) -> vec3f {
     if major == 0u {
         return vec3f(s, u, v);
     } else if major == 1u {
@@ -192,34 +255,10 @@ fn cssm_grid_offset(t: Texel) -> vec2f {
     );
 }
 
-// cube::pixel_direction_at.
-fn cssm_pixel_direction(n: u32, pixel: u32, offset: vec2f) -> vec3f {
-    let face = pixel / (n * n);
-    let rest = pixel % (n * n);
-    let u = (f32(rest % n) + 0.5 + offset.x) / f32(n) * 2.0 - 1.0;
-    let v = (f32(rest / n) + 0.5 + offset.y) / f32(n) * 2.0 - 1.0;
-    return cssm_face_direction(face, u, v);
-}
-
-// cube::pixel_is_dont_care_at: the whole pixel lies behind the tangent plane.
-fn cssm_pixel_is_dont_care(n: u32, pixel: u32, normal: vec3f, offset: vec2f) -> bool {
-    let major = pixel / (n * n) / 2u;
-    let half_step = 1.0 / f32(n);
-    let nu = abs(cssm_axis(normal, (major + 1u) % 3u));
-    let nv = abs(cssm_axis(normal, (major + 2u) % 3u));
-    return dot(cssm_pixel_direction(n, pixel, offset), normal) + half_step * (nu + nv) < 0.0;
-}
-
-// cube::cast_direction_at: the ray the bake cast for the pixel, and its depth factor.
-fn cssm_cast_direction(n: u32, pixel: u32, normal: vec3f, offset: vec2f) -> vec4f {
-    let dir = cssm_pixel_direction(n, pixel, offset);
-    let below = dot(dir, normal);
-    if below >= 0.0 {
-        return vec4f(dir, 1.0);
-    }
-    let projected = dir - normal * below;
-    let major = pixel / (n * n) / 2u;
-    return vec4f(projected, abs(cssm_axis(projected, major)));
+// cube::pixel_direction_at's face coordinate of pixel column (or row) `i` of an n-pixel face
+// whose grid is shifted by `offset` pixels.
+fn cssm_pixel_coordinate(i: u32, offset: f32, nf: f32) -> f32 {
+    return (f32(i) + 0.5 + offset) / nf * 2.0 - 1.0;
 }
 
 struct CssmProjection {
@@ -249,53 +288,73 @@ fn cssm_project(d: vec3f) -> CssmProjection {
     );
 }
 
-// cube::pixel_index_at.
-fn cssm_pixel_index(n: u32, face: u32, u_centred: f32, v_centred: f32, offset: vec2f) -> u32 {
-    let step = 2.0 / f32(n);
-    let u = u_centred - offset.x * step;
-    let v = v_centred - offset.y * step;
-    let col = u32(clamp(i32((u + 1.0) * 0.5 * f32(n)), 0, i32(n) - 1));
-    let row = u32(clamp(i32((v + 1.0) * 0.5 * f32(n)), 0, i32(n) - 1));
-    return face * n * n + row * n + col;
+// cube::pixel_index's column (or row) on an n-pixel face of a face coordinate `c` in [-1, 1],
+// on a grid shifted by `offset` pixels (cube::pixel_index_at).
+fn cssm_pixel_cell(c: f32, offset: f32, n: u32) -> u32 {
+    let shifted = c - offset * (2.0 / f32(n));
+    return u32(clamp(i32((shifted + 1.0) * 0.5 * f32(n)), 0, i32(n) - 1));
 }
 
-// Depth of the receiver along the ray the bake cast for `pixel` (receiver-plane depth);
-// `n_i` = vec3f(0) when the receiver's normal is unknown. `normal` (the texel's) and `n_cube`
-// (the receiver's) are in the cube frame, `p_i`, `centre` and `n_i` in the world.
-fn cssm_receiver_depth(
-    n: u32, pixel: u32, normal: vec3f, offset: vec2f, centre: vec3f, p_i: vec3f, n_i: vec3f,
-    n_cube: vec3f, depth: f32,
-) -> f32 {
-    if all(n_i == vec3f(0.0)) {
-        return depth;
-    }
-    let ray = cssm_cast_direction(n, pixel, normal, offset);
-    let denom = dot(ray.xyz, n_cube);
-    if abs(denom) < 1e-4 {
-        return depth;
-    }
-    let along = dot(p_i - centre, n_i) / denom * ray.w;
-    // `along` is finite here unless the inputs were not (the CPU tests is_finite).
-    if along > 0.0 && along < CSSM_FAR_AWAY {
-        return clamp(along, 0.5 * depth, 1.5 * depth);
-    }
-    return depth;
+// What every pixel test of one query of one texel's cube map shares, worked out once
+// (VisibilityQuery::answer_oriented's closures' captures): a test then does only its own
+// pixel's work, from its face coordinates, with no index arithmetic to undo.
+struct CssmTaps {
+    // The texel's normal and the receiver's, in the cube frame.
+    normal: vec3f,
+    n_cube: vec3f,
+    // Cube centre, receiver position and normal, in the world.
+    centre: vec3f,
+    p_i: vec3f,
+    n_i: vec3f,
+    // dot(p_i - centre, n_i): the receiver plane's distance along its normal.
+    plane: f32,
+    // The receiver's normal is known (receiver-plane depth).
+    oriented: bool,
+    depth: f32,
+    bias: f32,
+    // The projection's face: its major axis and sign (cube::face_axes).
+    major: u32,
+    sign: f32,
+    // cube::dont_care_reach of the face.
+    reach: f32,
+    // Run-data slot of the face's first pixel, and the map's place in its segment.
+    slot: u32,
+    local: u32,
 }
 
-// One pixel's test: (visible, nearness), as VisibilityQuery::answer_oriented's `test`.
-// `texel`'s normal and `n_cube` in the cube frame (cssm_answer_texel), `p_i` and `n_i` in the world.
-fn cssm_pixel_test(
-    texel: Texel, offset: vec2f, pixel: u32, centre: vec3f, p_i: vec3f, n_i: vec3f, n_cube: vec3f,
-    depth: f32, bias: f32,
-) -> vec2f {
-    let n = cssm.cube_resolution;
-    if cssm_pixel_is_dont_care(n, pixel, texel.normal, offset) {
+// One pixel's test, the pixel at face coordinates (u, v) and index `in_face` within the face:
+// (visible, nearness), as VisibilityQuery::answer_oriented's `test`. The pixel's centre
+// direction serves the don't-care test (cube::pixel_is_dont_care_at) and the ray the bake cast
+// (cube::cast_direction_at) alike.
+fn cssm_tap(t: CssmTaps, u: f32, v: f32, in_face: u32) -> vec2f {
+    let dir = cssm_face_direction(t.major, t.sign, u, v);
+    let below = dot(dir, t.normal);
+    if below + t.reach < 0.0 {
         return vec2f(0.0);
     }
-    let stored = cssm_depth(cssm_lookup(texel.map, pixel));
-    let receiver =
-        cssm_receiver_depth(n, pixel, texel.normal, offset, centre, p_i, n_i, n_cube, depth);
-    if stored >= receiver - bias {
+#if CSSM_COUNTERS > 0
+    cssm_work.taps += 1u;
+#endif
+    let stored = cssm_depth(cssm_lookup_slot(t.slot + in_face, t.local));
+    // Depth of the receiver along the ray the bake cast for the pixel (receiver-plane depth).
+    var receiver = t.depth;
+    if t.oriented {
+        var ray = dir;
+        var scale = 1.0;
+        if below < 0.0 {
+            ray = dir - t.normal * below;
+            scale = abs(cssm_axis(ray, t.major));
+        }
+        let denom = dot(ray, t.n_cube);
+        if abs(denom) >= 1e-4 {
+            let along = t.plane / denom * scale;
+            // `along` is finite here unless the inputs were not (the CPU tests is_finite).
+            if along > 0.0 && along < CSSM_FAR_AWAY {
+                receiver = clamp(along, 0.5 * t.depth, 1.5 * t.depth);
+            }
+        }
+    }
+    if stored >= receiver - t.bias {
         return vec2f(1.0, 0.0);
     }
     return vec2f(0.0, clamp(1.0 - stored / receiver, 0.0, 1.0));
@@ -311,6 +370,9 @@ fn cssm_visibility_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> f32 {
 fn cssm_answer_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> vec2f {
     let n = cssm.cube_resolution;
     let t = cssm_texels[texel_index];
+#if CSSM_COUNTERS > 0
+    cssm_work.texel_loads += 1u;
+#endif
     let near = cssm.near;
     // Behind the sender's tangent plane: light leaves a surface on its front side.
     if dot(p_i - t.position, t.normal) < -near {
@@ -328,17 +390,36 @@ fn cssm_answer_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> vec2f {
     }
     // The cube map's own frame (VisibilityQuery::answer_oriented): the lookup direction, the
     // texel's normal and the receiver's go into it; dot products of world vectors stay.
-    var tc = t;
-    tc.normal = cssm_to_cube(t.normal);
-    let n_c = cssm_to_cube(n_i);
+    let normal = cssm_to_cube(t.normal);
     let q = cssm_project(cssm_to_cube(d));
-    let bias = cssm.bias_near * near + cssm.bias_relative * q.depth;
-    if (cssm.flags & CSSM_FLAG_PCF) == 0u {
-        let pixel = cssm_pixel_index(n, q.face, q.u, q.v, offset);
-        return cssm_pixel_test(tc, offset, pixel, centre, p_i, n_i, n_c, q.depth, bias);
-    }
-    // §3.2.2 PCF: bilinear weights over the 2x2 pixel centres around the projection.
+    let major = q.face / 2u;
     let nf = f32(n);
+    let taps = CssmTaps(
+        normal,
+        cssm_to_cube(n_i),
+        centre,
+        p_i,
+        n_i,
+        dot(p_i - centre, n_i),
+        any(n_i != vec3f(0.0)),
+        q.depth,
+        cssm.bias_near * near + cssm.bias_relative * q.depth,
+        major,
+        select(-1.0, 1.0, q.face % 2u == 0u),
+        (1.0 / nf) * (abs(cssm_axis(normal, (major + 1u) % 3u)) + abs(cssm_axis(normal, (major + 2u) % 3u))),
+        (t.map >> 16u) * cssm.pixel_count + q.face * n * n,
+        t.map & 0xffffu,
+    );
+    if (cssm.flags & CSSM_FLAG_PCF) == 0u {
+        let col = cssm_pixel_cell(q.u, offset.x, n);
+        let row = cssm_pixel_cell(q.v, offset.y, n);
+        return cssm_tap(
+            taps, cssm_pixel_coordinate(col, offset.x, nf), cssm_pixel_coordinate(row, offset.y, nf),
+            row * n + col,
+        );
+    }
+    // §3.2.2 PCF: bilinear weights over the 2x2 pixel centres around the projection; the two
+    // columns' and two rows' face coordinates serve the four pixels.
     let fx = clamp((q.u + 1.0) * 0.5 * nf - 0.5 - offset.x, 0.0, nf - 1.0);
     let fy = clamp((q.v + 1.0) * 0.5 * nf - 0.5 - offset.y, 0.0, nf - 1.0);
     let x0 = u32(floor(fx));
@@ -347,11 +428,14 @@ fn cssm_answer_texel(texel_index: u32, p_i: vec3f, n_i: vec3f) -> vec2f {
     let y1 = min(y0 + 1u, n - 1u);
     let wx = fx - f32(x0);
     let wy = fy - f32(y0);
-    let base = q.face * n * n;
-    let t00 = cssm_pixel_test(tc, offset, base + y0 * n + x0, centre, p_i, n_i, n_c, q.depth, bias);
-    let t10 = cssm_pixel_test(tc, offset, base + y0 * n + x1, centre, p_i, n_i, n_c, q.depth, bias);
-    let t01 = cssm_pixel_test(tc, offset, base + y1 * n + x0, centre, p_i, n_i, n_c, q.depth, bias);
-    let t11 = cssm_pixel_test(tc, offset, base + y1 * n + x1, centre, p_i, n_i, n_c, q.depth, bias);
+    let u0 = cssm_pixel_coordinate(x0, offset.x, nf);
+    let u1 = cssm_pixel_coordinate(x1, offset.x, nf);
+    let v0 = cssm_pixel_coordinate(y0, offset.y, nf);
+    let v1 = cssm_pixel_coordinate(y1, offset.y, nf);
+    let t00 = cssm_tap(taps, u0, v0, y0 * n + x0);
+    let t10 = cssm_tap(taps, u1, v0, y0 * n + x1);
+    let t01 = cssm_tap(taps, u0, v1, y1 * n + x0);
+    let t11 = cssm_tap(taps, u1, v1, y1 * n + x1);
     return (1.0 - wy) * ((1.0 - wx) * t00 + wx * t10) + wy * ((1.0 - wx) * t01 + wx * t11);
 }
 
@@ -360,6 +444,9 @@ fn cssm_cell(x: i32, y: i32) -> u32 {
     if x < 0 || y < 0 || x >= r || y >= r {
         return CSSM_NONE;
     }
+#if CSSM_COUNTERS > 0
+    cssm_work.sender_loads += 1u;
+#endif
     return cssm_grid[u32(y * r + x)];
 }
 
@@ -420,11 +507,17 @@ struct CssmSenders {
 
 // One tap of the sender filter: the texel of cell (x, y) when it has weight and lies in `chart`.
 fn cssm_sender_tap(x: i32, y: i32, weight: f32, chart: u32) -> u32 {
-    let t = cssm_cell(x, y);
-    if weight > 0.0 && t != CSSM_NONE && cssm_texels[t].chart == chart {
-        return t;
+    if weight <= 0.0 {
+        return CSSM_NONE;
     }
-    return CSSM_NONE;
+    let t = cssm_cell(x, y);
+    if t == CSSM_NONE {
+        return CSSM_NONE;
+    }
+#if CSSM_COUNTERS > 0
+    cssm_work.sender_loads += 1u;
+#endif
+    return select(CSSM_NONE, t, cssm_texels[t].chart == chart);
 }
 
 fn cssm_senders_at(p: vec2f) -> CssmSenders {
@@ -436,6 +529,9 @@ fn cssm_senders_at(p: vec2f) -> CssmSenders {
     if (cssm.flags & CSSM_FLAG_SENDER_FILTER) == 0u {
         return alone;
     }
+#if CSSM_COUNTERS > 0
+    cssm_work.sender_loads += 1u;
+#endif
     let chart = cssm_texels[centre].chart;
     let fx = p.x - 0.5;
     let fy = p.y - 0.5;

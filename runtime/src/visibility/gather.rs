@@ -62,7 +62,7 @@ impl GatherKernel {
     /// The kernel for CSSMs bound with `cssm`'s layout.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
         let device = &gpu.device;
-        let module = crate::shaders::Shader::Gather.create_for(device, cssm.run_bindings);
+        let module = crate::shaders::Shader::Gather.create_for(device, cssm.shape());
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,

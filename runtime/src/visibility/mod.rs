@@ -28,27 +28,51 @@ use crate::{
     load::CssmGpu,
 };
 
-/// The WGSL visibility library as plain WGSL, its bindings at `@group(group)` for run data
-/// spanning `run_bindings` storage bindings ([`CssmGpu::run_bindings`]; or call
-/// [`CssmGpu::library_wgsl`]), preceded by the shared struct declarations (`types.wgsl`):
-/// append your own shader code to it. This is for a shader of your own composed without
-/// naga_oil; with naga_oil, add the libraries of [`crate::shaders::composer`] and
-/// `#import cssm::visibility::{cssm_visible, ...}` as the runtime's own modules do. Here the
-/// lines naga_oil reads (`#define_import_path`, `#import`) are dropped, the bind group filled
-/// in and the library's `#if CSSM_RUN_BINDINGS > K` blocks kept or dropped.
-pub fn library_wgsl(group: u32, run_bindings: u32) -> String {
-    let group = group.to_string();
+/// The WGSL visibility library as plain WGSL, its bindings at `@group(group)`, composed for a
+/// file of shape `shape` ([`CssmGpu::shape`]; or call [`CssmGpu::library_wgsl`]), preceded by
+/// the shared struct declarations (`types.wgsl`): append your own shader code to it. This is for
+/// a shader of your own composed without naga_oil; with naga_oil, add the libraries of
+/// [`crate::shaders::composer`] and `#import cssm::visibility::{cssm_visible, ...}` as the
+/// runtime's own modules do. Here the lines naga_oil reads (`#define_import_path`, `#import`)
+/// are dropped, the bind group and the search's steps filled in and the library's
+/// `#if NAME > K` blocks kept or dropped by the shape's definitions.
+pub fn library_wgsl(group: u32, shape: crate::shaders::CssmShape) -> String {
+    plain_wgsl(&[TYPES_WGSL, include_str!("cssm.wgsl")], group, shape)
+}
+
+/// `sources`, in order, as plain WGSL composed for `shape` with the CSSM bindings at
+/// `@group(group)`, as [`library_wgsl`] composes the library: naga_oil's `#define_import_path`
+/// and `#import` lines dropped, `#{CSSM_GROUP}` and `#{CSSM_SEARCH_STEPS}` filled in, the
+/// `#if NAME > K` blocks over the shape's definitions kept or dropped. For tools that compile
+/// a version of the library of their own (the lab's instruction counts of the query).
+///
+/// # Panics
+/// On an `#if` that is not `NAME > K` over a definition of the shape (a bug of the source).
+pub fn plain_wgsl(sources: &[&str], group: u32, shape: crate::shaders::CssmShape) -> String {
+    let defs = [
+        ("CSSM_RUN_BINDINGS", shape.run_bindings),
+        ("CSSM_SEARCH_STEPS", shape.search_steps),
+        ("CSSM_SEARCH_LOOP", u32::from(shape.search_loop)),
+        ("CSSM_COUNTERS", u32::from(shape.counters)),
+    ];
+    let holds = |condition: &str| -> bool {
+        let (name, k) = condition
+            .split_once(" > ")
+            .expect("the library's #if compares a definition with a number");
+        let k: u32 = k.trim().parse().expect("the library's #if has a number");
+        let (_, value) = defs
+            .iter()
+            .find(|(n, _)| *n == name.trim())
+            .expect("the library's #if names a definition of the shape");
+        *value > k
+    };
     // Whether each enclosing `#if` holds; a line is kept when all do.
     let mut open: Vec<bool> = Vec::new();
     let mut out = String::new();
-    for line in [TYPES_WGSL, include_str!("cssm.wgsl")]
-        .iter()
-        .flat_map(|source| source.lines())
-    {
+    for line in sources.iter().flat_map(|source| source.lines()) {
         let directive = line.trim_start();
-        if let Some(k) = directive.strip_prefix("#if CSSM_RUN_BINDINGS > ") {
-            let k: u32 = k.trim().parse().expect("the library's #if has a number");
-            open.push(run_bindings > k);
+        if let Some(condition) = directive.strip_prefix("#if ") {
+            open.push(holds(condition));
         } else if directive.starts_with("#else") {
             if let Some(last) = open.last_mut() {
                 *last = !*last;
@@ -59,7 +83,11 @@ pub fn library_wgsl(group: u32, run_bindings: u32) -> String {
             && !directive.starts_with("#import")
             && open.iter().all(|&kept| kept)
         {
-            out.push_str(&line.replace("#{CSSM_GROUP}", &group));
+            out.push_str(
+                &line
+                    .replace("#{CSSM_GROUP}", &group.to_string())
+                    .replace("#{CSSM_SEARCH_STEPS}", &shape.search_steps.to_string()),
+            );
             out.push('\n');
         }
     }
@@ -140,19 +168,50 @@ pub fn random_pairs(
 pub struct QueryKernel {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// Composed with the query's work counters ([`Self::counting`]).
+    counting: bool,
+}
+
+/// The work of one query as the kernel counted it (`CssmWork` in `visibility/cssm.wgsl`): the
+/// GPU's side of `cssm_formats::visibility::QueryWork`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct KernelWork {
+    /// Pixel tests that read the run data.
+    pub taps: u32,
+    /// Binary-search steps that loaded a run.
+    pub search_steps: u32,
+    /// Texel records loaded for the answers.
+    pub texel_loads: u32,
+    /// Atlas grid cells and texels' charts read, finding the senders.
+    pub sender_loads: u32,
 }
 
 impl QueryKernel {
     /// Builds the kernel for CSSMs bound with `cssm`'s layout.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
+        Self::build(gpu, cssm, false)
+    }
+
+    /// [`Self::new`] composed with the query's work counters: [`Self::run_counted`] reads back
+    /// what each query did. For tests and the benchmarks' counts; the counters cost time.
+    pub fn counting(gpu: &Gpu, cssm: &CssmGpu) -> Self {
+        Self::build(gpu, cssm, true)
+    }
+
+    fn build(gpu: &Gpu, cssm: &CssmGpu, counting: bool) -> Self {
         let device = &gpu.device;
-        let module = crate::shaders::Shader::Query.create_for(device, cssm.run_bindings);
+        let shape = crate::shaders::CssmShape {
+            counters: counting,
+            ..cssm.shape()
+        };
+        let module = crate::shaders::Shader::Query.create_for(device, shape);
         let c = wgpu::ShaderStages::COMPUTE;
-        let io_layout = layout::bind_group_layout(
-            device,
-            "cssm query io",
-            &[layout::storage(0, true, c), layout::storage(1, false, c)],
-        );
+        let mut entries = vec![layout::storage(0, true, c), layout::storage(1, false, c)];
+        if counting {
+            entries.push(layout::storage(2, false, c));
+        }
+        let io_layout = layout::bind_group_layout(device, "cssm query io", &entries);
         let pipeline = layout::compute_pipeline(
             device,
             "cssm query",
@@ -162,11 +221,14 @@ impl QueryKernel {
         Self {
             pipeline,
             layout: io_layout,
+            counting,
         }
     }
 
-    /// Answers `pairs` on the GPU, `repeat` times in one pass (for timing; the answers are the
-    /// same each time), and reads the answers back.
+    /// Answers `pairs` on the GPU and reads the answers back.
+    ///
+    /// # Errors
+    /// The pairs exceed the device's storage binding limit, or the readback fails.
     pub fn run(
         &self,
         gpu: &Gpu,
@@ -174,8 +236,36 @@ impl QueryKernel {
         pairs: &[QueryPair],
         timer: Option<&mut crate::common::timestamps::PassTimer>,
     ) -> Result<Vec<f32>, RuntimeError> {
+        Ok(self.run_with_work(gpu, cssm, pairs, timer)?.0)
+    }
+
+    /// [`Self::run`] on a [`Self::counting`] kernel: the answers and each query's work.
+    ///
+    /// # Errors
+    /// As [`Self::run`]; [`RuntimeError::Unsupported`] on a kernel built without counters.
+    pub fn run_counted(
+        &self,
+        gpu: &Gpu,
+        cssm: &CssmGpu,
+        pairs: &[QueryPair],
+    ) -> Result<(Vec<f32>, Vec<KernelWork>), RuntimeError> {
+        if !self.counting {
+            return Err(RuntimeError::Unsupported(
+                "run_counted needs a kernel built by QueryKernel::counting".into(),
+            ));
+        }
+        self.run_with_work(gpu, cssm, pairs, None)
+    }
+
+    fn run_with_work(
+        &self,
+        gpu: &Gpu,
+        cssm: &CssmGpu,
+        pairs: &[QueryPair],
+        timer: Option<&mut crate::common::timestamps::PassTimer>,
+    ) -> Result<(Vec<f32>, Vec<KernelWork>), RuntimeError> {
         if pairs.is_empty() {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), Vec::new()));
         }
         let device = &gpu.device;
         crate::load::limit_check(
@@ -189,22 +279,31 @@ impl QueryKernel {
             usage: wgpu::BufferUsages::STORAGE,
         });
         let output = answer_buffer(device, "query answers", pairs.len());
-        let io = layout::bind_group(
-            device,
-            "query io",
-            &self.layout,
-            &[input.as_entire_binding(), output.as_entire_binding()],
-        );
-        let bytes = dispatch_and_read(
+        let work = self
+            .counting
+            .then(|| answer_buffer(device, "query work", 4 * pairs.len()));
+        let mut resources = vec![input.as_entire_binding(), output.as_entire_binding()];
+        resources.extend(work.iter().map(wgpu::Buffer::as_entire_binding));
+        let io = layout::bind_group(device, "query io", &self.layout, &resources);
+        let encoder = dispatch(
             gpu,
             "cssm query",
             &self.pipeline,
             &[&io, &cssm.bind_group],
             pairs.len(),
-            &output,
             timer,
-        )?;
-        Ok(bytemuck::cast_slice(&bytes).to_vec())
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let answers = readback::read_buffer(&gpu.device, &gpu.queue, &output, 0, output.size())?;
+        let work = match &work {
+            Some(buffer) => {
+                let bytes =
+                    readback::read_buffer(&gpu.device, &gpu.queue, buffer, 0, buffer.size())?;
+                bytemuck::cast_slice(&bytes).to_vec()
+            }
+            None => Vec::new(),
+        };
+        Ok((bytemuck::cast_slice(&answers).to_vec(), work))
     }
 }
 
@@ -426,7 +525,7 @@ mod tests {
         ] {
             for csms in 0..=MOVING_MAX_CSMS as u32 {
                 let module = shader
-                    .module_for_scene(1, csms)
+                    .module_for_scene(Default::default(), csms)
                     .unwrap_or_else(|e| panic!("{} for {csms}: {e}", shader.label()));
                 naga::valid::Validator::new(
                     naga::valid::ValidationFlags::all(),
@@ -465,8 +564,12 @@ mod tests {
             Shader::FinalGather,
         ] {
             for n in 1..=MAX_RUN_BINDINGS {
+                let shape = crate::shaders::CssmShape {
+                    run_bindings: n,
+                    ..Default::default()
+                };
                 let module = shader
-                    .module_for(n)
+                    .module_for(shape)
                     .unwrap_or_else(|e| panic!("{} for {n}: {e}", shader.label()));
                 naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
                     .validate(&module)
@@ -488,7 +591,13 @@ mod tests {
     fn plain_library_matches_the_layout() {
         use crate::load::{CssmGpu, MAX_RUN_BINDINGS};
         for n in 1..=MAX_RUN_BINDINGS {
-            let source = super::library_wgsl(2, n)
+            let shape = crate::shaders::CssmShape {
+                run_bindings: n,
+                search_loop: n % 2 == 0,
+                search_steps: n + 2,
+                ..Default::default()
+            };
+            let source = super::library_wgsl(2, shape)
                 + "@compute @workgroup_size(1) fn main() { let v = cssm_visibility(0u, vec3f(0.3), vec3f(1.0), vec3f(0.0)); }";
             assert!(!source.contains('#'), "a directive was left in:\n{source}");
             let module = naga::front::wgsl::parse_str(&source)

@@ -331,7 +331,7 @@ impl MovingQueryKernel {
         let device = &gpu.device;
         let module = crate::shaders::Shader::MovingQuery.create_for_scene(
             device,
-            cssm.run_bindings,
+            cssm.shape(),
             moving.csm_count,
         );
         let c = wgpu::ShaderStages::COMPUTE;

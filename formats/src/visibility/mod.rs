@@ -25,6 +25,10 @@ use crate::{
     cube::{self, DepthQuantizer},
 };
 
+mod work;
+
+pub use work::{Buffer, Load, LoadTrace, QueryTally, QueryWork, Site, TEXEL_BYTES};
+
 /// Options of a query.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QueryOptions {
@@ -111,6 +115,8 @@ pub struct VisibilityQuery<'a> {
     map_of_texel: Vec<u32>,
     /// Texel index of every atlas cell, `u32::MAX` where undefined.
     grid: Vec<u32>,
+    /// Steps of the GPU query's search over one pixel's runs ([`QueryWork::search_steps`]).
+    search_steps: u32,
     /// Query options.
     pub options: QueryOptions,
 }
@@ -134,6 +140,7 @@ impl<'a> VisibilityQuery<'a> {
             quantizer: DepthQuantizer::new(file.params.near, file.params.far),
             map_of_texel,
             grid,
+            search_steps: file.runs.search_steps(),
             options,
         }
     }
@@ -172,6 +179,31 @@ impl<'a> VisibilityQuery<'a> {
     /// [`Self::texel_at`] for atlas coordinates `p` (texel units): the cell under `p`, or the
     /// nearest defined cell within two texels.
     pub fn texel_at_point(&self, p: Vec2) -> Option<u32> {
+        self.texel_at_point_counted(p, Site::default(), &mut QueryWork::default())
+    }
+
+    /// Reads atlas cell `(x, y)` as [`Self::cell`], telling `tally` of the read where the GPU
+    /// makes one (inside the atlas).
+    fn cell_counted(&self, x: i64, y: i64, site: Site, tally: &mut impl QueryTally) -> Option<u32> {
+        let r = self.file.params.atlas_resolution as i64;
+        if x < 0 || y < 0 || x >= r || y >= r {
+            return None;
+        }
+        tally.load(site, Load::GridCell((y * r + x) as u32));
+        self.cell(x, y)
+    }
+
+    fn texel_at_point_counted(
+        &self,
+        p: Vec2,
+        at: Site,
+        tally: &mut impl QueryTally,
+    ) -> Option<u32> {
+        let finding = Site {
+            finding: 1,
+            sender: 0,
+            ..at
+        };
         // Nothing within two texels of a point this far off the page (a NaN fails too); the
         // cell arithmetic below stays far from overflow.
         let r = self.file.params.atlas_resolution as f32;
@@ -180,14 +212,18 @@ impl<'a> VisibilityQuery<'a> {
             return None;
         }
         let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
-        if let Some(direct) = self.cell(cx, cy) {
+        if let Some(direct) = self.cell_counted(cx, cy, finding, tally) {
             return Some(direct);
         }
         // Chart of the triangle: the chart of any defined texel near its atlas footprint.
         let mut best: Option<(f32, u32)> = None;
         for dy in -2..=2 {
             for dx in -2..=2 {
-                let Some(t) = self.cell(cx + dx, cy + dy) else {
+                let neighbour = Site {
+                    tap: (1 + (dy + 2) * 5 + (dx + 2)) as u8,
+                    ..finding
+                };
+                let Some(t) = self.cell_counted(cx + dx, cy + dy, neighbour, tally) else {
                     continue;
                 };
                 let centre = Vec2::new((cx + dx) as f32 + 0.5, (cy + dy) as f32 + 0.5);
@@ -236,6 +272,20 @@ impl<'a> VisibilityQuery<'a> {
     /// [`Self::visibility_oriented`] with where the blocking pixels put the occluder
     /// ([`EndAnswer::nearness`]).
     pub fn answer_oriented(&self, texel: u32, p_i: Vec3, n_i: Option<Vec3>) -> EndAnswer {
+        self.answer_oriented_counted(texel, p_i, n_i, Site::default(), &mut QueryWork::default())
+    }
+
+    /// [`Self::answer_oriented`], telling `tally` of every load the GPU's `cssm_answer_texel`
+    /// makes for it, at `at` (its end and sender slot; the taps and steps filled in here).
+    pub fn answer_oriented_counted(
+        &self,
+        texel: u32,
+        p_i: Vec3,
+        n_i: Option<Vec3>,
+        at: Site,
+        tally: &mut impl QueryTally,
+    ) -> EndAnswer {
+        tally.load(at, Load::Texel(texel));
         let n = self.file.params.cube_resolution;
         let t = &self.file.texels[texel as usize];
         let normal = t.nrm();
@@ -283,12 +333,24 @@ impl<'a> VisibilityQuery<'a> {
                 depth
             }
         };
-        // (visible, nearness) of one pixel.
-        let test = |pixel: u32| -> (f32, f32) {
+        // (visible, nearness) of PCF tap `tap`, at `pixel`.
+        let map = self.map_of_texel[texel as usize];
+        let runs = &self.file.runs;
+        let mut test = |tap: u8, pixel: u32| -> (f32, f32) {
             if cube::pixel_is_dont_care_at(n, pixel, cube_normal, offset) {
                 return (0.0, 0.0);
             }
-            let stored = self.quantizer.depth(self.depth_code(texel, pixel));
+            // The GPU's search (`cssm_lookup_slot`), load by load.
+            let site = Site { tap, ..at };
+            let slot = runs.slot(map, pixel);
+            tally.load(site, Load::Offsets(slot));
+            tally.lookup(site, slot, map % crate::cssm::SEGMENT_MAPS);
+            let mut step = 0;
+            let code = runs.lookup_traced(map, pixel, self.search_steps, |run| {
+                step += 1;
+                tally.load(Site { step, ..site }, Load::Probe(run));
+            });
+            let stored = self.quantizer.depth(code);
             let receiver = receiver_depth(pixel);
             if stored >= receiver - bias {
                 (1.0, 0.0)
@@ -297,7 +359,7 @@ impl<'a> VisibilityQuery<'a> {
             }
         };
         if !self.options.pcf {
-            let (visible, nearness) = test(cube::pixel_index_at(n, face, u, v, offset));
+            let (visible, nearness) = test(0, cube::pixel_index_at(n, face, u, v, offset));
             return EndAnswer { visible, nearness };
         }
         // Bilinear weights over the 2x2 pixel centres around the projection, clamped to the face.
@@ -307,8 +369,8 @@ impl<'a> VisibilityQuery<'a> {
         let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
         let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
         let base = face * n * n;
-        let (t00, t10) = (test(base + y0 * n + x0), test(base + y0 * n + x1));
-        let (t01, t11) = (test(base + y1 * n + x0), test(base + y1 * n + x1));
+        let (t00, t10) = (test(0, base + y0 * n + x0), test(1, base + y0 * n + x1));
+        let (t01, t11) = (test(2, base + y1 * n + x0), test(3, base + y1 * n + x1));
         let bilinear = |a: f32, b: f32, c: f32, d: f32| {
             (1.0 - wy) * ((1.0 - wx) * a + wx * b) + wy * ((1.0 - wx) * c + wx * d)
         };
@@ -335,42 +397,76 @@ impl<'a> VisibilityQuery<'a> {
 
     /// [`Self::sender_texels`] for atlas coordinates `p` (texel units).
     pub fn sender_texels_at(&self, p: Vec2) -> Vec<(u32, f32)> {
-        let Some(centre) = self.texel_at_point(p) else {
-            return Vec::new();
-        };
+        self.sender_slots_at(p, Site::default(), &mut QueryWork::default())
+            .map(|slots| {
+                slots
+                    .into_iter()
+                    .filter(|&(t, w)| t != NONE && w > 0.0)
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// [`Self::sender_texels_at`] as the GPU holds them (`CssmSenders`): the 2x2 filter's four
+    /// slots in order, a missing texel as `(u32::MAX, 0.0)`; `None` when no texel stands for
+    /// the point. Every load the GPU's `cssm_senders_at` makes is told to `tally`, at `at`
+    /// (its end).
+    pub fn sender_slots_at(
+        &self,
+        p: Vec2,
+        at: Site,
+        tally: &mut impl QueryTally,
+    ) -> Option<[(u32, f32); 4]> {
+        let centre = self.texel_at_point_counted(p, at, tally)?;
+        let mut slots = [(NONE, 0.0); 4];
+        slots[0] = (centre, 1.0);
         if !self.options.sender_filter {
-            return vec![(centre, 1.0)];
+            return Some(slots);
         }
+        let finding = Site { finding: 1, ..at };
+        tally.load(Site { tap: 26, ..finding }, Load::TexelChart(centre));
         let chart = self.file.texels[centre as usize].chart;
         let r = self.file.params.atlas_resolution as i64;
         let (fx, fy) = (p.x - 0.5, p.y - 0.5);
         let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
         let (wx, wy) = (fx - x0 as f32, fy - y0 as f32);
-        let mut out = Vec::with_capacity(4);
+        let mut filtered = [(NONE, 0.0); 4];
         let mut total = 0.0;
-        for (dx, dy, w) in [
+        for (slot, (dx, dy, w)) in [
             (0, 0, (1.0 - wx) * (1.0 - wy)),
             (1, 0, wx * (1.0 - wy)),
             (0, 1, (1.0 - wx) * wy),
             (1, 1, wx * wy),
-        ] {
+        ]
+        .into_iter()
+        .enumerate()
+        {
             let (x, y) = (x0 + dx, y0 + dy);
             if x < 0 || y < 0 || x >= r || y >= r || w <= 0.0 {
                 continue;
             }
+            let tap = Site {
+                sender: 1 + slot as u8,
+                ..finding
+            };
+            tally.load(tap, Load::GridCell((y * r + x) as u32));
             let t = self.grid[(y * r + x) as usize];
-            if t != NONE && self.file.texels[t as usize].chart == chart {
-                out.push((t, w));
+            if t == NONE {
+                continue;
+            }
+            tally.load(Site { tap: 1, ..tap }, Load::TexelChart(t));
+            if self.file.texels[t as usize].chart == chart {
+                filtered[slot] = (t, w);
                 total += w;
             }
         }
         if total <= 0.0 {
-            return vec![(centre, 1.0)];
+            return Some(slots);
         }
-        for (_, w) in out.iter_mut() {
+        for (_, w) in filtered.iter_mut() {
             *w /= total;
         }
-        out
+        Some(filtered)
     }
 
     /// Fraction of `p_i` visible from the surface point (`triangle`, `bary`), or `None` when
@@ -382,7 +478,28 @@ impl<'a> VisibilityQuery<'a> {
         p_i: Vec3,
         n_i: Option<Vec3>,
     ) -> Option<f32> {
-        self.visibility_from_atlas(self.atlas_point(triangle, bary)?, p_i, n_i)
+        self.visibility_from_surface_counted(triangle, bary, p_i, n_i, &mut QueryWork::default())
+    }
+
+    /// [`Self::visibility_from_surface`], telling `tally` of every load the GPU's
+    /// `cssm_visibility` makes for the same query.
+    pub fn visibility_from_surface_counted(
+        &self,
+        triangle: usize,
+        bary: [f32; 3],
+        p_i: Vec3,
+        n_i: Option<Vec3>,
+        tally: &mut impl QueryTally,
+    ) -> Option<f32> {
+        let uv = self.atlas_point(triangle, bary)?;
+        let at = Site::default();
+        tally.load(
+            Site { finding: 1, ..at },
+            Load::TriangleUvs(triangle as u32),
+        );
+        let senders = self.sender_slots_at(uv, at, tally)?;
+        self.answer_from_senders_counted(&senders, p_i, n_i, at, tally)
+            .map(|answer| answer.visible)
     }
 
     /// [`Self::visibility_from_surface`] for the surface point at atlas coordinates `p`
@@ -405,13 +522,39 @@ impl<'a> VisibilityQuery<'a> {
         p_b: Vec3,
         n_b: Vec3,
     ) -> Option<f32> {
-        let forward = self.answer_from_senders(a, p_b, Some(n_b));
+        self.visibility_between_counted(a, p_a, n_a, b, p_b, n_b, &mut QueryWork::default())
+    }
+
+    /// [`Self::visibility_between`], telling `tally` of every load the GPU's
+    /// `cssm_visibility_between` makes (end 0 `a`'s cube maps, end 1 `b`'s). `a` and `b` may be
+    /// sender lists or [`Self::sender_slots_at`]'s slots.
+    #[allow(clippy::too_many_arguments)]
+    pub fn visibility_between_counted(
+        &self,
+        a: &[(u32, f32)],
+        p_a: Vec3,
+        n_a: Vec3,
+        b: &[(u32, f32)],
+        p_b: Vec3,
+        n_b: Vec3,
+        tally: &mut impl QueryTally,
+    ) -> Option<f32> {
+        let forward = self.answer_from_senders_counted(a, p_b, Some(n_b), Site::default(), tally);
         if !self.options.both_ends
             && let Some(f) = forward
         {
             return Some(f.visible);
         }
-        let backward = self.answer_from_senders(b, p_a, Some(n_a));
+        let backward = self.answer_from_senders_counted(
+            b,
+            p_a,
+            Some(n_a),
+            Site {
+                end: 1,
+                ..Site::default()
+            },
+            tally,
+        );
         match (forward, backward) {
             (Some(f), Some(r)) => Some(combine_ends(f, r)),
             (f, r) => f.or(r).map(|answer| answer.visible),
@@ -459,11 +602,39 @@ impl<'a> VisibilityQuery<'a> {
         p_i: Vec3,
         n_i: Option<Vec3>,
     ) -> Option<EndAnswer> {
-        if senders.is_empty() {
-            return None;
-        }
-        Some(senders.iter().fold(EndAnswer::default(), |sum, &(t, w)| {
-            let answer = self.answer_oriented(t, p_i, n_i);
+        self.answer_from_senders_counted(
+            senders,
+            p_i,
+            n_i,
+            Site::default(),
+            &mut QueryWork::default(),
+        )
+    }
+
+    /// [`Self::answer_from_senders`], telling `tally` of every load at `at` (its end): the
+    /// GPU's `cssm_answer_senders`. `senders` may be [`Self::sender_slots_at`]'s four slots,
+    /// whose empty ones are skipped as the GPU skips them (each sender's loads are then sited
+    /// at its slot), or [`Self::sender_texels_at`]'s list.
+    pub fn answer_from_senders_counted(
+        &self,
+        senders: &[(u32, f32)],
+        p_i: Vec3,
+        n_i: Option<Vec3>,
+        at: Site,
+        tally: &mut impl QueryTally,
+    ) -> Option<EndAnswer> {
+        let mut asked = senders
+            .iter()
+            .enumerate()
+            .filter(|&(_, &(t, w))| t != NONE && w > 0.0)
+            .peekable();
+        asked.peek()?;
+        Some(asked.fold(EndAnswer::default(), |sum, (slot, &(t, w))| {
+            let sender = Site {
+                sender: slot as u8,
+                ..at
+            };
+            let answer = self.answer_oriented_counted(t, p_i, n_i, sender, tally);
             EndAnswer {
                 visible: sum.visible + w * answer.visible,
                 nearness: sum.nearness + w * answer.nearness,
