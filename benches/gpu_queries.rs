@@ -8,7 +8,13 @@
 //! cargo bench --bench gpu_queries -- [--scenes DIR] [--atlas 128] [--cube 32]
 //!     [--pairs 4194304] [--receivers 65536] [--senders 256] [--reps 5] [--csv FILE]
 //!     [--only cornell-box,heads,church3700,sibenik] [--baked NAME=FILE.cssm] [--h200 FILE]
+//!     [--tile-size 640x480] [--tile-senders 32]
 //! ```
+//!
+//! `cssm tiles` is the access pattern of the final gather, one query a thread (issue 48 item 4):
+//! the scene's default view's G-buffer at `--tile-size` in 8x8 tiles, each tile a workgroup per
+//! sender (`--tile-senders` texels spread over the scene), each thread the two-ended query
+//! between its pixel and the sender (`visibility/tiles.wgsl`).
 //!
 //! `--baked NAME=FILE` takes scene NAME's bake from FILE instead of baking it here (the device
 //! harness bakes the full Sibenik cathedral in a step of its own, which the queries step's time
@@ -46,8 +52,15 @@ use std::{
 use cssm::{bake, formats, report, runtime};
 use runtime::{
     Gpu,
+    common::camera::View,
     load::CssmGpu,
-    visibility::{QueryKernel, QueryPair, bvh::BvhKernel, gather::GatherKernel, gather::Receiver},
+    visibility::{
+        QueryKernel, QueryPair,
+        bvh::BvhKernel,
+        gather::GatherKernel,
+        gather::Receiver,
+        tiles::{TILE_PIXELS, TileKernel, TileSenders, tile_pixels},
+    },
 };
 
 #[path = "common/mod.rs"]
@@ -155,6 +168,12 @@ fn main() {
     let asked_receivers = arg(&args, "--receivers", 1usize << 16);
     let senders = arg(&args, "--senders", 256u32);
     let reps = arg(&args, "--reps", 5u32);
+    let tile_size: String = arg(&args, "--tile-size", "640x480".to_string());
+    let (tile_width, tile_height) = tile_size
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+        .unwrap_or_else(|| panic!("--tile-size takes WIDTHxHEIGHT, not {tile_size}"));
+    let tile_senders = arg(&args, "--tile-senders", 32u32);
     let only: Option<String> = args
         .iter()
         .position(|a| a == "--only")
@@ -315,6 +334,15 @@ fn main() {
             }
         }
         let mut measured: Vec<Row> = Vec::new();
+        // The G-buffer's tiles and the senders they ask; the CPU replays every tile_step-th
+        // tile (about 64 of them).
+        let view = View::of_scene(&scene, tile_width, tile_height);
+        let (tile_list, tiles_x) = tile_pixels(&scene, &view);
+        let tile_queries = TileSenders::spread(texels, tile_senders);
+        let tile_threads = (tile_list.len() * tile_senders as usize) as u64;
+        let seen = tile_list.iter().filter(|p| p.triangle != u32::MAX).count() as u64;
+        let tile_step = (tile_list.len() / TILE_PIXELS / 64).max(1);
+        let tiled = query_work::tiles(&file, &tile_list, tile_queries, tile_step, Kernel::Lean);
         // Both forms of the search: llvmpipe's loop limit is far off for these kernels (at
         // most 16 taps x 16 steps a random query, 4 x 16 a gather's sender).
         for (form, search_loop) in [("loop", true), ("unrolled", false)] {
@@ -330,6 +358,18 @@ fn main() {
                     query
                         .run(&gpu, &cssm, &query_pairs, Some(t))
                         .expect("query");
+                }),
+            ));
+            let tile_kernel = TileKernel::new(&gpu, &cssm, false);
+            measured.push((
+                format!("cssm tiles ({form})"),
+                seen * tile_senders as u64,
+                Some(tiled),
+                tile_threads,
+                best_ms(&gpu, reps, |t| {
+                    tile_kernel
+                        .run(&gpu, &cssm, &tile_list, tiles_x, tile_queries, Some(t))
+                        .expect("tiles");
                 }),
             ));
             measured.push((

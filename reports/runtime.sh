@@ -39,7 +39,7 @@ if [ $small = 1 ]; then
     bake_cornell="--atlas 32 --cube 8"
     bake_table1="--atlas 128 --cube 8"
     bake_sibenik="--atlas 256 --cube 8"
-    queries="--atlas 128 --cube 8 --pairs 4096 --receivers 1024 --senders 16 --reps 2"
+    queries="--atlas 128 --cube 8 --pairs 4096 --receivers 1024 --senders 16 --reps 2 --tile-size 64x48 --tile-senders 8"
     moving="--atlas 32 --cube 8 --pairs 4096 --objects 1 --reps 2"
     bake_bunny="--atlas 32 --cube 8"
     gpu_bakes="cornell-64:--atlas=32,--cube=8"

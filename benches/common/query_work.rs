@@ -5,13 +5,17 @@ use cssm::{
     formats::{
         CssmFile,
         cssm::RunData,
-        visibility::{Load, QueryTally, QueryWork, Site, VisibilityQuery},
+        visibility::{Buffer, Load, QueryTally, QueryWork, Site, VisibilityQuery},
     },
     runtime::{
-        visibility::{QueryPair, gather::Receiver},
+        visibility::{
+            QueryPair,
+            gather::Receiver,
+            tiles::{TILE_PIXELS, TilePixel, TileSenders},
+        },
         work::{
             cost::{CostModel, Launch},
-            warp::{LaneTrace, WARP_LANES, WarpStats, replay},
+            warp::{LaneTrace, WARP_LANES, WarpStats, replay, replay_warp},
         },
     },
 };
@@ -156,4 +160,73 @@ pub fn gather(
         queries: receivers.len() * senders as usize,
         stats,
     }
+}
+
+/// The tile kernel (`tiles.wgsl`: a workgroup a tile of 8x8 pixels and a sender, a two-ended
+/// query a thread) over every `tile_step`-th tile of `pixels` and every sender: each
+/// workgroup's two warps (the tile's top and bottom four rows) replayed, the kernel's own loads
+/// (its pixel's record, the sender's texel record) with the query's.
+pub fn tiles(
+    file: &CssmFile,
+    pixels: &[TilePixel],
+    senders: TileSenders,
+    tile_step: usize,
+    kernel: Kernel,
+) -> Counted {
+    let query = VisibilityQuery::new(file, Default::default());
+    let texels = file.texels.len() as u32;
+    let mut counted = Counted::default();
+    for tile in pixels.chunks(TILE_PIXELS).step_by(tile_step.max(1)) {
+        let first =
+            (tile.as_ptr() as usize - pixels.as_ptr() as usize) / std::mem::size_of::<TilePixel>();
+        for k in 0..senders.count {
+            let texel = senders.texel(k, texels);
+            let y = &file.texels[texel as usize];
+            for (half, warp) in tile.chunks(WARP_LANES).enumerate() {
+                let (work, lanes): (Vec<QueryWork>, Vec<LaneTrace>) = warp
+                    .iter()
+                    .enumerate()
+                    .map(|(lane_index, q)| {
+                        let mut lane = Lane {
+                            work: QueryWork::default(),
+                            trace: LaneTrace::default(),
+                            reload: (kernel == Kernel::Before).then_some(&file.runs),
+                        };
+                        let i = first + half * WARP_LANES + lane_index;
+                        let own = |kind: u8| {
+                            (
+                                0,
+                                Site {
+                                    finding: 2,
+                                    ..Default::default()
+                                },
+                                kind,
+                            )
+                        };
+                        lane.trace
+                            .push(own(10), Buffer::Kernel(0), 48 * i as u64, 48);
+                        if q.triangle != u32::MAX {
+                            lane.trace
+                                .push(own(11), Buffer::Texels, 64 * u64::from(texel), 64);
+                            counted.queries += 1;
+                        }
+                        cssm::runtime::visibility::tiles::tile_query(
+                            &query,
+                            q,
+                            texel,
+                            y.pos(),
+                            y.nrm(),
+                            &mut lane,
+                        );
+                        (lane.work, lane.trace)
+                    })
+                    .unzip();
+                for w in work {
+                    counted.work += w;
+                }
+                counted.stats += replay_warp(&lanes);
+            }
+        }
+    }
+    counted
 }

@@ -259,6 +259,9 @@ pub enum Shader {
     Query,
     /// `visibility/gather.wgsl`, the gather benchmark kernel, with the CSSM library.
     Gather,
+    /// `visibility/tiles.wgsl`, the benchmark kernel of a G-buffer's tiles querying senders,
+    /// one query a thread, with the CSSM library.
+    TileQueries,
     /// `visibility/moving_query.wgsl`, the batch query between posed surface points, with the
     /// CSSM library and `visibility/moving.wgsl` (§3.3).
     MovingQuery,
@@ -311,7 +314,7 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 32] = [
+    pub const ALL: [Shader; 33] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
@@ -325,6 +328,7 @@ impl Shader {
         Shader::Filters,
         Shader::Query,
         Shader::Gather,
+        Shader::TileQueries,
         Shader::MovingQuery,
         Shader::Bvh,
         Shader::DepthMaps,
@@ -362,6 +366,7 @@ impl Shader {
             Shader::Filters => "edge-aware filters",
             Shader::Query => "visibility query",
             Shader::Gather => "visibility gather",
+            Shader::TileQueries => "visibility tiles",
             Shader::MovingQuery => "moving objects' query",
             Shader::Bvh => "bvh segments",
             Shader::DepthMaps => "depth cube maps",
@@ -438,6 +443,10 @@ impl Shader {
             Shader::Gather => (
                 "runtime/src/visibility/gather.wgsl",
                 include_str!("visibility/gather.wgsl"),
+            ),
+            Shader::TileQueries => (
+                "runtime/src/visibility/tiles.wgsl",
+                include_str!("visibility/tiles.wgsl"),
             ),
             Shader::MovingQuery => (
                 "runtime/src/visibility/moving_query.wgsl",

@@ -97,3 +97,52 @@ fn the_search_takes_the_steps_of_the_longest_run_list() {
     assert!(1 << (cssm.search_steps - 1) <= longest && longest < 1 << cssm.search_steps);
     assert!(cssm.search_steps < cssm_runtime::shaders::MAX_SEARCH_STEPS);
 }
+
+/// The tile kernel (a G-buffer's 8x8 tiles, one two-ended query a thread) answers and counts as
+/// its CPU twin does, query for query, in both forms of the search.
+#[test]
+fn tile_kernel_matches_its_cpu_twin_answer_for_answer_and_count_for_count() {
+    use cssm_runtime::{
+        common::camera::View,
+        visibility::tiles::{TileKernel, TileSenders, tile_pixels, tiles_cpu},
+    };
+    let gpu = gpu();
+    let (scene, file) = cornell();
+    let view = View::of_scene(scene, 40, 28);
+    let (pixels, tiles_x) = tile_pixels(scene, &view);
+    assert_eq!((pixels.len(), tiles_x), (5 * 4 * 64, 5));
+    let senders = TileSenders::spread(file.texels.len() as u32, 6);
+    let query = VisibilityQuery::new(file, QueryOptions::default());
+    let expected = tiles_cpu(&query, &pixels, senders, |_, _| QueryWork::default());
+    let mut cssm =
+        CssmGpu::new(&gpu.device, &gpu.queue, file, QueryOptions::default()).expect("upload");
+    for search_loop in [false, true] {
+        cssm.search_loop = search_loop;
+        let (answers, work) = TileKernel::new(gpu, &cssm, true)
+            .run(gpu, &cssm, &pixels, tiles_x, senders, None)
+            .expect("tile kernel");
+        assert_eq!(answers.len(), expected.len());
+        let mut seen = 0;
+        for (i, ((gpu_answer, gpu_work), (cpu_answer, cpu_work))) in
+            answers.iter().zip(&work).zip(&expected).enumerate()
+        {
+            assert!(
+                (gpu_answer - cpu_answer).abs() <= 1e-4,
+                "query {i}: GPU {gpu_answer}, CPU {cpu_answer}"
+            );
+            let cpu = KernelWork {
+                taps: cpu_work.taps as u32,
+                search_steps: cpu_work.search_steps as u32,
+                texel_loads: cpu_work.texel_loads as u32,
+                sender_loads: cpu_work.sender_loads as u32,
+            };
+            assert_eq!(*gpu_work, cpu, "query {i}, loop {search_loop}");
+            seen += usize::from(*cpu_answer >= 0.0);
+        }
+        // Most pixels see the box (a sixth of the entries pad the last row of tiles), and both
+        // ends are asked.
+        assert!(seen > expected.len() / 2, "{seen} of {}", expected.len());
+        let texel_loads: u32 = work.iter().map(|w| w.texel_loads).sum();
+        assert!(texel_loads as usize > 2 * seen);
+    }
+}

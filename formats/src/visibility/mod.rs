@@ -152,7 +152,7 @@ impl<'a> VisibilityQuery<'a> {
 
     /// Atlas coordinates (texel units) of the point with barycentric coordinates `bary` on
     /// scene triangle `triangle`; `None` for a triangle index the file does not have.
-    fn atlas_point(&self, triangle: usize, bary: [f32; 3]) -> Option<Vec2> {
+    pub fn atlas_point(&self, triangle: usize, bary: [f32; 3]) -> Option<Vec2> {
         let uv = self.file.triangle_uvs.get(triangle)?;
         Some(
             Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2],

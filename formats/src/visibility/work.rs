@@ -35,6 +35,9 @@ pub enum Buffer {
     Offsets,
     /// `cssm_runs`: a `u32` a run (over however many bindings).
     Runs,
+    /// A buffer of the kernel's own (its inputs), numbered by it: for a kernel's loads outside
+    /// the query, which only a warp replay is told of.
+    Kernel(u8),
 }
 
 /// Bytes of a texel record on the GPU (`GpuTexel`).

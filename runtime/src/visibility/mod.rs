@@ -16,6 +16,7 @@ pub mod bvh;
 pub mod depth_maps;
 pub mod gather;
 pub mod moving;
+pub mod tiles;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -488,6 +489,41 @@ mod tests {
         );
     }
 
+    /// The tile kernel's pixel layout, and its module with the counters and the looped search.
+    #[test]
+    fn tile_layouts_match_wgsl() {
+        use super::tiles::TilePixel;
+        let module = crate::shaders::tests::module(Shader::TileQueries);
+        check_struct(
+            &module,
+            "TilePixel",
+            size_of::<TilePixel>(),
+            &[
+                ("position", offset_of!(TilePixel, position)),
+                ("triangle", offset_of!(TilePixel, triangle)),
+                ("normal", offset_of!(TilePixel, normal)),
+                ("bary", offset_of!(TilePixel, bary)),
+            ],
+        );
+        for (counters, search_loop) in [(true, false), (true, true), (false, true)] {
+            let shape = crate::shaders::CssmShape {
+                counters,
+                search_loop,
+                search_steps: 9,
+                ..Default::default()
+            };
+            for shader in [Shader::Query, Shader::TileQueries, Shader::FinalGather] {
+                let module = shader.module_for(shape).unwrap_or_else(|e| panic!("{e}"));
+                naga::valid::Validator::new(
+                    naga::valid::ValidationFlags::all(),
+                    crate::shaders::tests::CAPABILITIES,
+                )
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{} {shape:?}: {e:?}", shader.label()));
+            }
+        }
+    }
+
     #[test]
     fn bvh_layouts_match_wgsl() {
         use super::bvh::{GpuBvhNode, Segment};
@@ -558,6 +594,7 @@ mod tests {
         for shader in [
             Shader::Query,
             Shader::Gather,
+            Shader::TileQueries,
             Shader::MovingQuery,
             Shader::RadiosityGather,
             Shader::AtlasLookup,
