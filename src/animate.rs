@@ -158,7 +158,7 @@ pub fn run_animate(config: &RenderConfig, options: &AnimateOptions) -> CliResult
     let files = prepare_output(out, frames, options, &scene)?;
     let settings = renderer_settings(config, &scene, &dir)?;
     let (width, height) = (settings.frame.width, settings.frame.height);
-    let (gpu, mut renderer) = gpu_renderer(config, &scene, &dir, &settings)?;
+    let (gpu, mut renderer, _) = gpu_renderer(config, &scene, &dir, &settings)?;
     let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
     let mut gif = if options.gif {
         Some(GifWriter::new(

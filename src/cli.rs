@@ -1086,6 +1086,7 @@ impl ViewArgs {
                     ..QueryOptions::default()
                 },
                 timings: false,
+                stats: false,
                 cssm: self.cssm,
                 frames: self.frames,
                 component: self.component,
@@ -1132,6 +1133,12 @@ pub struct RenderArgs {
     /// the view-independent passes, and the last (one more frame is rendered to time it warm).
     #[arg(long)]
     timings: bool,
+    /// Print what the passes do, counted by their CPU twins (`lightcuts`' final gather: nodes
+    /// visited and queried per pixel, CSSM taps, search steps and bytes, the threads against
+    /// the device's, its tiles' warps replayed: lane efficiency and 32-byte sectors per load)
+    /// and the GPU milliseconds a cost model of the NVIDIA H200 predicts from them.
+    #[arg(long)]
+    stats: bool,
     /// The scene's baked CSSM (`cssm bake`), for the methods that need one. Default: bake one
     /// in memory at atlas 64, cube 32.
     #[arg(long)]
@@ -1339,6 +1346,8 @@ pub struct RenderConfig {
     pub visibility: QueryOptions,
     /// `--timings`.
     pub timings: bool,
+    /// `--stats`.
+    pub stats: bool,
     /// The scene's `.cssm`; `None`: baked in memory where the method needs one.
     pub cssm: Option<PathBuf>,
     /// Frames to average, 1..=[`MAX_FRAMES`].
@@ -1464,6 +1473,7 @@ impl RenderArgs {
                 ..QueryOptions::default()
             },
             timings: self.timings,
+            stats: self.stats,
             cssm: self.cssm,
             frames,
             component: self.component,

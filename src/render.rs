@@ -56,7 +56,7 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             render_on_cpu(&config, &posed_scene, &settings, run)?
         }
         Backend::Gpu(_) => {
-            let (gpu, mut renderer) = gpu_renderer(&config, &scene, &dir, &settings)?;
+            let (gpu, mut renderer, file) = gpu_renderer(&config, &scene, &dir, &settings)?;
             let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
             let frames = config.frames + u32::from(config.timings);
             // The GPU works in one go (a lightmap's radiosity takes minutes on lavapipe): a
@@ -75,6 +75,10 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             gpu.wait().map_err(gpu_error)?;
             if config.timings {
                 print_timings(&gpu.describe(), &image);
+            }
+            if config.stats {
+                print_stats(&config, &gpu, &scene, file.as_ref(), &settings)
+                    .map_err(|e| format!("{}: --stats: {e}", dir.display()))?;
             }
             eprintln!(
                 "rendered {} with {method} at {width}x{height} on {}",
@@ -101,14 +105,15 @@ pub fn run_render(config: RenderConfig) -> CliResult {
 }
 
 /// A headless GPU and a [`Renderer`] of `config`'s GPU method on `scene` (its `.cssm` read or
-/// baked where the method needs one), with `config`'s camera and light set after construction:
-/// what `cssm render` and `cssm render --animate` draw with. Errors name the scene.
+/// baked where the method needs one, returned too), with `config`'s camera and light set after
+/// construction: what `cssm render` and `cssm render --animate` draw with. Errors name the
+/// scene.
 pub(crate) fn gpu_renderer(
     config: &RenderConfig,
     scene: &Scene,
     dir: &Path,
     settings: &RendererSettings,
-) -> Result<(runtime::Gpu, Renderer), String> {
+) -> Result<(runtime::Gpu, Renderer, Option<CssmFile>), String> {
     let gpu = runtime::Gpu::new_headless().map_err(|e| e.to_string())?;
     let gpu_error = |e: runtime::RuntimeError| format!("{}: {e}", dir.display());
     // The device's limits before the .cssm is read or baked.
@@ -152,8 +157,74 @@ pub(crate) fn gpu_renderer(
             }
         }
     }
-    Ok((gpu, renderer))
+    Ok((gpu, renderer, file))
 }
+
+/// `--stats`: what `config`'s method's passes do, counted by their CPU twins
+/// (`runtime::work::passes`), with the cost model's prediction. Today the final gather of
+/// `lightcuts`; the other methods say they have no counted pass yet.
+fn print_stats(
+    config: &RenderConfig,
+    gpu: &runtime::Gpu,
+    scene: &Scene,
+    file: Option<&CssmFile>,
+    settings: &RendererSettings,
+) -> Result<(), String> {
+    let method = config.method.name;
+    let Some(file) = file.filter(|_| method == "lightcuts") else {
+        println!("--stats: no pass of {method} is counted yet (lightcuts' final gather is)");
+        return Ok(());
+    };
+    if config.camera.is_some() || config.light.is_some() || config.time.is_some() {
+        return Err(
+            "counts the scene's own camera, light and poses; leave out --camera, \
+                    --light and --time"
+                .into(),
+        );
+    }
+    let options = runtime::lightcuts::LightcutsOptions::from_resolved(&config.resolved);
+    let exposure = settings.frame.exposure;
+    // The node radiance the gather reads: the radiosity's bounces before it, on the GPU.
+    let atlas = runtime::radiosity::atlas_radiosity(
+        &gpu.device,
+        &gpu.queue,
+        scene,
+        file,
+        config.shadow_resolution,
+        options.bounces.saturating_sub(1),
+        runtime::radiosity::RadiosityOptions {
+            threshold: options.threshold,
+            exposure,
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let radiance: Vec<glam::Vec3> = atlas
+        .node_radiance
+        .iter()
+        .map(|r| glam::Vec3::new(r[0], r[1], r[2]))
+        .collect();
+    let (width, height) = (settings.frame.width, settings.frame.height);
+    let view = runtime::common::camera::View::of_scene(scene, width, height);
+    let stats = runtime::work::passes::final_gather_stats(
+        scene,
+        file,
+        &view,
+        &radiance,
+        options.downsample,
+        options.threshold,
+        exposure,
+        STATS_TILES,
+    )
+    .map_err(|e| e.to_string())?;
+    println!(
+        "{} of {method} at {width}x{height} (downsample {}), counted by its CPU twin:\n{stats}",
+        stats.pass, options.downsample
+    );
+    Ok(())
+}
+
+/// Tiles of the final gather `--stats` counts.
+const STATS_TILES: u32 = 16;
 
 fn print_timings(device: &str, image: &readback::Image) {
     if image.timings.is_empty() {

@@ -690,6 +690,57 @@ fn render_writes_png_and_exr_of_the_requested_size() {
     assert_eq!(radiance.dimensions(), (96, 64));
 }
 
+/// `--stats` counts the final gather with its CPU twin and prints its work and the cost
+/// model's prediction; a method without a counted pass says so.
+#[test]
+fn render_stats_count_the_final_gather() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("lightcuts.png");
+    let o = cssm(&[
+        "render",
+        cornell().to_str().unwrap(),
+        "--method",
+        "lightcuts",
+        "--size",
+        "32x24",
+        "--shadow-resolution",
+        "256",
+        "--stats",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    for needle in [
+        "final gather of lightcuts at 32x24",
+        "nodes visited per receiver: mean",
+        "CSSM taps per query",
+        "lane efficiency",
+        "predicted GPU ms",
+    ] {
+        assert!(stdout.contains(needle), "{needle} missing from:\n{stdout}");
+    }
+    // Something was counted: a pixel visits nodes and queries some.
+    let visited: f64 = stdout
+        .split("nodes visited per receiver: mean ")
+        .nth(1)
+        .and_then(|rest| rest.split(',').next())
+        .and_then(|mean| mean.trim().parse().ok())
+        .expect("a mean");
+    assert!(visited > 1.0, "{stdout}");
+    let o = cssm(&[
+        "render",
+        cornell().to_str().unwrap(),
+        "--size",
+        "32x24",
+        "--stats",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("no pass of direct is counted yet"));
+}
+
 #[test]
 fn render_rejects_bad_arguments() {
     let tmp = tempfile::tempdir().unwrap();

@@ -1054,38 +1054,8 @@ fn cpu_receivers(
     w: u32,
     h: u32,
 ) -> Vec<Option<(cssm_runtime::lightcuts::cpu::Receiver, u32)>> {
-    use cssm_runtime::{common::camera::View, direct::cpu};
-    let bvh = cssm_raycast::SceneBvh::new(scene);
-    let view = View::of_scene(scene, w, h);
-    let (materials, textures) = cssm_runtime::load::cpu_materials(scene).expect("textures");
-    (0..w * h)
-        .map(|i| {
-            let dir = view.primary_ray(i % w, i / w);
-            let (t, triangle) = bvh.closest_hit(view.eye, dir, 0.0, f32::INFINITY)?;
-            let p = view.eye + dir * t;
-            let [a, b, c] = scene.triangle(triangle as usize);
-            // The G-buffer's normal: the geometric one tilted by the material's normal map.
-            let n = cpu::facing_normal(scene, triangle, view.eye - p);
-            let material = &materials[scene.triangle_materials[triangle as usize] as usize];
-            let n = cpu::shading_normal(scene, material, &textures, triangle, p, n);
-            let bary = cssm_runtime::direct::cpu::barycentric(p, a, b, c);
-            let uv = file.triangle_uvs[triangle as usize];
-            let atlas = glam::Vec2::from(uv[0]) * bary[0]
-                + glam::Vec2::from(uv[1]) * bary[1]
-                + glam::Vec2::from(uv[2]) * bary[2];
-            let m = &scene.materials[scene.triangle_materials[triangle as usize] as usize];
-            Some((
-                cssm_runtime::lightcuts::cpu::Receiver {
-                    position: p,
-                    normal: n,
-                    view: -dir,
-                    albedo: glam::Vec3::from(m.kd),
-                    atlas,
-                },
-                triangle,
-            ))
-        })
-        .collect()
+    let view = cssm_runtime::common::camera::View::of_scene(scene, w, h);
+    cssm_runtime::lightcuts::cpu::receivers(scene, file, &view).expect("textures")
 }
 
 /// Pixels whose 3x3 neighbourhood sees one plane (no silhouette or crease next to them).

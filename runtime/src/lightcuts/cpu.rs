@@ -30,6 +30,50 @@ pub struct Receiver {
     pub atlas: Vec2,
 }
 
+/// The G-buffer of `view` over `scene` as the CPU twins see it, row-major: at each pixel the
+/// receiver its primary ray through the pixel centre meets (position, the geometric normal
+/// tilted by the material's normal map and turned towards the eye, Kd as albedo, atlas
+/// coordinates from `file`) and its triangle; `None` where it meets nothing.
+///
+/// # Errors
+/// A texture of the scene that does not load.
+pub fn receivers(
+    scene: &cssm_formats::Scene,
+    file: &cssm_formats::CssmFile,
+    view: &crate::common::camera::View,
+) -> Result<Vec<Option<(Receiver, u32)>>, crate::RuntimeError> {
+    use crate::direct::cpu;
+    let bvh = cssm_raycast::SceneBvh::new(scene);
+    let (materials, textures) = crate::load::cpu_materials(scene)?;
+    let (w, h) = (view.width, view.height);
+    Ok((0..w * h)
+        .map(|i| {
+            let dir = view.primary_ray(i % w, i / w);
+            let (t, triangle) = bvh.closest_hit(view.eye, dir, 0.0, f32::INFINITY)?;
+            let p = view.eye + dir * t;
+            let [a, b, c] = scene.triangle(triangle as usize);
+            let n = cpu::facing_normal(scene, triangle, view.eye - p);
+            let material = &materials[scene.triangle_materials[triangle as usize] as usize];
+            let n = cpu::shading_normal(scene, material, &textures, triangle, p, n);
+            let bary = cpu::barycentric(p, a, b, c);
+            let uv = file.triangle_uvs[triangle as usize];
+            let atlas =
+                Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2];
+            let m = &scene.materials[scene.triangle_materials[triangle as usize] as usize];
+            Some((
+                Receiver {
+                    position: p,
+                    normal: n,
+                    view: -dir,
+                    albedo: Vec3::from(m.kd),
+                    atlas,
+                },
+                triangle,
+            ))
+        })
+        .collect())
+}
+
 /// What [`gather_planes`] gathers at a receiver: the planes `final_gather.wgsl` writes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Gathered {
@@ -74,20 +118,48 @@ pub fn gather_planes(
     r: &Receiver,
     material: &GpuMaterial,
 ) -> Gathered {
+    let mut none = cssm_formats::visibility::QueryWork::default();
+    gather_planes_counted(
+        scene, radiance, threshold, exposure, jitter, r, material, &mut none,
+    )
+}
+
+/// [`gather_planes`], telling `tally` of every node the walk visits, every one it queries, and
+/// every load of the CSSM query (issue 48's counters; `crate::work::passes`).
+#[allow(clippy::too_many_arguments)]
+pub fn gather_planes_counted(
+    scene: &TwinScene,
+    radiance: &[Vec3],
+    threshold: f32,
+    exposure: f32,
+    jitter: Option<(u32, u32)>,
+    r: &Receiver,
+    material: &GpuMaterial,
+    tally: &mut impl crate::work::GatherTally,
+) -> Gathered {
     let (texels, nodes) = (&scene.texels, &scene.hierarchy.nodes);
     let leaf_texels = &scene.hierarchy.leaf_texels;
     let (ks, ns) = (Vec3::from(material.ks), material.ns);
     let (p, n, v) = (r.position, r.normal, r.view);
-    // The receiver's own texels, found once for all its senders (as the kernel does), and the
-    // object they lie on (a point without texels: the static part, answered unshadowed).
-    let senders = scene.visibility.cssm().sender_texels_at(r.atlas);
+    // The receiver's own texels, found once for all its senders (as the kernel does: its four
+    // sender-filter slots, `CssmSenders`), and the object they lie on (the first slot's; a
+    // point without texels: the static part, answered unshadowed).
+    let senders: Vec<(u32, f32)> = scene
+        .visibility
+        .cssm()
+        .sender_slots_at(r.atlas, Default::default(), tally)
+        .map(Vec::from)
+        .unwrap_or_default();
     let object = senders
         .first()
         .filter(|s| s.1 > 0.0)
         .map_or(0, |s| texels[s.0 as usize].object);
     let mut gathered = Gathered::default();
     let mut s = 0usize;
+    let mut iteration = 0;
     while s < nodes.len() {
+        tally.node(iteration, s as u32);
+        iteration += 1;
         let node = &nodes[s];
         let l = radiance[s];
         if node.count > 1 {
@@ -135,9 +207,10 @@ pub fn gather_planes(
                 };
                 // The pixel's texels and the sender's (both ends, when the options ask), each
                 // object's own and the other moving objects' CSMs (§3.3).
+                tally.query();
                 let visibility = scene
                     .visibility
-                    .between(
+                    .between_counted(
                         &ObjectPoint {
                             senders: &senders,
                             position: p,
@@ -150,6 +223,7 @@ pub fn gather_planes(
                             normal: y.nrm(),
                             object: y.object,
                         },
+                        tally,
                     )
                     .unwrap_or(1.0);
                 gathered.irradiance += e * visibility;

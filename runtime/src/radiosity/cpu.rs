@@ -52,9 +52,20 @@ impl<'a> TwinVisibility<'_, 'a> {
     /// Clear fraction between `a` (its texels, position, normal, object) and `b`, both where
     /// the objects stand now; `None` where neither end has texels.
     pub fn between(&self, a: &ObjectPoint, b: &ObjectPoint) -> Option<f32> {
+        self.between_counted(a, b, &mut cssm_formats::visibility::QueryWork::default())
+    }
+
+    /// [`Self::between`], telling `tally` of the CSSM query's loads (issue 48's counters). The
+    /// moving objects' query is not counted: with objects posed, `tally` hears nothing.
+    pub fn between_counted(
+        &self,
+        a: &ObjectPoint,
+        b: &ObjectPoint,
+        tally: &mut impl cssm_formats::visibility::QueryTally,
+    ) -> Option<f32> {
         match self {
-            TwinVisibility::Baked(q) => q.visibility_between(
-                a.senders, a.position, a.normal, b.senders, b.position, b.normal,
+            TwinVisibility::Baked(q) => q.visibility_between_counted(
+                a.senders, a.position, a.normal, b.senders, b.position, b.normal, tally,
             ),
             TwinVisibility::Moving(q) => q.visibility_between(a, b),
         }

@@ -1,0 +1,263 @@
+//! What a pass does, counted by its CPU twin (issue 48 item 0; `cssm render --stats`): the
+//! final gather's walk over the hierarchy for a sample of its pixels' 8x8 tiles, every node
+//! visited and queried, every load of the CSSM query, the tiles' warps replayed
+//! ([`super::warp`]) and the cost model's milliseconds for the whole launch ([`super::cost`]).
+
+use cssm_formats::{
+    CssmFile, Scene,
+    visibility::{Buffer, Load, QueryTally, QueryWork, Site, VisibilityQuery},
+};
+use glam::Vec3;
+
+use super::{
+    GatherTally,
+    cost::{CostModel, Launch},
+    warp::{LaneTrace, WARP_LANES, WarpStats, replay_warp},
+};
+use crate::{
+    RuntimeError,
+    common::camera::View,
+    gpu_types::GpuMaterial,
+    lightcuts::cpu::{Receiver, gather_planes_counted, receivers},
+    radiosity::cpu::TwinScene,
+};
+
+/// Mean, 95th percentile and largest of a count over receivers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Spread {
+    /// Mean.
+    pub mean: f64,
+    /// 95th percentile.
+    pub p95: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Spread {
+    fn of(mut values: Vec<u32>) -> Self {
+        if values.is_empty() {
+            return Self::default();
+        }
+        values.sort_unstable();
+        let n = values.len();
+        Self {
+            mean: values.iter().map(|&v| f64::from(v)).sum::<f64>() / n as f64,
+            p95: f64::from(values[(n * 95 / 100).min(n - 1)]),
+            max: f64::from(values[n - 1]),
+        }
+    }
+}
+
+/// One pass's work, counted on a sample of its receivers.
+#[derive(Clone, Debug, Default)]
+pub struct PassStats {
+    /// The pass.
+    pub pass: &'static str,
+    /// Threads the pass launches (one a receiver).
+    pub threads: u64,
+    /// Threads the cost model's device holds resident.
+    pub resident_threads: u64,
+    /// Receivers counted (those of the sampled tiles that see a surface).
+    pub sampled: usize,
+    /// Nodes visited per receiver.
+    pub visited: Spread,
+    /// Nodes queried per receiver (the cut's nodes with light and transfer).
+    pub queried: Spread,
+    /// The CSSM query's work over the sample.
+    pub work: QueryWork,
+    /// The sampled tiles' warps replayed (the walk's node loads and the query's).
+    pub warps: WarpStats,
+    /// The cost model's milliseconds for the whole launch (memory alone: a floor).
+    pub predicted_ms: f64,
+    /// The device the prediction is for.
+    pub model: &'static str,
+}
+
+impl PassStats {
+    /// CSSM taps per query.
+    pub fn taps_per_query(&self) -> f64 {
+        self.work.taps as f64 / (self.queried.mean * self.sampled as f64).max(1.0)
+    }
+
+    /// Taps per receiver.
+    pub fn taps_per_receiver(&self) -> f64 {
+        self.work.taps as f64 / self.sampled.max(1) as f64
+    }
+
+    /// Search steps per tap.
+    pub fn steps_per_tap(&self) -> f64 {
+        self.work.search_steps as f64 / self.work.taps.max(1) as f64
+    }
+
+    /// Bytes the query reads per receiver.
+    pub fn query_bytes_per_receiver(&self) -> f64 {
+        self.work.bytes() as f64 / self.sampled.max(1) as f64
+    }
+}
+
+impl std::fmt::Display for PassStats {
+    /// The stats as `cssm render --stats` prints them, a line each.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let spread = |s: Spread| format!("mean {:.1}, p95 {:.0}, max {:.0}", s.mean, s.p95, s.max);
+        writeln!(
+            f,
+            "  receivers counted {}; threads {} against the model device's {} resident",
+            self.sampled, self.threads, self.resident_threads
+        )?;
+        writeln!(f, "  nodes visited per receiver: {}", spread(self.visited))?;
+        writeln!(f, "  nodes queried per receiver: {}", spread(self.queried))?;
+        writeln!(
+            f,
+            "  CSSM taps per query {:.2}, per receiver {:.0}; search steps per tap {:.2}; \
+             query bytes per receiver {:.0}",
+            self.taps_per_query(),
+            self.taps_per_receiver(),
+            self.steps_per_tap(),
+            self.query_bytes_per_receiver()
+        )?;
+        writeln!(
+            f,
+            "  warp replay: lane efficiency {:.2}, {:.2} sectors per warp load",
+            self.warps.lane_efficiency(),
+            self.warps.sectors_per_load()
+        )?;
+        write!(
+            f,
+            "  predicted GPU ms (memory alone, a floor): {:.2} on {}",
+            self.predicted_ms, self.model
+        )
+    }
+}
+
+/// One lane of the replay: the query's counters and loads, the walk's nodes.
+#[derive(Default)]
+struct GatherLane {
+    work: QueryWork,
+    trace: LaneTrace,
+    visited: u32,
+    queried: u32,
+}
+
+impl QueryTally for GatherLane {
+    fn load(&mut self, site: Site, load: Load) {
+        self.work.load(site, load);
+        self.trace.load(site, load);
+    }
+}
+
+impl GatherTally for GatherLane {
+    fn node(&mut self, iteration: u32, node: u32) {
+        self.visited += 1;
+        self.trace.iteration(iteration);
+        // The walk reads the node (96 bytes) and its radiance (16) at every visit.
+        let own = |kind| {
+            (
+                iteration,
+                Site {
+                    finding: 3,
+                    ..Site::default()
+                },
+                kind,
+            )
+        };
+        let node = u64::from(node);
+        self.trace.push(own(20), Buffer::Kernel(1), 96 * node, 96);
+        self.trace.push(own(21), Buffer::Kernel(2), 16 * node, 16);
+    }
+
+    fn query(&mut self) {
+        self.queried += 1;
+    }
+}
+
+/// The final gather's stats (`lightcuts/final_gather.wgsl`) at `width` x `height`, gathering at
+/// one pixel in `downsample`² (the representative taken as each block's top-left pixel), from
+/// node radiance `radiance` with the oracle's `threshold` and `exposure`: every `step`-th tile
+/// of the gather's 8x8 tiles counted so that about `tiles` are.
+///
+/// # Errors
+/// A texture of the scene that does not load.
+#[allow(clippy::too_many_arguments)]
+pub fn final_gather_stats(
+    scene: &Scene,
+    file: &CssmFile,
+    view: &View,
+    radiance: &[Vec3],
+    downsample: u32,
+    threshold: f32,
+    exposure: f32,
+    tiles: u32,
+) -> Result<PassStats, RuntimeError> {
+    let query = VisibilityQuery::new(file, Default::default());
+    let twin = TwinScene::baked(&query);
+    let seen = receivers(scene, file, view)?;
+    let ds = downsample.max(1);
+    let (lw, lh) = (view.width.div_ceil(ds), view.height.div_ceil(ds));
+    let (tiles_x, tiles_y) = (lw.div_ceil(8), lh.div_ceil(8));
+    let step = ((tiles_x * tiles_y) / tiles.max(1)).max(1);
+    let material = |triangle: u32| {
+        let m = &scene.materials[scene.triangle_materials[triangle as usize] as usize];
+        GpuMaterial {
+            kd: m.kd,
+            ns: m.ns,
+            ks: m.ks,
+            ..Default::default()
+        }
+    };
+    let mut stats = PassStats {
+        pass: "final gather",
+        threads: u64::from(lw) * u64::from(lh),
+        resident_threads: CostModel::H200.resident_threads as u64,
+        model: CostModel::H200.device,
+        ..Default::default()
+    };
+    let (mut visited, mut queried) = (Vec::new(), Vec::new());
+    for tile in (0..tiles_x * tiles_y).step_by(step as usize) {
+        let (tx, ty) = (tile % tiles_x, tile / tiles_x);
+        for half in 0..2 {
+            let mut lanes = Vec::with_capacity(WARP_LANES);
+            for y in ty * 8 + 4 * half..(ty * 8 + 4 * half + 4).min(lh) {
+                for x in tx * 8..(tx * 8 + 8).min(lw) {
+                    let (px, py) = ((x * ds).min(view.width - 1), (y * ds).min(view.height - 1));
+                    let mut lane = GatherLane::default();
+                    if let Some((r, triangle)) = &seen[(py * view.width + px) as usize] {
+                        let r: &Receiver = r;
+                        gather_planes_counted(
+                            &twin,
+                            radiance,
+                            threshold,
+                            exposure,
+                            None,
+                            r,
+                            &material(*triangle),
+                            &mut lane,
+                        );
+                        visited.push(lane.visited);
+                        queried.push(lane.queried);
+                        stats.work += lane.work;
+                        stats.sampled += 1;
+                    }
+                    lanes.push(lane.trace);
+                }
+            }
+            if !lanes.is_empty() {
+                stats.warps += replay_warp(&lanes);
+            }
+        }
+    }
+    stats.visited = Spread::of(visited);
+    stats.queried = Spread::of(queried);
+    let r = u64::from(file.params.atlas_resolution);
+    let data = file.runs.gpu_bytes()
+        + 64 * file.texels.len() as u64
+        + 4 * r * r
+        + 112 * file.hierarchy.nodes.len() as u64;
+    stats.predicted_ms = CostModel::H200.predict_ms(&Launch {
+        stats: stats
+            .warps
+            .scaled(stats.threads.div_ceil(WARP_LANES as u64)),
+        threads: stats.threads,
+        data_bytes: data,
+    });
+    Ok(stats)
+}
