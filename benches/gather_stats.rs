@@ -8,41 +8,22 @@
 //!     [--size 640x480] [--downsample 1] [--bounces 1] [--threshold 0.02] [--tiles 16]
 //! ```
 
-use std::path::PathBuf;
-
-use cssm::{bake, formats, runtime};
+use cssm::runtime;
 use runtime::{common::camera::View, radiosity, work::passes::final_gather_stats};
 
 #[path = "common/mod.rs"]
 mod common;
 
-use common::{arg, parsed};
+use common::{baked_scene, parsed, size_arg};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let atlas = parsed(&args, "--atlas", 128u32);
-    let cube = parsed(&args, "--cube", 32u32);
     let downsample = parsed(&args, "--downsample", 1u32);
     let bounces = parsed(&args, "--bounces", 1u32);
     let threshold = parsed(&args, "--threshold", radiosity::DEFAULT_THRESHOLD);
     let tiles = parsed(&args, "--tiles", 16u32);
-    let size = arg(&args, "--size").unwrap_or_else(|| "640x480".into());
-    let (width, height) = size
-        .split_once('x')
-        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
-        .unwrap_or_else(|| panic!("--size takes WIDTHxHEIGHT, not {size}"));
-    let dir = arg(&args, "--scene")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
-    let scene = formats::Scene::load(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
-    let options = bake::BakeOptions {
-        atlas_resolution: atlas,
-        cube_resolution: cube,
-        ..Default::default()
-    };
-    let file = bake::bake(&scene, &options, &mut |_| {})
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .file;
+    let (width, height) = size_arg(&args, "--size", (640, 480));
+    let (dir, scene, file) = baked_scene(&args);
     let gpu = runtime::Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
     // The renderer's exposure at 0 stops, and its default shadow maps.
     let exposure = 1.0;
@@ -71,7 +52,9 @@ fn main() {
     .unwrap_or_else(|e| panic!("{e}"));
     println!(
         "{}: final gather at {width}x{height}, downsample {downsample}, {bounces} bounce(s), \
-         threshold {threshold}, atlas {atlas}, cube {cube}:\n{stats}",
-        dir.display()
+         threshold {threshold}, atlas {}, cube {}:\n{stats}",
+        dir.display(),
+        file.params.atlas_resolution,
+        file.params.cube_resolution
     );
 }

@@ -168,11 +168,7 @@ fn main() {
     let asked_receivers = arg(&args, "--receivers", 1usize << 16);
     let senders = arg(&args, "--senders", 256u32);
     let reps = arg(&args, "--reps", 5u32);
-    let tile_size: String = arg(&args, "--tile-size", "640x480".to_string());
-    let (tile_width, tile_height) = tile_size
-        .split_once('x')
-        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
-        .unwrap_or_else(|| panic!("--tile-size takes WIDTHxHEIGHT, not {tile_size}"));
+    let (tile_width, tile_height) = common::size_arg(&args, "--tile-size", (640, 480));
     let tile_senders = arg(&args, "--tile-senders", 32u32);
     let only: Option<String> = args
         .iter()

@@ -14,9 +14,7 @@
 //! random pairs (the `cssm check` sampler, one thread each, 4,194,304 on the H200) and the
 //! G-buffer's tiles asking spread senders (`cssm tiles` of `gpu_queries`, two-ended).
 
-use std::path::PathBuf;
-
-use cssm::{bake, formats, runtime};
+use cssm::runtime;
 use runtime::{
     common::camera::View,
     visibility::tiles::{TILE_PIXELS, TileSenders, tile_pixels},
@@ -27,33 +25,17 @@ use runtime::{
 mod common;
 
 use common::{
-    arg, parsed,
+    baked_scene, parsed,
     query_work::{self, Kernel, QuadRuns},
+    size_arg,
 };
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let atlas = parsed(&args, "--atlas", 128u32);
-    let cube = parsed(&args, "--cube", 32u32);
     let pairs = parsed(&args, "--pairs", 1usize << 16);
     let tile_senders = parsed(&args, "--tile-senders", 32u32);
-    let tile_size = arg(&args, "--tile-size").unwrap_or_else(|| "640x480".into());
-    let (width, height) = tile_size
-        .split_once('x')
-        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
-        .unwrap_or_else(|| panic!("--tile-size takes WIDTHxHEIGHT, not {tile_size}"));
-    let dir = arg(&args, "--scene")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
-    let scene = formats::Scene::load(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
-    let options = bake::BakeOptions {
-        atlas_resolution: atlas,
-        cube_resolution: cube,
-        ..Default::default()
-    };
-    let file = bake::bake(&scene, &options, &mut |_| {})
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .file;
+    let (width, height) = size_arg(&args, "--tile-size", (640, 480));
+    let (dir, scene, file) = baked_scene(&args);
     let n = file.params.cube_resolution;
     let texels = file.texels.len() as u32;
     let quads = QuadRuns::new(&file.runs, n);

@@ -27,6 +27,40 @@ pub fn arg(args: &[String], name: &str) -> Option<String> {
         .cloned()
 }
 
+/// The size `WIDTHxHEIGHT` after the flag `name`, or `default`.
+///
+/// # Panics
+/// A value that is not `WIDTHxHEIGHT`.
+pub fn size_arg(args: &[String], name: &str, default: (u32, u32)) -> (u32, u32) {
+    let Some(size) = arg(args, name) else {
+        return default;
+    };
+    size.split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+        .unwrap_or_else(|| panic!("{name} takes WIDTHxHEIGHT, not {size}"))
+}
+
+/// The scene of `--scene DIR` (default the built-in Cornell box) baked at `--atlas` (128) and
+/// `--cube` (32): its folder, the scene and the file.
+///
+/// # Panics
+/// A scene that does not load or bake.
+pub fn baked_scene(args: &[String]) -> (PathBuf, Scene, cssm::formats::CssmFile) {
+    let dir = arg(args, "--scene")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| cssm::builtin::cornell_box().expect("built-in scene"));
+    let scene = Scene::load(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+    let options = cssm::bake::BakeOptions {
+        atlas_resolution: parsed(args, "--atlas", 128),
+        cube_resolution: parsed(args, "--cube", 32),
+        ..Default::default()
+    };
+    let file = cssm::bake::bake(&scene, &options, &mut |_| {})
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .file;
+    (dir, scene, file)
+}
+
 /// Best GPU milliseconds of `reps` runs of `work`, which records one timed pass (the query
 /// benchmarks); `None` when the adapter timed nothing.
 pub fn best_ms(
