@@ -11,7 +11,7 @@
 //! `--spirv DIR` also writes each library's module to `DIR/LABEL.spv` (`spirv-dis` reads it).
 //!
 //! `--steps` is the search's step count the library is composed with (a file's
-//! `CssmGpu::search_steps`: the bit length of its longest run list; 7 for the Cornell box at
+//! `CssmGpu::search_steps`: the bit length of its longest run list; 8 for the Cornell box at
 //! atlas 128, cube 32). `--baseline` counts an earlier version of `visibility/cssm.wgsl` beside
 //! the current one (`git show 82dc5c9:runtime/src/visibility/cssm.wgsl > old.wgsl`: the query
 //! before the lean rewrite, whose tap is `cssm_pixel_test`).
@@ -124,7 +124,7 @@ fn spirv(library: &str, steps: u32, search_loop: bool) -> Vec<u32> {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let steps = common::parsed(&args, "--steps", 7u32);
+    let steps = common::parsed(&args, "--steps", 8u32);
     let baseline: Option<String> = args
         .iter()
         .position(|a| a == "--baseline")
