@@ -32,7 +32,7 @@ fn gpu_moving_query_matches_cpu_reference() {
     let file = cssm_bake::bake(&scene, &options, &mut |_| {}).unwrap().file;
     let query_options = QueryOptions::default();
     let mut query = MovingQuery::new(&file, &scene, query_options).unwrap();
-    let cssm = CssmGpu::new(&gpu.device, &gpu.queue, &file, query_options).expect("upload");
+    let mut cssm = CssmGpu::new(&gpu.device, &gpu.queue, &file, query_options).expect("upload");
     let scene_gpu =
         cssm_runtime::load::SceneGpu::new(&gpu.device, &gpu.queue, &scene, Some(&file)).unwrap();
     let moving = MovingGpu::new(&gpu.device, &file, &scene, &scene_gpu.motion)
@@ -40,6 +40,10 @@ fn gpu_moving_query_matches_cpu_reference() {
     let t0 = std::time::Instant::now();
     let kernel = MovingQueryKernel::new(gpu, &cssm, &moving);
     eprintln!("kernel built in {:.1} s", t0.elapsed().as_secs_f32());
+    // The searches as loops, as every driver but llvmpipe runs them (CSSM_SEARCH_LOOP).
+    cssm.search_loop = true;
+    let looped = MovingQueryKernel::new(gpu, &cssm, &moving);
+    cssm.search_loop = false;
 
     // The block where it was baked, then lifted, turned and carried across the room.
     let block = scene
@@ -87,6 +91,13 @@ fn gpu_moving_query_matches_cpu_reference() {
         let answers = kernel
             .run(gpu, &cssm, &moving, &pairs, None)
             .expect("GPU queries");
+        let looped_answers = looped
+            .run(gpu, &cssm, &moving, &pairs, None)
+            .expect("GPU queries, looped");
+        assert!(
+            looped_answers == answers,
+            "pose {p}: the looped searches answer otherwise"
+        );
         let (mut differ, mut worst, mut across, mut shadowed_by_csm) = (0, 0.0f32, 0, 0);
         for (pair, &gpu_answer) in pairs.iter().zip(&answers) {
             let cssm_query = query.cssm();

@@ -58,48 +58,61 @@ fn moving_affine(r0: vec4f, r1: vec4f, r2: vec4f, p: vec3f) -> vec3f {
     return vec3f(dot(r0, h), dot(r1, h), dot(r2, h));
 }
 
-// One step of csm_lookup's binary search over runs [first, first + count).
-fn csm_search_step(first: ptr<function, u32>, count: ptr<function, u32>, local: u32) {
+// One step of csm_lookup's binary search over runs [first, first + count), keeping the last
+// run found at or before `local` (cssm_search_step's, over the CSMs' bindings).
+fn csm_search_step(first: ptr<function, u32>, count: ptr<function, u32>, found: ptr<function, u32>, local: u32) {
     if *count > 0u {
-        let step = *count / 2u;
-        let i = *first + step;
-        if (csm_runs[i] >> 16u) <= local {
+        let half = *count >> 1u;
+        let i = *first + half;
+        let run = csm_runs[i];
+        if (run >> 16u) <= local {
             *first = i + 1u;
-            *count -= step + 1u;
+            *count -= half + 1u;
+            *found = run;
         } else {
-            *count = step;
+            *count = half;
         }
     }
 }
 
-// RunData::lookup over one CSM's single segment. Unrolled as `cssm_lookup` is, and so is every
-// loop of this file: llvmpipe ends all loops of an invocation once they have run 65,535
-// iterations together, which a gather's sender loop would reach. The CSSM's own copy reads other
-// bindings (WGSL cannot pass storage arrays to functions).
+// RunData::lookup over one CSM's single segment, as cssm_lookup_slot searches: the run found
+// kept, no reload after the search (a validated CSM starts every pixel's runs at map 0). A loop
+// that ends with its range where the driver allows (CSSM_SEARCH_LOOP); unrolled to 17 steps on
+// llvmpipe, which ends all loops of an invocation once they have run 65,535 iterations together,
+// which a gather's sender loop would reach. The CSSM's own copy reads other bindings (WGSL cannot
+// pass storage arrays to functions).
 fn csm_lookup(c: Csm, map: u32, pixel: u32) -> u32 {
     let slot = c.offsets_base + pixel;
-    let lo = c.runs_base + csm_offsets[slot];
-    let hi = c.runs_base + csm_offsets[slot + 1u];
-    var first = lo;
-    var count = hi - lo;
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    csm_search_step(&first, &count, map);
-    return csm_runs[max(first, lo + 1u) - 1u] & 0xffffu;
+    var first = c.runs_base + csm_offsets[slot];
+    var count = c.runs_base + csm_offsets[slot + 1u] - first;
+    var found = 0xffffu;
+#if CSSM_SEARCH_LOOP > 0
+    for (var s = 0u; s < 17u; s++) {
+        if count == 0u {
+            break;
+        }
+        csm_search_step(&first, &count, &found, map);
+    }
+#else
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+    csm_search_step(&first, &count, &found, map);
+#endif
+    return found & 0xffffu;
 }
 
 // csm::octahedral_direction.
