@@ -1133,10 +1133,11 @@ pub struct RenderArgs {
     /// the view-independent passes, and the last (one more frame is rendered to time it warm).
     #[arg(long)]
     timings: bool,
-    /// Print what the passes do, counted by their CPU twins (`lightcuts`' final gather: nodes
-    /// visited and queried per pixel, CSSM taps, search steps and bytes, the threads against
-    /// the device's, its tiles' warps replayed: lane efficiency and 32-byte sectors per load)
-    /// and the GPU milliseconds a cost model of the NVIDIA H200 predicts from them.
+    /// Print what the passes do, counted by their CPU twins on a sample of their receivers (the
+    /// radiosity gather of hrc, lightmap and lightcuts, lightcuts' final gather): nodes visited
+    /// and queried per receiver, CSSM taps, search steps and bytes, the threads against the
+    /// device's, their warps replayed (lane efficiency, 32-byte sectors per load), and the GPU
+    /// milliseconds a cost model of the NVIDIA H200 predicts from them (reports/runtime.md).
     #[arg(long)]
     stats: bool,
     /// The scene's baked CSSM (`cssm bake`), for the methods that need one. Default: bake one

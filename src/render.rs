@@ -171,8 +171,12 @@ fn print_stats(
     settings: &RendererSettings,
 ) -> Result<(), String> {
     let method = config.method.name;
-    let Some(file) = file.filter(|_| method == "lightcuts") else {
-        println!("--stats: no pass of {method} is counted yet (lightcuts' final gather is)");
+    let gathers = matches!(method, "hrc" | "lightmap" | "lightcuts");
+    let Some(file) = file.filter(|_| gathers) else {
+        println!(
+            "--stats: no pass of {method} is counted yet (the radiosity gather of hrc, lightmap \
+             and lightcuts and the final gather of lightcuts are)"
+        );
         return Ok(());
     };
     if config.camera.is_some() || config.light.is_some() || config.time.is_some() {
@@ -182,46 +186,81 @@ fn print_stats(
                 .into(),
         );
     }
-    let options = runtime::lightcuts::LightcutsOptions::from_resolved(&config.resolved);
+    let bounces = config.resolved.count("bounces");
+    let threshold = config.resolved.number("threshold");
     let exposure = settings.frame.exposure;
-    // The node radiance the gather reads: the radiosity's bounces before it, on the GPU.
-    let atlas = runtime::radiosity::atlas_radiosity(
-        &gpu.device,
-        &gpu.queue,
-        scene,
-        file,
-        config.shadow_resolution,
-        options.bounces.saturating_sub(1),
-        runtime::radiosity::RadiosityOptions {
-            threshold: options.threshold,
+    // Node radiance after `iterations` radiosity bounces, on the GPU.
+    let radiance = |iterations: u32| -> Result<Vec<glam::Vec3>, String> {
+        let atlas = runtime::radiosity::atlas_radiosity(
+            &gpu.device,
+            &gpu.queue,
+            scene,
+            file,
+            config.shadow_resolution,
+            iterations,
+            runtime::radiosity::RadiosityOptions {
+                threshold,
+                exposure,
+            },
+        )
+        .map_err(|e| e.to_string())?;
+        Ok(atlas
+            .node_radiance
+            .iter()
+            .map(|r| glam::Vec3::new(r[0], r[1], r[2]))
+            .collect())
+    };
+    // The radiosity's bounces (lightcuts': all but the last, which its final gather does).
+    let radiosity_bounces = if method == "lightcuts" {
+        bounces.saturating_sub(1)
+    } else {
+        bounces
+    };
+    if radiosity_bounces > 0 {
+        let (materials, _) = runtime::load::cpu_materials(scene).map_err(|e| e.to_string())?;
+        let albedo: Vec<glam::Vec3> = runtime::radiosity::texel_albedo(&materials, file)
+            .iter()
+            .map(|a| glam::Vec3::new(a[0], a[1], a[2]))
+            .collect();
+        let stats = runtime::work::passes::radiosity_gather_stats(
+            file,
+            &radiance(0)?,
+            &albedo,
+            threshold,
             exposure,
-        },
-    )
-    .map_err(|e| e.to_string())?;
-    let radiance: Vec<glam::Vec3> = atlas
-        .node_radiance
-        .iter()
-        .map(|r| glam::Vec3::new(r[0], r[1], r[2]))
-        .collect();
-    let (width, height) = (settings.frame.width, settings.frame.height);
-    let view = runtime::common::camera::View::of_scene(scene, width, height);
-    let stats = runtime::work::passes::final_gather_stats(
-        scene,
-        file,
-        &view,
-        &radiance,
-        options.downsample,
-        options.threshold,
-        exposure,
-        STATS_TILES,
-    )
-    .map_err(|e| e.to_string())?;
-    println!(
-        "{} of {method} at {width}x{height} (downsample {}), counted by its CPU twin:\n{stats}",
-        stats.pass, options.downsample
-    );
+            STATS_WARPS,
+        );
+        println!(
+            "{} of {method}, its first of {radiosity_bounces} bounce(s), counted by its CPU \
+             twin:\n{stats}",
+            stats.pass
+        );
+    }
+    if method == "lightcuts" {
+        let options = runtime::lightcuts::LightcutsOptions::from_resolved(&config.resolved);
+        let (width, height) = (settings.frame.width, settings.frame.height);
+        let view = runtime::common::camera::View::of_scene(scene, width, height);
+        let stats = runtime::work::passes::final_gather_stats(
+            scene,
+            file,
+            &view,
+            &radiance(radiosity_bounces)?,
+            options.downsample,
+            threshold,
+            exposure,
+            STATS_TILES,
+        )
+        .map_err(|e| e.to_string())?;
+        println!(
+            "{} of {method} at {width}x{height} (downsample {}), counted by its CPU twin:\n{stats}",
+            stats.pass, options.downsample
+        );
+    }
     Ok(())
 }
+
+/// Warps of the radiosity gather `--stats` counts.
+const STATS_WARPS: u32 = 32;
 
 /// Tiles of the final gather `--stats` counts.
 const STATS_TILES: u32 = 16;

@@ -690,8 +690,8 @@ fn render_writes_png_and_exr_of_the_requested_size() {
     assert_eq!(radiance.dimensions(), (96, 64));
 }
 
-/// `--stats` counts the final gather with its CPU twin and prints its work and the cost
-/// model's prediction; a method without a counted pass says so.
+/// `--stats` counts the final gather and the radiosity gather with their CPU twins and prints
+/// their work and the cost model's prediction; a method without a counted pass says so.
 #[test]
 fn render_stats_count_the_final_gather() {
     let tmp = tempfile::tempdir().unwrap();
@@ -728,6 +728,26 @@ fn render_stats_count_the_final_gather() {
         .and_then(|mean| mean.trim().parse().ok())
         .expect("a mean");
     assert!(visited > 1.0, "{stdout}");
+    let o = cssm(&[
+        "render",
+        cornell().to_str().unwrap(),
+        "--method",
+        "lightmap",
+        "--size",
+        "32x24",
+        "--shadow-resolution",
+        "256",
+        "--stats",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("radiosity gather of lightmap, its first of 1 bounce(s)")
+            && stdout.contains("threads 2715"),
+        "{stdout}"
+    );
     let o = cssm(&[
         "render",
         cornell().to_str().unwrap(),

@@ -150,11 +150,34 @@ pub fn gather_texel(
     n: Vec3,
     rho: f32,
 ) -> (Vec3, u32) {
+    let mut none = cssm_formats::visibility::QueryWork::default();
+    gather_texel_counted(
+        scene, nodes, radiance, traversal, receiver, p, n, rho, &mut none,
+    )
+}
+
+/// [`gather_texel`], telling `tally` of every node the walk visits, every one it queries, and
+/// every load of the CSSM query (issue 48's counters; `crate::work::passes`).
+#[allow(clippy::too_many_arguments)]
+pub fn gather_texel_counted(
+    scene: &TwinScene,
+    nodes: &[GpuNode],
+    radiance: &[Vec3],
+    traversal: &Traversal,
+    receiver: u32,
+    p: Vec3,
+    n: Vec3,
+    rho: f32,
+    tally: &mut impl crate::work::GatherTally,
+) -> (Vec3, u32) {
     let texels = &scene.texels;
     let mut e = Vec3::ZERO;
     let mut cut = 0;
     let mut s = 0usize;
+    let mut iteration = 0;
     while s < nodes.len() {
+        tally.node(iteration, s as u32);
+        iteration += 1;
         let node = &nodes[s];
         let l = radiance[s];
         if node.count > 1
@@ -184,9 +207,10 @@ pub fn gather_texel(
                 let y = &texels[sender as usize];
                 // Both ends' cube maps when the options ask (QueryOptions::both_ends), each
                 // object's own and the other moving objects' CSMs (§3.3).
+                tally.query();
                 let visibility = scene
                     .visibility
-                    .between(
+                    .between_counted(
                         &ObjectPoint {
                             senders: &[(receiver, 1.0)],
                             position: p,
@@ -199,6 +223,7 @@ pub fn gather_texel(
                             normal: y.nrm(),
                             object: y.object,
                         },
+                        tally,
                     )
                     .unwrap_or(1.0);
                 e += unoccluded * visibility;

@@ -170,10 +170,63 @@ impl GatherTally for GatherLane {
     }
 }
 
+/// The stats of a pass over `warps` (each a warp's lanes; `None` an idle lane), `walk` telling
+/// one receiver's work to its lane: the counts summed, the warps replayed, and the launch of
+/// `threads` threads over `file` priced by the cost model.
+fn count_warps<R>(
+    pass: &'static str,
+    file: &CssmFile,
+    threads: u64,
+    warps: impl Iterator<Item = Vec<Option<R>>>,
+    mut walk: impl FnMut(&R, &mut GatherLane),
+) -> PassStats {
+    let mut stats = PassStats {
+        pass,
+        threads,
+        resident_threads: CostModel::H200.resident_threads as u64,
+        model: CostModel::H200.device,
+        ..Default::default()
+    };
+    let (mut visited, mut queried) = (Vec::new(), Vec::new());
+    for warp in warps {
+        let lanes: Vec<LaneTrace> = warp
+            .iter()
+            .map(|receiver| {
+                let mut lane = GatherLane::default();
+                if let Some(r) = receiver {
+                    walk(r, &mut lane);
+                    visited.push(lane.visited);
+                    queried.push(lane.queried);
+                    stats.work += lane.work;
+                    stats.sampled += 1;
+                }
+                lane.trace
+            })
+            .collect();
+        if !lanes.is_empty() {
+            stats.warps += replay_warp(&lanes);
+        }
+    }
+    stats.visited = Spread::of(visited);
+    stats.queried = Spread::of(queried);
+    let r = u64::from(file.params.atlas_resolution);
+    let data = file.runs.gpu_bytes()
+        + 64 * file.texels.len() as u64
+        + 4 * r * r
+        + 112 * file.hierarchy.nodes.len() as u64;
+    stats.predicted_ms = CostModel::H200.predict_ms(&Launch {
+        stats: stats.warps.scaled(threads.div_ceil(WARP_LANES as u64)),
+        threads,
+        data_bytes: data,
+    });
+    stats
+}
+
 /// The final gather's stats (`lightcuts/final_gather.wgsl`) at `width` x `height`, gathering at
 /// one pixel in `downsample`² (the representative taken as each block's top-left pixel), from
 /// node radiance `radiance` with the oracle's `threshold` and `exposure`: every `step`-th tile
-/// of the gather's 8x8 tiles counted so that about `tiles` are.
+/// of the gather's 8x8 tiles counted so that about `tiles` are, each tile's two warps (its top
+/// and bottom four rows).
 ///
 /// # Errors
 /// A texture of the scene that does not load.
@@ -204,60 +257,88 @@ pub fn final_gather_stats(
             ..Default::default()
         }
     };
-    let mut stats = PassStats {
-        pass: "final gather",
-        threads: u64::from(lw) * u64::from(lh),
-        resident_threads: CostModel::H200.resident_threads as u64,
-        model: CostModel::H200.device,
-        ..Default::default()
-    };
-    let (mut visited, mut queried) = (Vec::new(), Vec::new());
-    for tile in (0..tiles_x * tiles_y).step_by(step as usize) {
-        let (tx, ty) = (tile % tiles_x, tile / tiles_x);
-        for half in 0..2 {
+    let warps = (0..tiles_x * tiles_y)
+        .step_by(step as usize)
+        .flat_map(|tile| [(tile, 0), (tile, 1)])
+        .map(|(tile, half)| {
+            let (tx, ty) = (tile % tiles_x, tile / tiles_x);
             let mut lanes = Vec::with_capacity(WARP_LANES);
             for y in ty * 8 + 4 * half..(ty * 8 + 4 * half + 4).min(lh) {
                 for x in tx * 8..(tx * 8 + 8).min(lw) {
                     let (px, py) = ((x * ds).min(view.width - 1), (y * ds).min(view.height - 1));
-                    let mut lane = GatherLane::default();
-                    if let Some((r, triangle)) = &seen[(py * view.width + px) as usize] {
-                        let r: &Receiver = r;
-                        gather_planes_counted(
-                            &twin,
-                            radiance,
-                            threshold,
-                            exposure,
-                            None,
-                            r,
-                            &material(*triangle),
-                            &mut lane,
-                        );
-                        visited.push(lane.visited);
-                        queried.push(lane.queried);
-                        stats.work += lane.work;
-                        stats.sampled += 1;
-                    }
-                    lanes.push(lane.trace);
+                    lanes.push(seen[(py * view.width + px) as usize]);
                 }
             }
-            if !lanes.is_empty() {
-                stats.warps += replay_warp(&lanes);
-            }
-        }
-    }
-    stats.visited = Spread::of(visited);
-    stats.queried = Spread::of(queried);
-    let r = u64::from(file.params.atlas_resolution);
-    let data = file.runs.gpu_bytes()
-        + 64 * file.texels.len() as u64
-        + 4 * r * r
-        + 112 * file.hierarchy.nodes.len() as u64;
-    stats.predicted_ms = CostModel::H200.predict_ms(&Launch {
-        stats: stats
-            .warps
-            .scaled(stats.threads.div_ceil(WARP_LANES as u64)),
-        threads: stats.threads,
-        data_bytes: data,
-    });
-    Ok(stats)
+            lanes
+        });
+    Ok(count_warps(
+        "final gather",
+        file,
+        u64::from(lw) * u64::from(lh),
+        warps,
+        |&(r, triangle): &(Receiver, u32), lane| {
+            gather_planes_counted(
+                &twin,
+                radiance,
+                threshold,
+                exposure,
+                None,
+                &r,
+                &material(triangle),
+                lane,
+            );
+        },
+    ))
+}
+
+/// The radiosity gather's stats (`radiosity/gather.wgsl`, one thread a leaf texel in the
+/// hierarchy's leaf order) for one bounce from node radiance `radiance`, texels reflecting
+/// `albedo`, with the oracle's `threshold` and `exposure`: every `step`-th warp of 32
+/// consecutive leaves counted so that about `warps` are.
+pub fn radiosity_gather_stats(
+    file: &CssmFile,
+    radiance: &[Vec3],
+    albedo: &[Vec3],
+    threshold: f32,
+    exposure: f32,
+    warps: u32,
+) -> PassStats {
+    let query = VisibilityQuery::new(file, Default::default());
+    let twin = TwinScene::baked(&query);
+    let nodes = &twin.hierarchy.nodes;
+    let leaves: Vec<u32> = nodes
+        .iter()
+        .filter(|n| n.count == 1)
+        .map(|n| twin.hierarchy.leaf_texels[n.first as usize])
+        .collect();
+    let all = leaves.len().div_ceil(WARP_LANES);
+    let step = (all / warps.max(1) as usize).max(1);
+    let traversal = crate::radiosity::cpu::Traversal {
+        threshold,
+        exposure,
+    };
+    let sampled = leaves
+        .chunks(WARP_LANES)
+        .step_by(step)
+        .map(|warp| warp.iter().map(|&t| Some(t)).collect());
+    count_warps(
+        "radiosity gather",
+        file,
+        leaves.len() as u64,
+        sampled,
+        |&texel: &u32, lane| {
+            let t = &twin.texels[texel as usize];
+            crate::radiosity::cpu::gather_texel_counted(
+                &twin,
+                nodes,
+                radiance,
+                &traversal,
+                texel,
+                t.pos(),
+                t.nrm(),
+                albedo[texel as usize].max_element(),
+                lane,
+            );
+        },
+    )
 }
