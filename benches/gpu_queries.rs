@@ -8,11 +8,11 @@
 //! cargo bench --bench gpu_queries -- [--scenes DIR] [--atlas 128] [--cube 32]
 //!     [--pairs 4194304] [--receivers 65536] [--senders 256] [--reps 5] [--csv FILE]
 //!     [--only cornell-box,heads,church3700,sibenik] [--baked NAME=FILE.cssm] [--h200 FILE]
-//!     [--tile-size 640x480] [--tile-senders 32]
+//!     [--tile-sizes 640x480[,1280x720...]] [--tile-senders 32]
 //! ```
 //!
 //! `cssm tiles` is the access pattern of the final gather, one query a thread (issue 48 item 4):
-//! the scene's default view's G-buffer at `--tile-size` in 8x8 tiles, each tile a workgroup per
+//! the scene's default view's G-buffer at each of `--tile-sizes` in 8x8 tiles, each tile a workgroup per
 //! sender (`--tile-senders` texels spread over the scene), each thread the two-ended query
 //! between its pixel and the sender (`visibility/tiles.wgsl`).
 //!
@@ -168,7 +168,16 @@ fn main() {
     let asked_receivers = arg(&args, "--receivers", 1usize << 16);
     let senders = arg(&args, "--senders", 256u32);
     let reps = arg(&args, "--reps", 5u32);
-    let (tile_width, tile_height) = common::size_arg(&args, "--tile-size", (640, 480));
+    // The tile kernel's G-buffer sizes: several, to see its time against its launch's size.
+    let tile_sizes: Vec<(u32, u32)> = common::arg(&args, "--tile-sizes")
+        .unwrap_or_else(|| "640x480".into())
+        .split(',')
+        .map(|size| {
+            size.split_once('x')
+                .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+                .unwrap_or_else(|| panic!("--tile-sizes takes WIDTHxHEIGHT,..., not {size}"))
+        })
+        .collect();
     let tile_senders = arg(&args, "--tile-senders", 32u32);
     let only: Option<String> = args
         .iter()
@@ -330,15 +339,25 @@ fn main() {
             }
         }
         let mut measured: Vec<Row> = Vec::new();
-        // The G-buffer's tiles and the senders they ask; the CPU replays every tile_step-th
-        // tile (about 64 of them).
-        let view = View::of_scene(&scene, tile_width, tile_height);
-        let (tile_list, tiles_x) = tile_pixels(&scene, &view);
+        // The G-buffer's tiles at each size and the senders they ask; the CPU replays every
+        // step-th tile (about 64 of them). A size whose answers exceed one storage binding of
+        // the adapter is skipped.
         let tile_queries = TileSenders::spread(texels, tile_senders);
-        let tile_threads = (tile_list.len() * tile_senders as usize) as u64;
-        let seen = tile_list.iter().filter(|p| p.triangle != u32::MAX).count() as u64;
-        let tile_step = (tile_list.len() / TILE_PIXELS / 64).max(1);
-        let tiled = query_work::tiles(&file, &tile_list, tile_queries, tile_step, Kernel::Lean);
+        let tile_runs: Vec<_> = tile_sizes
+            .iter()
+            .filter_map(|&(w, h)| {
+                let (list, tiles_x) = tile_pixels(&scene, &View::of_scene(&scene, w, h));
+                let threads = (list.len() * tile_senders as usize) as u64;
+                if 4 * threads > binding {
+                    println!("(tiles {w}x{h}: {threads} answers exceed one storage binding)");
+                    return None;
+                }
+                let seen = list.iter().filter(|p| p.triangle != u32::MAX).count() as u64;
+                let step = (list.len() / TILE_PIXELS / 64).max(1);
+                let counted = query_work::tiles(&file, &list, tile_queries, step, Kernel::Lean);
+                Some((format!("{w}x{h}"), list, tiles_x, threads, seen, counted))
+            })
+            .collect();
         // Both forms of the search: llvmpipe's loop limit is far off for these kernels (at
         // most 16 taps x 16 steps a random query, 4 x 16 a gather's sender).
         for (form, search_loop) in [("loop", true), ("unrolled", false)] {
@@ -357,17 +376,19 @@ fn main() {
                 }),
             ));
             let tile_kernel = TileKernel::new(&gpu, &cssm, false);
-            measured.push((
-                format!("cssm tiles ({form})"),
-                seen * tile_senders as u64,
-                Some(tiled),
-                tile_threads,
-                best_ms(&gpu, reps, |t| {
-                    tile_kernel
-                        .run(&gpu, &cssm, &tile_list, tiles_x, tile_queries, Some(t))
-                        .expect("tiles");
-                }),
-            ));
+            for (size, list, tiles_x, threads, seen, counted) in &tile_runs {
+                measured.push((
+                    format!("cssm tiles {size} ({form})"),
+                    seen * tile_senders as u64,
+                    Some(*counted),
+                    *threads,
+                    best_ms(&gpu, reps, |t| {
+                        tile_kernel
+                            .run(&gpu, &cssm, list, *tiles_x, tile_queries, Some(t))
+                            .expect("tiles");
+                    }),
+                ));
+            }
             measured.push((
                 format!("cssm gather ({form})"),
                 receiver_list.len() as u64 * senders as u64,

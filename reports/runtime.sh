@@ -39,7 +39,7 @@ if [ $small = 1 ]; then
     bake_cornell="--atlas 32 --cube 8"
     bake_table1="--atlas 128 --cube 8"
     bake_sibenik="--atlas 256 --cube 8"
-    queries="--atlas 128 --cube 8 --pairs 4096 --receivers 1024 --senders 16 --reps 2 --tile-size 64x48 --tile-senders 8"
+    queries="--atlas 128 --cube 8 --pairs 4096 --receivers 1024 --senders 16 --reps 2 --tile-sizes 32x24,64x48 --tile-senders 8"
     moving="--atlas 32 --cube 8 --pairs 4096 --objects 1 --reps 2"
     bake_bunny="--atlas 32 --cube 8"
     gpu_bakes="cornell-64:--atlas=32,--cube=8"
@@ -60,7 +60,7 @@ else
     bake_cornell="--atlas 128 --cube 32"
     bake_table1="--atlas 128 --cube 32"
     bake_sibenik="--atlas 256 --cube 32"
-    queries="--atlas 128 --cube 32"
+    queries="--atlas 128 --cube 32 --tile-sizes 320x240,640x480,1280x720"
     moving="--atlas 64 --cube 32"
     bake_bunny="--atlas 128 --cube 32"
     # The bake on the GPU (issue 25): Table 3's two Cornell rows (targets: 1 s at atlas 64 on
