@@ -294,9 +294,7 @@ fn main() {
             })
             .collect();
         // The data the queries read: run data, texel records, grid, triangles' coordinates.
-        let r = file.params.atlas_resolution as u64;
-        let data_bytes =
-            cssm.run_bytes + 64 * texels as u64 + 4 * r * r + 24 * file.triangle_uvs.len() as u64;
+        let data_bytes = cssm.run_bytes + runtime::work::cost::query_table_bytes(&file);
         let sample_receivers = (COUNTED_QUERIES / senders.max(1) as usize).max(32);
         let random = query_work::random(&file, &query_pairs, COUNTED_QUERIES, Kernel::Lean);
         let gathered = query_work::gather(

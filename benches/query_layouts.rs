@@ -40,8 +40,7 @@ fn main() {
     let texels = file.texels.len() as u32;
     let quads = QuadRuns::new(&file.runs, n);
     // The tables every layout keeps: texel records, the atlas grid, triangles' coordinates.
-    let r = u64::from(file.params.atlas_resolution);
-    let tables = 64 * u64::from(texels) + 4 * r * r + 24 * file.triangle_uvs.len() as u64;
+    let tables = runtime::work::cost::query_table_bytes(&file);
     let decoded_bytes = 2 * u64::from(file.runs.map_count) * u64::from(file.runs.pixel_count);
     let layouts = [
         ("runs", Kernel::Lean, file.runs.gpu_bytes()),

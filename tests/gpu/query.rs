@@ -27,12 +27,7 @@ fn cpu_work(
                 Some(pair.receiver_normal.into()),
                 &mut work,
             );
-            KernelWork {
-                taps: work.taps as u32,
-                search_steps: work.search_steps as u32,
-                texel_loads: work.texel_loads as u32,
-                sender_loads: work.sender_loads as u32,
-            }
+            KernelWork::from(work)
         })
         .collect()
 }
@@ -68,14 +63,8 @@ fn kernel_counters_match_the_cpu_twin_query_for_query() {
                 differ, 0,
                 "loop {search_loop}, {options:?}: {differ} queries counted otherwise, first {first:?}"
             );
-            let total = work.iter().fold(QueryWork::default(), |mut sum, w| {
-                sum += QueryWork {
-                    taps: w.taps.into(),
-                    search_steps: w.search_steps.into(),
-                    texel_loads: w.texel_loads.into(),
-                    sender_loads: w.sender_loads.into(),
-                    ..Default::default()
-                };
+            let total = work.iter().fold(QueryWork::default(), |mut sum, &w| {
+                sum += w.into();
                 sum
             });
             // Something was counted: the test cannot pass on zeros.
@@ -130,13 +119,11 @@ fn tile_kernel_matches_its_cpu_twin_answer_for_answer_and_count_for_count() {
                 (gpu_answer - cpu_answer).abs() <= 1e-4,
                 "query {i}: GPU {gpu_answer}, CPU {cpu_answer}"
             );
-            let cpu = KernelWork {
-                taps: cpu_work.taps as u32,
-                search_steps: cpu_work.search_steps as u32,
-                texel_loads: cpu_work.texel_loads as u32,
-                sender_loads: cpu_work.sender_loads as u32,
-            };
-            assert_eq!(*gpu_work, cpu, "query {i}, loop {search_loop}");
+            assert_eq!(
+                *gpu_work,
+                KernelWork::from(*cpu_work),
+                "query {i}, loop {search_loop}"
+            );
             seen += usize::from(*cpu_answer >= 0.0);
         }
         // Most pixels see the box (a sixth of the entries pad the last row of tiles), and both

@@ -27,7 +27,7 @@ use crate::{
 
 mod work;
 
-pub use work::{Buffer, Load, LoadTrace, QueryTally, QueryWork, Site, TEXEL_BYTES};
+pub use work::{Buffer, Load, QueryTally, QueryWork, Site, TEXEL_BYTES};
 
 /// Options of a query.
 #[derive(Clone, Copy, Debug, PartialEq)]

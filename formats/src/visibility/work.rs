@@ -138,11 +138,6 @@ impl std::ops::AddAssign for QueryWork {
 }
 
 impl QueryWork {
-    /// Loads of the run data one after another: per tap, its offsets, then each step's probe.
-    pub fn dependent_run_loads(&self) -> u64 {
-        self.taps + self.search_steps
-    }
-
     /// Bytes read: 64 a texel record, 24 a triangle's coordinates, 8 a tap's two offsets, 4 a
     /// grid cell, chart or run.
     pub fn bytes(&self) -> u64 {
@@ -151,19 +146,5 @@ impl QueryWork {
             + 4 * self.sender_loads
             + 8 * self.taps
             + 4 * self.search_steps
-    }
-}
-
-/// Every load of the queries told, in order, with its site: one lane's trace for the warp
-/// replay.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct LoadTrace {
-    /// The loads, in program order.
-    pub loads: Vec<(Site, Load)>,
-}
-
-impl QueryTally for LoadTrace {
-    fn load(&mut self, site: Site, load: Load) {
-        self.loads.push((site, load));
     }
 }

@@ -19,6 +19,7 @@ pub mod moving;
 pub mod tiles;
 
 use bytemuck::{Pod, Zeroable};
+use cssm_formats::visibility::QueryWork;
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
@@ -186,6 +187,33 @@ pub struct KernelWork {
     pub texel_loads: u32,
     /// Atlas grid cells and texels' charts read, finding the senders.
     pub sender_loads: u32,
+}
+
+impl From<QueryWork> for KernelWork {
+    /// What the kernel's counters hold of the CPU twin's count of one query (the triangles'
+    /// coordinates it does not count).
+    fn from(w: QueryWork) -> Self {
+        let count = |n: u64| u32::try_from(n).unwrap_or(u32::MAX);
+        Self {
+            taps: count(w.taps),
+            search_steps: count(w.search_steps),
+            texel_loads: count(w.texel_loads),
+            sender_loads: count(w.sender_loads),
+        }
+    }
+}
+
+impl From<KernelWork> for QueryWork {
+    /// The kernel's counters as the CPU twin counts them (no triangles' coordinates).
+    fn from(w: KernelWork) -> Self {
+        Self {
+            taps: w.taps.into(),
+            search_steps: w.search_steps.into(),
+            texel_loads: w.texel_loads.into(),
+            sender_loads: w.sender_loads.into(),
+            triangle_loads: 0,
+        }
+    }
 }
 
 impl QueryKernel {

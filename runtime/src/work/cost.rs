@@ -15,14 +15,13 @@
 //!
 //! `occupancy` is the launch's threads over the device's resident thread slots, at most 1: a
 //! launch too small to fill the device keeps fewer loads in flight (Little's law). The rates are
-//! fitted to `../shared/tools/gpu-limit`'s rows measured on the device, whose access patterns
-//! [`replay_gpu_limit`] replays through the same warp replay: its two rows of cached data at 64
+//! fitted to `../shared/tools/gpu-limit`'s rows measured on the device, whose access patterns a
+//! test replays through the same warp replay (`calibration`, below): its two rows of cached data at 64
 //! runs a pixel give the sector and load rates, its random row of 512 MiB the atom rate; its
 //! other five rows check the fit. The ALU is not charged: a kernel whose measured time exceeds
 //! the prediction is paying for instructions.
 
-use super::warp::{LaneTrace, SiteKey, WARP_LANES, WarpStats, replay_warp};
-use cssm_formats::visibility::{Buffer, Site};
+use super::warp::WarpStats;
 
 /// A device as the cost model sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,32 +66,13 @@ impl WarpStats {
             lane_loads: s(self.lane_loads),
             sectors: s(self.sectors),
             atoms: s(self.atoms),
-            bytes: s(self.bytes),
-            longest_lane_loads: s(self.longest_lane_loads),
         }
     }
 }
 
-/// The gpu-limit rows the H200 model is fitted to (reports/h200-2026-12-04/runtime-gpu-limit.txt:
-/// `--sizes-mb 8,512 --r 64,256 --qlog2 26`, kernel checks on): (data MiB, runs per pixel,
-/// gather, GPU ms for 2^26 queries).
-pub const H200_GPU_LIMIT_ROWS: [(u32, u32, bool, f64); 8] = [
-    (8, 64, true, 0.520),
-    (8, 64, false, 3.094),
-    (8, 256, true, 0.620),
-    (8, 256, false, 3.880),
-    (512, 64, true, 0.667),
-    (512, 64, false, 10.654),
-    (512, 256, true, 0.898),
-    (512, 256, false, 13.170),
-];
-
-/// Queries of one gpu-limit row.
-pub const GPU_LIMIT_QUERIES: u64 = 1 << 26;
-
 impl CostModel {
-    /// NVIDIA H200 (132 SMs of 2,048 threads), fitted by [`Self::fit`] to
-    /// [`H200_GPU_LIMIT_ROWS`]: the rows at 64 runs a pixel fit, those at 256 check
+    /// NVIDIA H200 (132 SMs of 2,048 threads), fitted to gpu-limit's rows measured on it on
+    /// 2026-12-04 (reports/h200-2026-12-04/runtime-gpu-limit.txt): three rows fit, five check
     /// (`cost_model_fits_and_checks_the_gpu_limit_rows` holds both).
     pub const H200: CostModel = CostModel {
         device: "NVIDIA H200 (model fitted to gpu-limit, 2026-12-04)",
@@ -125,13 +105,51 @@ impl CostModel {
             + s.load_instructions as f64 / self.load_instructions_per_s;
         1e3 * seconds / occupancy.max(1e-9)
     }
+}
+
+/// Bytes of the tables the CSSM query reads on the GPU beside the run data: texel records, the
+/// atlas grid and the triangles' atlas coordinates. With the run data
+/// (`RunData::gpu_bytes`, or another layout's), the data size a query launch is priced by.
+pub fn query_table_bytes(file: &cssm_formats::CssmFile) -> u64 {
+    let r = u64::from(file.params.atlas_resolution);
+    cssm_formats::visibility::TEXEL_BYTES * file.texels.len() as u64
+        + 4 * r * r
+        + 24 * file.triangle_uvs.len() as u64
+}
+
+/// The fit of [`CostModel::H200`]: gpu-limit's rows as the device measured them, its kernels
+/// replayed through the warp replay, the rates solved for. The test below holds the constants
+/// to it; after a GPU loan, put the new rows in and write the fitted constants.
+#[cfg(test)]
+mod calibration {
+    use super::*;
+    pub(super) use crate::work::warp::WARP_LANES;
+    use crate::work::warp::{LaneTrace, SiteKey, replay_warp};
+    use cssm_formats::visibility::{Buffer, Site};
+
+    /// The gpu-limit rows the H200 model is fitted to (reports/h200-2026-12-04/runtime-gpu-limit.txt:
+    /// `--sizes-mb 8,512 --r 64,256 --qlog2 26`, kernel checks on): (data MiB, runs per pixel,
+    /// gather, GPU ms for 2^26 queries).
+    pub(super) const H200_GPU_LIMIT_ROWS: [(u32, u32, bool, f64); 8] = [
+        (8, 64, true, 0.520),
+        (8, 64, false, 3.094),
+        (8, 256, true, 0.620),
+        (8, 256, false, 3.880),
+        (512, 64, true, 0.667),
+        (512, 64, false, 10.654),
+        (512, 256, true, 0.898),
+        (512, 256, false, 13.170),
+    ];
+
+    /// Queries of one gpu-limit row.
+    pub(super) const GPU_LIMIT_QUERIES: u64 = 1 << 26;
 
     /// The model fitted to gpu-limit rows measured on `device` (as
     /// [`H200_GPU_LIMIT_ROWS`]): the load rate and the cached sector rate from the two rows
     /// of cached data at 64 runs a pixel (gather and random), the memory atom rate from the
     /// random row of 512 MiB at 64 runs. `replayed` gives each row's warp replay for all its
-    /// queries ([`replay_gpu_limit`] scaled).
-    pub fn fit(
+    /// queries (`replay_gpu_limit` scaled).
+    pub(super) fn fit(
         device: &'static str,
         rows: &[(u32, u32, bool, f64)],
         resident_threads: f64,
@@ -168,101 +186,102 @@ impl CostModel {
             resident_threads,
         }
     }
-}
 
-/// gpu-limit's hash (lowbias32), as its kernels compute it.
-fn lowbias32(x: u32) -> u32 {
-    let mut h = x;
-    h ^= h >> 16;
-    h = h.wrapping_mul(0x7feb_352d);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x846c_a68b);
-    h ^= h >> 16;
-    h
-}
-
-/// The warp replay of `warps` warps of gpu-limit's `runs_search` kernel over `mib` MiB of runs
-/// at `r` runs a pixel, in its gather or random pattern: its query hash and its branchless
-/// search, over run lists of its distribution (each pixel `r/2` to `3r/2` runs; starts spread
-/// evenly where gpu-limit draws them at random).
-pub fn replay_gpu_limit(mib: u32, r: u32, gather: bool, warps: u32) -> WarpStats {
-    let words = (mib as u64) << 18;
-    let pixels = (words / r as u64) as u32;
-    let mask_pix = pixels - 1;
-    // Only the run counts matter to the addresses (a pixel's starts decide which half a
-    // search takes, and random starts take either alike): pair counts that sum to 2r.
-    let count = |pixel: u32| -> u32 {
-        let d = (lowbias32((pixel / 2) ^ 0x00c0_ffee ^ r) % r) as i32 - (r / 2) as i32;
-        (r as i32 + if pixel % 2 == 0 { d } else { -d }) as u32
-    };
-    // Offsets of a pixel: the pairs before it sum to 2r each.
-    let first = |pixel: u32| -> u64 {
-        let pair_start = (pixel / 2) as u64 * 2 * r as u64;
-        pair_start
-            + if pixel % 2 == 1 {
-                count(pixel - 1) as u64
-            } else {
-                0
-            }
-    };
-    let seed = 7u32.wrapping_mul(0x9e37_79b9);
-    let mut stats = WarpStats::default();
-    for w in 0..warps {
-        // Warps spread over the launch (a sample): warp w is queries 32 (w * 997) + lane.
-        let lanes: Vec<LaneTrace> = (0..WARP_LANES as u32)
-            .map(|lane| {
-                let qid = (w.wrapping_mul(997) * WARP_LANES as u32).wrapping_add(lane);
-                let (pixel, m) = if gather {
-                    let hg = lowbias32((qid >> 6).wrapping_add(seed));
-                    let hg2 = lowbias32(hg ^ 0x5bd1_e995);
-                    (
-                        hg.wrapping_add((qid >> 4) & 3) & mask_pix,
-                        ((hg2 & 0xffff) + (qid & 15) * 8) & 0xffff,
-                    )
-                } else {
-                    let h1 = lowbias32(qid.wrapping_add(seed));
-                    let h2 = lowbias32(h1 ^ 0x5bd1_e995);
-                    (h1 & mask_pix, h2 >> 16)
-                };
-                let mut trace = LaneTrace::default();
-                let key = |step: u8, kind: u8| -> SiteKey {
-                    (
-                        0,
-                        Site {
-                            step,
-                            ..Default::default()
-                        },
-                        kind,
-                    )
-                };
-                trace.push(key(0, 0), Buffer::Offsets, 4 * pixel as u64, 8);
-                let lo = first(pixel);
-                trace.push(key(0, 1), Buffer::Runs, 4 * lo, 4);
-                // The search's path over starts spread evenly over the segment (random
-                // starts lie about so; the path only decides which runs are probed).
-                let c = count(pixel) as u64;
-                let start = |i: u64| (i - lo) * 0x10000 / c;
-                let (mut base, mut n, mut step) = (lo, c, 1u8);
-                while n > 1 {
-                    let half = n / 2;
-                    let mid = base + half;
-                    trace.push(key(step, 1), Buffer::Runs, 4 * mid, 4);
-                    if start(mid) <= m as u64 {
-                        base = mid;
-                    }
-                    n -= half;
-                    step += 1;
-                }
-                trace
-            })
-            .collect();
-        stats += replay_warp(&lanes);
+    /// gpu-limit's hash (lowbias32), as its kernels compute it.
+    fn lowbias32(x: u32) -> u32 {
+        let mut h = x;
+        h ^= h >> 16;
+        h = h.wrapping_mul(0x7feb_352d);
+        h ^= h >> 15;
+        h = h.wrapping_mul(0x846c_a68b);
+        h ^= h >> 16;
+        h
     }
-    stats
+
+    /// The warp replay of `warps` warps of gpu-limit's `runs_search` kernel over `mib` MiB of runs
+    /// at `r` runs a pixel, in its gather or random pattern: its query hash and its branchless
+    /// search, over run lists of its distribution (each pixel `r/2` to `3r/2` runs; starts spread
+    /// evenly where gpu-limit draws them at random).
+    pub(super) fn replay_gpu_limit(mib: u32, r: u32, gather: bool, warps: u32) -> WarpStats {
+        let words = (mib as u64) << 18;
+        let pixels = (words / r as u64) as u32;
+        let mask_pix = pixels - 1;
+        // Only the run counts matter to the addresses (a pixel's starts decide which half a
+        // search takes, and random starts take either alike): pair counts that sum to 2r.
+        let count = |pixel: u32| -> u32 {
+            let d = (lowbias32((pixel / 2) ^ 0x00c0_ffee ^ r) % r) as i32 - (r / 2) as i32;
+            (r as i32 + if pixel % 2 == 0 { d } else { -d }) as u32
+        };
+        // Offsets of a pixel: the pairs before it sum to 2r each.
+        let first = |pixel: u32| -> u64 {
+            let pair_start = (pixel / 2) as u64 * 2 * r as u64;
+            pair_start
+                + if pixel % 2 == 1 {
+                    count(pixel - 1) as u64
+                } else {
+                    0
+                }
+        };
+        let seed = 7u32.wrapping_mul(0x9e37_79b9);
+        let mut stats = WarpStats::default();
+        for w in 0..warps {
+            // Warps spread over the launch (a sample): warp w is queries 32 (w * 997) + lane.
+            let lanes: Vec<LaneTrace> = (0..WARP_LANES as u32)
+                .map(|lane| {
+                    let qid = (w.wrapping_mul(997) * WARP_LANES as u32).wrapping_add(lane);
+                    let (pixel, m) = if gather {
+                        let hg = lowbias32((qid >> 6).wrapping_add(seed));
+                        let hg2 = lowbias32(hg ^ 0x5bd1_e995);
+                        (
+                            hg.wrapping_add((qid >> 4) & 3) & mask_pix,
+                            ((hg2 & 0xffff) + (qid & 15) * 8) & 0xffff,
+                        )
+                    } else {
+                        let h1 = lowbias32(qid.wrapping_add(seed));
+                        let h2 = lowbias32(h1 ^ 0x5bd1_e995);
+                        (h1 & mask_pix, h2 >> 16)
+                    };
+                    let mut trace = LaneTrace::default();
+                    let key = |step: u8, kind: u8| -> SiteKey {
+                        (
+                            0,
+                            Site {
+                                step,
+                                ..Default::default()
+                            },
+                            kind,
+                        )
+                    };
+                    trace.push(key(0, 0), Buffer::Offsets, 4 * pixel as u64, 8);
+                    let lo = first(pixel);
+                    trace.push(key(0, 1), Buffer::Runs, 4 * lo, 4);
+                    // The search's path over starts spread evenly over the segment (random
+                    // starts lie about so; the path only decides which runs are probed).
+                    let c = count(pixel) as u64;
+                    let start = |i: u64| (i - lo) * 0x10000 / c;
+                    let (mut base, mut n, mut step) = (lo, c, 1u8);
+                    while n > 1 {
+                        let half = n / 2;
+                        let mid = base + half;
+                        trace.push(key(step, 1), Buffer::Runs, 4 * mid, 4);
+                        if start(mid) <= m as u64 {
+                            base = mid;
+                        }
+                        n -= half;
+                        step += 1;
+                    }
+                    trace
+                })
+                .collect();
+            stats += replay_warp(&lanes);
+        }
+        stats
+    }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::calibration::*;
     use super::*;
 
     /// Warps sampled per gpu-limit row.
@@ -274,7 +293,7 @@ mod tests {
 
     #[test]
     fn cost_model_fits_and_checks_the_gpu_limit_rows() {
-        let fitted = CostModel::fit(
+        let fitted = fit(
             CostModel::H200.device,
             &H200_GPU_LIMIT_ROWS,
             CostModel::H200.resident_threads,

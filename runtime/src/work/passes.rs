@@ -12,7 +12,7 @@ use glam::Vec3;
 use super::{
     GatherTally,
     cost::{CostModel, Launch},
-    warp::{LaneTrace, WARP_LANES, WarpStats, replay_warp},
+    warp::{LaneTrace, WARP_LANES, WarpStats, replay_warp, tile_warps},
 };
 use crate::{
     RuntimeError,
@@ -209,10 +209,9 @@ fn count_warps<R>(
     }
     stats.visited = Spread::of(visited);
     stats.queried = Spread::of(queried);
-    let r = u64::from(file.params.atlas_resolution);
+    // The query's data and the hierarchy the walk reads: a node (96 bytes) and its radiance (16).
     let data = file.runs.gpu_bytes()
-        + 64 * file.texels.len() as u64
-        + 4 * r * r
+        + super::cost::query_table_bytes(file)
         + 112 * file.hierarchy.nodes.len() as u64;
     stats.predicted_ms = CostModel::H200.predict_ms(&Launch {
         stats: stats.warps.scaled(threads.div_ceil(WARP_LANES as u64)),
@@ -246,8 +245,8 @@ pub fn final_gather_stats(
     let seen = receivers(scene, file, view)?;
     let ds = downsample.max(1);
     let (lw, lh) = (view.width.div_ceil(ds), view.height.div_ceil(ds));
-    let (tiles_x, tiles_y) = (lw.div_ceil(8), lh.div_ceil(8));
-    let step = ((tiles_x * tiles_y) / tiles.max(1)).max(1);
+    let tile_count = lw.div_ceil(8) * lh.div_ceil(8);
+    let step = (tile_count / tiles.max(1)).max(1);
     let material = |triangle: u32| {
         let m = &scene.materials[scene.triangle_materials[triangle as usize] as usize];
         GpuMaterial {
@@ -257,19 +256,17 @@ pub fn final_gather_stats(
             ..Default::default()
         }
     };
-    let warps = (0..tiles_x * tiles_y)
+    let warps = (0..tile_count)
         .step_by(step as usize)
-        .flat_map(|tile| [(tile, 0), (tile, 1)])
-        .map(|(tile, half)| {
-            let (tx, ty) = (tile % tiles_x, tile / tiles_x);
-            let mut lanes = Vec::with_capacity(WARP_LANES);
-            for y in ty * 8 + 4 * half..(ty * 8 + 4 * half + 4).min(lh) {
-                for x in tx * 8..(tx * 8 + 8).min(lw) {
+        .flat_map(|tile| tile_warps(lw, lh, tile))
+        .map(|pixels| {
+            pixels
+                .into_iter()
+                .map(|(x, y)| {
                     let (px, py) = ((x * ds).min(view.width - 1), (y * ds).min(view.height - 1));
-                    lanes.push(seen[(py * view.width + px) as usize]);
-                }
-            }
-            lanes
+                    seen[(py * view.width + px) as usize]
+                })
+                .collect()
         });
     Ok(count_warps(
         "final gather",

@@ -80,10 +80,6 @@ pub struct WarpStats {
     pub sectors: u64,
     /// Distinct 64-byte DRAM atoms those instructions touched, summed.
     pub atoms: u64,
-    /// Bytes the lanes asked for, summed.
-    pub bytes: u64,
-    /// The longest lane's loads, summed over warps: the warps' dependent-load chains at most.
-    pub longest_lane_loads: u64,
 }
 
 impl std::ops::AddAssign for WarpStats {
@@ -94,8 +90,6 @@ impl std::ops::AddAssign for WarpStats {
         self.lane_loads += o.lane_loads;
         self.sectors += o.sectors;
         self.atoms += o.atoms;
-        self.bytes += o.bytes;
-        self.longest_lane_loads += o.longest_lane_loads;
     }
 }
 
@@ -124,11 +118,9 @@ pub fn replay_warp(lanes: &[LaneTrace]) -> WarpStats {
         ..Default::default()
     };
     for lane in lanes {
-        stats.longest_lane_loads = stats.longest_lane_loads.max(lane.loads.len() as u64);
         for &(key, buffer, start, bytes) in &lane.loads {
             let (active, sectors) = sites.entry(key).or_default();
             *active += 1;
-            stats.bytes += bytes;
             for sector in start / SECTOR_BYTES..=(start + bytes.max(1) - 1) / SECTOR_BYTES {
                 sectors.insert((buffer, sector));
             }
@@ -156,31 +148,20 @@ pub fn replay(lanes: &[LaneTrace]) -> WarpStats {
     stats
 }
 
-/// The lanes of a `width` x `height` launch of 8x8 workgroups, in warp order: each workgroup's
-/// 64 invocations in row-major order (`local_invocation_index`), whose first 32 (the tile's top
-/// four rows) form one warp and last 32 the other. `lane(x, y)` traces pixel (x, y).
-pub fn tiled_lanes(
-    width: u32,
-    height: u32,
-    mut lane: impl FnMut(u32, u32) -> LaneTrace,
-) -> Vec<Vec<LaneTrace>> {
-    let mut warps = Vec::new();
-    for ty in (0..height).step_by(8) {
-        for tx in (0..width).step_by(8) {
-            for half in 0..2 {
-                let mut warp = Vec::with_capacity(WARP_LANES);
-                for y in ty + 4 * half..(ty + 4 * half + 4).min(height) {
-                    for x in tx..(tx + 8).min(width) {
-                        warp.push(lane(x, y));
-                    }
-                }
-                if !warp.is_empty() {
-                    warps.push(warp);
-                }
-            }
-        }
-    }
-    warps
+/// The pixels of the two warps of tile `tile` (row-major, `width.div_ceil(8)` across) of a
+/// `width` x `height` launch of 8x8 workgroups ([`crate::shaders::WORKGROUP_2D`]): each workgroup's 64 invocations in row-major
+/// order (`local_invocation_index`), whose first 32 (the tile's top four rows) form one warp and
+/// last 32 the other. A tile at the image's edge has partial (or empty) warps.
+pub fn tile_warps(width: u32, height: u32, tile: u32) -> [Vec<(u32, u32)>; 2] {
+    const SIDE: u32 = crate::shaders::WORKGROUP_2D;
+    const ROWS: u32 = WARP_LANES as u32 / SIDE;
+    let tiles_x = width.div_ceil(SIDE).max(1);
+    let (x0, y0) = (tile % tiles_x * SIDE, tile / tiles_x * SIDE);
+    [0, 1].map(|half| {
+        (y0 + ROWS * half..(y0 + ROWS * (half + 1)).min(height))
+            .flat_map(|y| (x0..(x0 + SIDE).min(width)).map(move |x| (x, y)))
+            .collect()
+    })
 }
 
 #[cfg(test)]
@@ -225,15 +206,27 @@ mod tests {
 
     #[test]
     fn tiles_make_warps_of_four_rows_of_eight() {
-        let warps = tiled_lanes(16, 8, |x, y| lane(&[(0, y * 16 + x)]));
-        assert_eq!(warps.len(), 4);
-        assert!(warps.iter().all(|w| w.len() == 32));
-        // The first warp: rows 0-3 of the first tile.
-        let first: Vec<u64> = warps[0].iter().map(|l| l.loads[0].2 / 4).collect();
-        assert_eq!(&first[..9], &[0, 1, 2, 3, 4, 5, 6, 7, 16]);
-        // A partial tile makes partial warps.
-        let warps = tiled_lanes(10, 5, |x, y| lane(&[(0, y * 10 + x)]));
-        let sizes: Vec<usize> = warps.iter().map(Vec::len).collect();
-        assert_eq!(sizes, vec![32, 8, 8, 2]);
+        let [top, bottom] = tile_warps(16, 8, 1);
+        assert_eq!((top.len(), bottom.len()), (32, 32));
+        // The second tile's top warp: rows 0-3 of columns 8-15.
+        assert_eq!(
+            &top[..9],
+            &[
+                (8, 0),
+                (9, 0),
+                (10, 0),
+                (11, 0),
+                (12, 0),
+                (13, 0),
+                (14, 0),
+                (15, 0),
+                (8, 1)
+            ]
+        );
+        assert_eq!(bottom[0], (8, 4));
+        // A partial tile makes partial warps: a 10x5 image's second tile is 2 wide, 5 high.
+        let sizes = tile_warps(10, 5, 1).map(|w| w.len());
+        assert_eq!(sizes, [8, 2]);
+        assert_eq!(tile_warps(10, 5, 0).map(|w| w.len()), [32, 8]);
     }
 }
