@@ -19,6 +19,11 @@ use crate::{
 };
 
 pub fn run_render(config: RenderConfig) -> CliResult {
+    if config.stats && config.animate.is_some() {
+        return Err(
+            "--stats counts one frame of the scene as it stands; leave out --animate".into(),
+        );
+    }
     if let Some(options) = &config.animate {
         return crate::animate::run_animate(&config, options);
     }
@@ -52,6 +57,9 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             posed_scene.camera = camera;
             if let Some(light) = light {
                 posed_scene.lights[0] = light;
+            }
+            if config.stats {
+                println!("--stats: {method} runs on the CPU; it has no GPU pass to count");
             }
             render_on_cpu(&config, &posed_scene, &settings, run)?
         }

@@ -695,22 +695,26 @@ fn render_writes_png_and_exr_of_the_requested_size() {
 #[test]
 fn render_stats_count_the_final_gather() {
     let tmp = tempfile::tempdir().unwrap();
-    let png = tmp.path().join("lightcuts.png");
-    let o = cssm(&[
-        "render",
-        cornell().to_str().unwrap(),
-        "--method",
-        "lightcuts",
-        "--size",
-        "32x24",
-        "--shadow-resolution",
-        "256",
-        "--stats",
-        "--out",
-        png.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let stdout = String::from_utf8_lossy(&o.stdout);
+    let png = tmp.path().join("stats.png");
+    // The Cornell box at 32x24 with `method`'s stats: what it printed.
+    let stats = |method: &str| {
+        let o = cssm(&[
+            "render",
+            cornell().to_str().unwrap(),
+            "--method",
+            method,
+            "--size",
+            "32x24",
+            "--shadow-resolution",
+            "256",
+            "--stats",
+            "--out",
+            png.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let stdout = stats("lightcuts");
     for needle in [
         "final gather of lightcuts at 32x24",
         "nodes visited per receiver: mean",
@@ -728,37 +732,13 @@ fn render_stats_count_the_final_gather() {
         .and_then(|mean| mean.trim().parse().ok())
         .expect("a mean");
     assert!(visited > 1.0, "{stdout}");
-    let o = cssm(&[
-        "render",
-        cornell().to_str().unwrap(),
-        "--method",
-        "lightmap",
-        "--size",
-        "32x24",
-        "--shadow-resolution",
-        "256",
-        "--stats",
-        "--out",
-        png.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stdout = stats("lightmap");
     assert!(
         stdout.contains("radiosity gather of lightmap, its first of 1 bounce(s)")
             && stdout.contains("threads 2715"),
         "{stdout}"
     );
-    let o = cssm(&[
-        "render",
-        cornell().to_str().unwrap(),
-        "--size",
-        "32x24",
-        "--stats",
-        "--out",
-        png.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert!(String::from_utf8_lossy(&o.stdout).contains("no pass of direct is counted yet"));
+    assert!(stats("direct").contains("no pass of direct is counted yet"));
 }
 
 #[test]
@@ -787,6 +767,10 @@ fn render_rejects_bad_arguments() {
         (
             vec!["--method", "lightmap", "--cssm", "/nonexistent/box.cssm"],
             "/nonexistent/box.cssm",
+        ),
+        (
+            vec!["--method", "lightcuts", "--stats", "--animate"],
+            "leave out --animate",
         ),
     ] {
         let mut all = vec!["render", "--out", png.to_str().unwrap()];

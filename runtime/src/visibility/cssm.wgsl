@@ -159,6 +159,9 @@ fn cssm_lookup_slot(slot: u32, local: u32) -> u32 {
     var found = CSSM_DEPTH_MAX;
 #if CSSM_SEARCH_LOOP > 0
     for (var s = 0u; s < #{CSSM_SEARCH_STEPS}u; s++) {
+        if count == 0u {
+            break;
+        }
         cssm_search_step(&first, &count, &found, local);
     }
 #else
