@@ -15,12 +15,18 @@ use crate::{
     load_scene, scene_dir,
 };
 
-/// Bakes `scene` with a progress bar of depth maps on stderr.
+/// Bakes `scene` with a progress bar of depth maps on stderr. The file is checked as a written
+/// one is ([`formats::cssm::validate`]) before anything uses it: a render that bakes in memory
+/// must not trust what a `.cssm` read from disk would not be trusted with.
 pub fn bake_with_progress(
     scene: &Scene,
     options: &bake::BakeOptions,
 ) -> Result<bake::Baked, bake::BakeError> {
-    with_progress(scene, &mut |progress| bake::bake(scene, options, progress))
+    let baked = with_progress(scene, &mut |progress| bake::bake(scene, options, progress))?;
+    formats::cssm::validate(&baked.file).map_err(|e| {
+        bake::BakeError::Scene(format!("the bake's own file fails its checks: {e}"))
+    })?;
+    Ok(baked)
 }
 
 /// Where a bake tells its progress.
@@ -50,7 +56,7 @@ fn with_progress<T>(
                     "{spinner} baking {msg} [{bar:32}] {pos}/{len} depth maps, {per_sec}, eta {eta}"
                 }
                 bake::Stage::Charts | bake::Stage::Parameterize => {
-                    "{spinner} baking {msg} [{bar:32}] {pos}%, {elapsed}"
+                    "{spinner} baking {msg} [{bar:32}] {pos}%, {elapsed}, eta {eta}"
                 }
                 bake::Stage::Pack => "{spinner} baking {msg}, attempt {pos}, {elapsed}",
                 bake::Stage::Order => "{spinner} baking {msg}, {elapsed}",

@@ -90,6 +90,19 @@ pub fn run_check(config: CheckConfig) -> CliResult {
     } else {
         println!("{summary}");
     }
+    if summary.exchanging_pairs == 0 {
+        // An agreement over no pairs is no measurement: say so rather than print 0% or 100%.
+        eprintln!(
+            "warning: none of the {} pairs exchanges light (each in front of the other's \
+             surface), so nothing that reaches an image was checked{}",
+            summary.pairs,
+            if config.place.is_empty() {
+                ""
+            } else {
+                "; --place may have put the objects where they face nothing"
+            }
+        );
+    }
     // The bar is for the pairs that exchange light, the only ones whose visibility reaches an
     // image (a bake with `--second-layer facing` is only exact there).
     if let Some(min) = config.min_agreement
@@ -136,6 +149,11 @@ fn poses(
             .transform
             .to_scale_rotation_translation();
         poses[index] = formats::scene::placement(place.translation, place.rotation_deg, scale.x);
+    }
+    // Posing is cheap: refuse a placement the check could not use (too far from the scene)
+    // under the option's name, before the check's own work.
+    if !places.is_empty() {
+        scene.posed(&poses).map_err(|e| format!("--place: {e}"))?;
     }
     Ok(poses)
 }

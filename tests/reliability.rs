@@ -11,6 +11,9 @@ use std::{
     time::{Duration, Instant},
 };
 
+#[path = "reliability/geometry.rs"]
+mod geometry;
+
 /// The binary under test: this build's, or the one `CSSM_RELIABILITY_BIN` names (to show that
 /// an older build fails these tests: reports/reliability.md).
 fn cssm_binary() -> PathBuf {

@@ -17,6 +17,12 @@ use cssm_formats::cssm::ATLAS_RESOLUTION_RANGE;
 /// Average number of faces per chart above which xatlas' charts are capped in area.
 const FACES_PER_CHART: f64 = 200.0;
 
+/// Most separate pieces of surface (sets of triangles joined by shared edges) the atlas stage
+/// takes: xatlas makes a chart group of each, at a cost in memory and time that grows with their
+/// number (20,000 loose quads held 2.3 GB after 3 s and were still packing after a minute;
+/// reports/reliability.md). The Sibenik cathedral has 260.
+pub const MAX_ATLAS_PIECES: usize = 8192;
+
 /// Factor by which the scale shrinks while the charts do not fit on one page.
 const SHRINK: f32 = 0.92;
 
@@ -90,9 +96,11 @@ fn unwrap(
         .flatten()
         .map(|&i| remap[i as usize])
         .collect();
+    check_pieces(&indices, resolution)?;
     // xatlas prints warnings (charts it could not parameterise well) on standard output, where
     // they would break `cssm bake --json`; the atlas is checked here instead.
     xatlas_rs::silence_messages();
+    xatlas_rs::abort_on_failed_allocation();
     let mut atlas = xatlas_rs::Xatlas::new();
     atlas.add_mesh(&xatlas_rs::MeshDecl {
         vertex_count: welded.len() as u32,
@@ -155,7 +163,7 @@ fn unwrap(
             padding: 0,
             ..Default::default()
         });
-        atlas.atlas_count() == 1
+        on_one_page(atlas, resolution)
     };
     let mut fits = false;
     let mut too_big = None;
@@ -224,6 +232,75 @@ fn unwrap(
         charts.push(chart);
     }
     Ok((uvs, charts))
+}
+
+/// Refuses, before xatlas sees them, scenes of more separate pieces than it takes
+/// ([`MAX_ATLAS_PIECES`]) or than the page has texels (every piece is a chart of its own, and a
+/// chart needs at least one texel).
+fn check_pieces(indices: &[u32], resolution: u32) -> Result<(), BakeError> {
+    let pieces = count_pieces(indices);
+    let texels = resolution as usize * resolution as usize;
+    if pieces > MAX_ATLAS_PIECES {
+        return Err(BakeError::Atlas(format!(
+            "the scene is {pieces} separate pieces of surface (triangles joined to the rest by no \
+             shared edge), more than the {MAX_ATLAS_PIECES} the atlas stage takes: xatlas' memory \
+             and time grow with every piece; weld the pieces' vertices or remove small ones"
+        )));
+    }
+    if pieces > texels {
+        let side = (pieces as f64).sqrt().ceil() as u32;
+        return Err(BakeError::Atlas(format!(
+            "the scene is {pieces} separate pieces of surface, each a chart of its own, and a \
+             {resolution}x{resolution} atlas has {texels} texels: use --atlas {} or larger",
+            side.next_power_of_two().max(side)
+        )));
+    }
+    Ok(())
+}
+
+/// The number of edge-connected pieces of the triangles `indices` (three per triangle), as
+/// xatlas groups faces into charts.
+fn count_pieces(indices: &[u32]) -> usize {
+    let triangles = indices.len() / 3;
+    let mut parent: Vec<u32> = (0..triangles as u32).collect();
+    fn root(parent: &mut [u32], mut t: u32) -> u32 {
+        while parent[t as usize] != t {
+            let up = parent[parent[t as usize] as usize];
+            parent[t as usize] = up;
+            t = up;
+        }
+        t
+    }
+    let mut first_on_edge = std::collections::HashMap::with_capacity(indices.len());
+    for (t, tri) in indices.chunks_exact(3).enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let other = *first_on_edge
+                .entry((a.min(b), a.max(b)))
+                .or_insert(t as u32);
+            let (x, y) = (root(&mut parent, other), root(&mut parent, t as u32));
+            parent[x as usize] = y;
+        }
+    }
+    (0..triangles as u32)
+        .filter(|&t| root(&mut parent, t) == t)
+        .count()
+}
+
+/// Whether the last packing put every chart on a single `resolution`-sized page. xatlas reports
+/// one page also when a chart larger than the page was placed anyway, the page grown around it
+/// (a 20x10 floor at the scale that fills 75% of the page): such a pack does not fit.
+fn on_one_page(atlas: &mut xatlas_rs::Xatlas, resolution: u32) -> bool {
+    let (width, height) = atlas.size();
+    let page = 0.0..=resolution as f32;
+    atlas.atlas_count() == 1
+        && width <= resolution
+        && height <= resolution
+        && atlas.meshes().iter().all(|mesh| {
+            mesh.vertices
+                .iter()
+                .all(|v| v.uv.iter().all(|c| page.contains(c)))
+        })
 }
 
 /// Merges vertices with bit-identical positions (`-0.0` and `0.0` alike); returns the distinct
@@ -361,4 +438,95 @@ fn rasterise(scene: &Scene, resolution: u32, uvs: &[[[f32; 2]; 3]], charts: &[u3
         });
     }
     texels
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `w` x `d` floor at height 0 with corner `(x, z)`, as two triangles.
+    fn floor(
+        positions: &mut Vec<Vec3>,
+        triangles: &mut Vec<[u32; 3]>,
+        x: f32,
+        z: f32,
+        w: f32,
+        d: f32,
+    ) {
+        let base = positions.len() as u32;
+        positions.extend([
+            Vec3::new(x, 0.0, z),
+            Vec3::new(x + w, 0.0, z),
+            Vec3::new(x + w, 0.0, z + d),
+            Vec3::new(x, 0.0, z + d),
+        ]);
+        triangles.extend([[base, base + 2, base + 1], [base, base + 3, base + 2]]);
+    }
+
+    #[test]
+    fn pieces_are_the_edge_connected_sets_of_triangles() {
+        assert_eq!(count_pieces(&[0, 1, 2, 0, 2, 3]), 1);
+        assert_eq!(count_pieces(&[0, 1, 2, 3, 4, 5]), 2);
+        // Sharing one vertex is not sharing an edge: xatlas charts them apart.
+        assert_eq!(count_pieces(&[0, 1, 2, 0, 3, 4]), 2);
+        assert_eq!(count_pieces(&[0, 1, 2, 3, 4, 5, 1, 2, 3, 3, 4, 2]), 1);
+    }
+
+    /// A single chart longer than it is wide (a 20x10 floor, a 2x1 rectangle, a triangle) was
+    /// packed by xatlas on a page grown around it at the first scale and accepted as one page:
+    /// the bake then failed its own file's check. Every chart now lies on the page.
+    #[test]
+    fn single_charts_of_any_shape_lie_on_the_page() {
+        for (w, d) in [(20.0, 10.0), (2.0, 1.0), (1.0, 1.0), (7.0, 0.5)] {
+            let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+            floor(&mut positions, &mut triangles, 0.0, 0.0, w, d);
+            let scene = Scene::from_triangles(positions, triangles);
+            for resolution in [32, 64, 256] {
+                let atlas = build(&scene, resolution, &mut |_| {}).unwrap();
+                let page = 0.0..=resolution as f32;
+                assert!(
+                    atlas
+                        .triangle_uvs
+                        .iter()
+                        .flatten()
+                        .flatten()
+                        .all(|c| page.contains(c)),
+                    "{w}x{d} at {resolution}: {:?}",
+                    atlas.triangle_uvs
+                );
+                assert!(
+                    atlas.texels.len() as f32
+                        > 0.25 * (resolution * resolution) as f32 * (d / w).min(1.0)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn more_pieces_than_texels_or_than_the_limit_are_refused_before_xatlas() {
+        let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+        for i in 0..40 * 40 {
+            floor(
+                &mut positions,
+                &mut triangles,
+                (i % 40) as f32 * 2.0,
+                (i / 40) as f32 * 2.0,
+                1.0,
+                1.0,
+            );
+        }
+        let scene = Scene::from_triangles(positions, triangles);
+        let e = build(&scene, 32, &mut |_| {}).unwrap_err().to_string();
+        assert!(
+            e.contains("1600 separate pieces") && e.contains("--atlas 64"),
+            "{e}"
+        );
+        let many: Vec<u32> = (0..3 * (MAX_ATLAS_PIECES as u32 + 1)).collect();
+        assert_eq!(count_pieces(&many), MAX_ATLAS_PIECES + 1);
+        let e = check_pieces(&many, 1024).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("more than the {MAX_ATLAS_PIECES}")),
+            "{e}"
+        );
+    }
 }

@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use glam::{Affine3A, Mat3, Vec3};
 
 pub use self::animation::{Animation, Keyframe, Repeat, Spin, euler_rotation, turned_about};
-pub use self::objects::{ObjectKind, STATIC_OBJECT_NAME, SceneObject, placement};
+pub use self::objects::{MAX_POSE_REACH, ObjectKind, STATIC_OBJECT_NAME, SceneObject, placement};
 use self::toml::{SceneToml, mesh_path};
 use validate::{check_camera, check_light, object_transform};
 

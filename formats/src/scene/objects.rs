@@ -18,6 +18,20 @@ pub enum ObjectKind {
     Rigid,
 }
 
+/// How far [`Scene::posed`] may move an object: its vertices within this many times the
+/// diagonal of the scene's bounding box (as loaded) from the box's centre.
+pub const MAX_POSE_REACH: f32 = 1000.0;
+
+/// `x` for a message: plain where that is short, in scientific notation where not (1e24 prints
+/// 25 digits plainly).
+fn number(x: f32) -> String {
+    if x != 0.0 && !(1e-3..1e6).contains(&x.abs()) {
+        format!("{x:.3e}")
+    } else {
+        format!("{}", (x * 1000.0).round() / 1000.0)
+    }
+}
+
 /// Name of the static object of every scene ([`SceneObject::whole_static`] and
 /// [`Scene::load`]). A rigid object may carry the same name; [`SceneObject::kind`] tells them
 /// apart.
@@ -171,6 +185,36 @@ impl Scene {
                 }
             }
             posed.objects[i].transform = *pose;
+        }
+        // A pose far from the scene: ray casts there overflow the BVH's float arithmetic (a
+        // panic in obvhs from 1e24), and nearer, yet still far, the object exchanges no light
+        // with the scene, so a check would agree on nothing and say nothing.
+        let (lo, hi) = super::bounds_of(&self.positions);
+        let (centre, size) = ((lo + hi) * 0.5, (hi - lo).length().max(f32::MIN_POSITIVE));
+        let reach = MAX_POSE_REACH * size;
+        for o in &self.objects {
+            let far = o
+                .triangles
+                .clone()
+                .flat_map(|t| self.triangles[t as usize])
+                .find_map(|v| {
+                    // In f64: the distance of a vertex at 1e22 squares past f32's range.
+                    let distance = (posed.positions[v as usize] - centre).as_dvec3().length();
+                    (distance > reach as f64 || distance.is_nan()).then_some(distance as f32)
+                });
+            if let Some(distance) = far {
+                return Err(format!(
+                    "object '{}' placed {} from the scene's centre ({}, {}, {}), beyond \
+                     {MAX_POSE_REACH} times the scene's size ({}): place it within {} of it",
+                    o.name,
+                    number(distance),
+                    number(centre.x),
+                    number(centre.y),
+                    number(centre.z),
+                    number(size),
+                    number(reach)
+                ));
+            }
         }
         Ok(posed)
     }

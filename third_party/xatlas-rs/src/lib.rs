@@ -16,6 +16,26 @@ pub fn silence_messages() {
     unsafe { xatlas::SetPrint(None, false) }
 }
 
+/// Makes a failed allocation inside xatlas end the process as a failed Rust allocation does
+/// (`memory allocation of N bytes failed`, then abort) instead of letting xatlas write through
+/// the null pointer it does not check (patched in, see PATCHED.md).
+pub fn abort_on_failed_allocation() {
+    unsafe extern "C" {
+        fn realloc(ptr: *mut std::ffi::c_void, size: usize) -> *mut std::ffi::c_void;
+    }
+    unsafe extern "C" fn checked(ptr: *mut std::ffi::c_void, size: usize) -> *mut std::ffi::c_void {
+        let out = unsafe { realloc(ptr, size) };
+        if out.is_null() && size != 0 {
+            // xatlas asks for 16-byte alignment at most (its own header included).
+            let layout = std::alloc::Layout::from_size_align(size, 16)
+                .unwrap_or(std::alloc::Layout::new::<u8>());
+            std::alloc::handle_alloc_error(layout);
+        }
+        out
+    }
+    unsafe { xatlas::SetRealloc(Some(checked)) }
+}
+
 #[derive(Debug)]
 pub enum IndexFormat {
     Uint16,
