@@ -96,6 +96,53 @@ fn inlined_counts(words: &[u32]) -> HashMap<String, (u64, u64)> {
         .collect()
 }
 
+/// `module` validated and written as SPIR-V, as wgpu compiles it for Vulkan.
+fn spirv_of(module: &naga::Module) -> Vec<u32> {
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(module)
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    let mut options = naga::back::spv::Options::default();
+    options.flags |= naga::back::spv::WriterFlags::DEBUG;
+    naga::back::spv::write_vec(module, &info, &options, None).expect("SPIR-V")
+}
+
+/// The two query kernels as the renderer composes them (naga_oil), the static scene's
+/// (`query.wgsl`) and the moving objects' (`moving_query.wgsl`) for 1, 4 and 8 objects with a
+/// CSM, each search and per-object step looped or unrolled: the entry point's instructions with
+/// every call inlined, as a driver that inlines everything sees them (issue 48, item 5: the
+/// moving query's code should not grow with the objects).
+fn kernel_rows(steps: u32) {
+    use cssm::runtime::shaders::Shader;
+    println!(
+        "\n| kernel | objects with a CSM | search | SPIR-V instructions of `main` (calls inlined) |"
+    );
+    println!("| --- | ---: | --- | ---: |");
+    for search_loop in [false, true] {
+        let shape = CssmShape {
+            search_steps: steps,
+            search_loop,
+            ..Default::default()
+        };
+        let form = if search_loop { "looped" } else { "unrolled" };
+        let kernels = [
+            (Shader::Query, 0),
+            (Shader::MovingQuery, 1),
+            (Shader::MovingQuery, 4),
+            (Shader::MovingQuery, 8),
+        ];
+        for (shader, csms) in kernels {
+            let module = shader
+                .module_for_scene(shape, csms)
+                .unwrap_or_else(|e| panic!("{}: {e}", shader.label()));
+            let (instructions, _) = inlined_counts(&spirv_of(&module))["main"];
+            println!("| {} | {csms} | {form} | {instructions} |", shader.label());
+        }
+    }
+}
+
 /// `library` (the CSSM library's source) composed for `steps` search steps, unrolled, with an
 /// entry point that calls the query, compiled to SPIR-V as wgpu compiles it for Vulkan.
 fn spirv(library: &str, steps: u32, search_loop: bool) -> Vec<u32> {
@@ -111,15 +158,7 @@ fn spirv(library: &str, steps: u32, search_loop: bool) -> Vec<u32> {
            }";
     let module = naga::front::wgsl::parse_str(&source)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
-    let info = naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{e:?}"));
-    let mut options = naga::back::spv::Options::default();
-    options.flags |= naga::back::spv::WriterFlags::DEBUG;
-    naga::back::spv::write_vec(&module, &info, &options, None).expect("SPIR-V")
+    spirv_of(&module)
 }
 
 fn main() {
@@ -171,4 +210,5 @@ fn main() {
             println!("| {label} | {search} | {function} | {instructions} | {divisions} |");
         }
     }
+    kernel_rows(steps);
 }

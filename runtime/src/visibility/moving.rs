@@ -18,8 +18,9 @@ use crate::{
     load::{CssmGpu, limit_check},
 };
 
-/// Rigid objects with a coherent shadow map the GPU query tests: `moving.wgsl` has one
-/// `#if MOVING_CSMS > k` step per CSM, eight of them (no loop, for llvmpipe's loop limit).
+/// Rigid objects with a coherent shadow map the GPU query tests: `moving.wgsl` loops over them
+/// where the driver allows loops, and on llvmpipe (whose loop limit a gather would reach) has
+/// one `#if MOVING_CSMS > k` step per CSM, eight of them.
 pub const MOVING_MAX_CSMS: usize = 8;
 
 /// Storage buffers per shader stage the moving objects' bind group adds to a pass's (the

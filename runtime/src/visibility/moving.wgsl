@@ -180,12 +180,21 @@ fn csm_map_visibility(c: Csm, cell: u32, light: vec3f, receiver: vec3f) -> f32 {
     let x = i32(x0);
     let y = i32(y0);
     let depths = vec2f(light_depth, receiver_depth);
+#if CSSM_SEARCH_LOOP > 0
+    // One copy of the tap (and of its search) where loops are allowed: the driver would otherwise
+    // inline four searches per map, sixteen per CSM, for every CSM of the scene.
+    var clear: vec4f;
+    for (var k = 0; k < 4; k++) {
+        clear[k] = csm_tap(c, map, x + (k & 1), y + (k >> 1u), depths);
+    }
+#else
     let clear = vec4f(
         csm_tap(c, map, x, y, depths),
         csm_tap(c, map, x + 1, y, depths),
         csm_tap(c, map, x, y + 1, depths),
         csm_tap(c, map, x + 1, y + 1, depths),
     );
+#endif
     return (1.0 - wy) * ((1.0 - wx) * clear.x + wx * clear.y) + wy * ((1.0 - wx) * clear.z + wx * clear.w);
 }
 
@@ -226,10 +235,20 @@ fn csm_visibility(c: Csm, light: vec3f, receiver: vec3f) -> f32 {
     let y1 = min(y0 + 1u, k - 1u);
     let wx = fx - f32(x0);
     let wy = fy - f32(y0);
+#if CSSM_SEARCH_LOOP > 0
+    // The four cells through one copy of csm_map_visibility, combined as below.
+    let cells = vec4u(y0 * k + x0, y0 * k + x1, y1 * k + x0, y1 * k + x1);
+    var seen: vec4f;
+    for (var corner = 0u; corner < 4u; corner++) {
+        seen[corner] = csm_map_visibility(c, cells[corner], light, receiver);
+    }
+    return (1.0 - wy) * ((1.0 - wx) * seen.x + wx * seen.y) + wy * ((1.0 - wx) * seen.z + wx * seen.w);
+#else
     return (1.0 - wy) * ((1.0 - wx) * csm_map_visibility(c, y0 * k + x0, light, receiver)
             + wx * csm_map_visibility(c, y0 * k + x1, light, receiver))
         + wy * ((1.0 - wx) * csm_map_visibility(c, y1 * k + x0, light, receiver)
             + wx * csm_map_visibility(c, y1 * k + x1, light, receiver));
+#endif
 }
 
 // MovingQuery::to_baked: a point and its normal in the frame `object` was baked in; the static
@@ -297,8 +316,15 @@ fn moving_visibility_between(
     let groups = vec2u(group_a, group_b);
     let count = arrayLength(&moving_csms);
     var clear = own;
-    // One step per CSM of the file (MOVING_CSMS, a composition constant): a static scene's
-    // modules carry none of this code.
+#if CSSM_SEARCH_LOOP > 0
+    // The CSMs in a loop through one copy of the step (§3.3's product over the other objects):
+    // code that does not grow with the objects, where the driver allows loops.
+    for (var i = 0u; i < #{MOVING_CSMS}u; i++) {
+        clear = moving_csm_step(i, count, groups, p_a, p_b, clear);
+    }
+#else
+    // One step per CSM of the file (MOVING_CSMS, a composition constant) on llvmpipe, whose
+    // loop limit a gather would reach; a static scene's modules carry none of this code.
 #if MOVING_CSMS > 0
     clear = moving_csm_step(0u, count, groups, p_a, p_b, clear);
 #endif
@@ -322,6 +348,7 @@ fn moving_visibility_between(
 #endif
 #if MOVING_CSMS > 7
     clear = moving_csm_step(7u, count, groups, p_a, p_b, clear);
+#endif
 #endif
     return clear;
 #endif
