@@ -50,6 +50,10 @@ XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$examples_out}" target/release/embed-runtime
     "$examples_out/embedded.png"
 test -s "$examples_out/embedded.png"
 
+# The batch farm of docs/batch-bake.md on a real scheduler: a single-node Slurm runs the docs' own
+# job array and merge job, one task killed and retried (installs Slurm and munge where missing).
+scripts/slurm_test.sh target/release/cssm
+
 # The GPU benchmark harness (reports/runtime.sh: every benchmark and render the GPU machine runs)
 # end to end at small sizes on this machine's device, so that no device time goes to a broken
 # script.
