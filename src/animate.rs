@@ -178,6 +178,8 @@ pub fn run_animate(config: &RenderConfig, options: &AnimateOptions) -> CliResult
         .progress_chars("=> "),
     );
     bar.set_message(format!("{} with {method} at {width}x{height}", scene.name));
+    // One exposure for every frame, metered on the first: frames that flicker are no animation.
+    let mut metered = None;
     for (index, path) in files.iter().enumerate() {
         let time = index as f32 * duration / frames as f32;
         for (object, pose) in motion.poses_at(&scene, time) {
@@ -185,7 +187,8 @@ pub fn run_animate(config: &RenderConfig, options: &AnimateOptions) -> CliResult
                 .set_object_transform(object, pose)
                 .map_err(|e| format!("{} at {time} s: {e}", dir.display()))?;
         }
-        let image = readback::render_image(&mut renderer, 1).map_err(gpu_error)?;
+        let mut image = readback::render_image(&mut renderer, 1).map_err(gpu_error)?;
+        crate::render::expose(config, &mut image, &mut metered);
         save_png(path, &image)?;
         if let Some(gif) = &mut gif {
             gif.push(image.display)?;

@@ -974,7 +974,8 @@ pub struct ViewArgs {
     /// Image (and window) size WIDTHxHEIGHT. Default: the scene camera's resolution.
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
-    /// Exposure in stops (radiance is scaled by 2^EV before tone mapping).
+    /// Exposure in stops (radiance is scaled by 2^EV before tone mapping). Fixed in the window
+    /// (`cssm render` meters its own when not given one; a screenshot prints the flag).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = stops)]
     exposure: f32,
     /// Shadow-map resolution in texels per side.
@@ -1079,7 +1080,7 @@ impl ViewArgs {
                     .unwrap_or_else(|| PathBuf::from("cssm-view.png")),
                 exr: None,
                 size: self.size,
-                exposure: self.exposure,
+                exposure: Some(self.exposure),
                 shadow_resolution: self.shadow_resolution,
                 visibility: QueryOptions {
                     both_ends: !self.one_end,
@@ -1119,9 +1120,12 @@ pub struct RenderArgs {
     /// Image size WIDTHxHEIGHT. Default: the scene camera's resolution.
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
-    /// Exposure in stops (radiance is scaled by 2^EV before tone mapping).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = stops)]
-    exposure: f32,
+    /// Exposure in stops (radiance is scaled by 2^EV before tone mapping). Default: automatic,
+    /// the log-average luminance of the image's lit pixels at middle grey (with --animate, the
+    /// first frame's for every frame), printed so that --exposure can fix it; the CSSM methods'
+    /// oracle meters at 0 then.
+    #[arg(long, allow_negative_numbers = true, value_parser = stops)]
+    exposure: Option<f32>,
     /// Shadow-map resolution in texels per side.
     #[arg(long, default_value_t = runtime::common::shadow_map::DEFAULT_RESOLUTION)]
     shadow_resolution: u32,
@@ -1339,8 +1343,8 @@ pub struct RenderConfig {
     pub exr: Option<PathBuf>,
     /// Image size; `None`: the scene camera's.
     pub size: Option<(u32, u32)>,
-    /// Exposure in stops.
-    pub exposure: f32,
+    /// Exposure in stops; `None`: automatic ([`runtime::common::tonemap::auto_exposure_stops`]).
+    pub exposure: Option<f32>,
     /// Shadow-map resolution.
     pub shadow_resolution: u32,
     /// How the CSSM methods query visibility (`--one-end`).

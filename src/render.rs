@@ -96,6 +96,8 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             image
         }
     };
+    let mut image = image;
+    expose(&config, &mut image, &mut None);
     save_png(&config.out, &image)?;
     if let Some(exr) = &config.exr {
         save_exr(exr, &image)?;
@@ -110,6 +112,33 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             .unwrap_or_default()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Without `--exposure`, tone-maps `image` anew at the automatic exposure
+/// ([`runtime::common::tonemap::auto_exposure_stops`]) and says which it was, so that
+/// `--exposure` can fix it; `metered` carries the first image's for the frames of an animation.
+pub(crate) fn expose(
+    config: &RenderConfig,
+    image: &mut readback::Image,
+    metered: &mut Option<f32>,
+) {
+    if config.exposure.is_some() {
+        return;
+    }
+    let stops = match *metered {
+        Some(stops) => stops,
+        None => {
+            let stops =
+                runtime::common::tonemap::auto_exposure_stops(&image.radiance).unwrap_or(0.0);
+            eprintln!(
+                "exposure: automatic, {stops:+.2} stops (the lit pixels' log-average luminance \
+                 at middle grey; --exposure {stops:.2} fixes it)"
+            );
+            *metered = Some(stops);
+            stops
+        }
+    };
+    image.retonemap(stops.exp2());
 }
 
 /// A headless GPU and a [`Renderer`] of `config`'s GPU method on `scene` (its `.cssm` read or
@@ -350,7 +379,7 @@ pub(crate) fn renderer_settings(
         frame: FrameSettings {
             width,
             height,
-            exposure: config.exposure.exp2(),
+            exposure: config.exposure.unwrap_or(0.0).exp2(),
             shadow_resolution: config.shadow_resolution,
             visibility: config.visibility,
         },

@@ -8,7 +8,13 @@ use std::{
     process::{Command, Output},
 };
 
+/// Runs `cssm`; a `render` at the fixed exposure 0 unless the test gives one: the frames are
+/// compared with stills, and each still would otherwise meter its own automatic exposure.
 fn cssm(args: &[&str]) -> Output {
+    let mut args = args.to_vec();
+    if args.first() == Some(&"render") && !args.iter().any(|a| a.starts_with("--exposure")) {
+        args.extend(["--exposure", "0"]);
+    }
     Command::new(env!("CARGO_BIN_EXE_cssm"))
         .args(args)
         .output()

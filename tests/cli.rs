@@ -1544,3 +1544,55 @@ fn chunks_merge_into_the_file_of_one_bake() {
     assert_eq!(summary["first_map"].as_u64(), Some(0));
     assert_eq!(summary["end_map"].as_u64(), Some(65_536));
 }
+
+/// Without `--exposure`, `cssm render` meters the image (the lit pixels' log-average luminance
+/// at middle grey) and says which exposure it took; that exposure given back fixes the same
+/// image; a fixed one is taken as given.
+#[test]
+fn render_exposes_automatically_unless_told() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = |name: &str| tmp.path().join(name);
+    let scene = cornell();
+    let render = |out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            scene.to_str().unwrap(),
+            "--size",
+            "64x48",
+            "--shadow-resolution",
+            "256",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let o = cssm(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let mean = |path: &std::path::Path| {
+        let image = image::open(path).unwrap().to_luma8();
+        image.pixels().map(|p| p.0[0] as f64).sum::<f64>() / image.pixels().len() as f64
+    };
+    let said = render(&png("auto.png"), &[]);
+    let stops: String = said
+        .split("--exposure ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no exposure said: {said}"))
+        .into();
+    assert!(said.contains("exposure: automatic"), "{said}");
+    let dark = render(&png("dark.png"), &["--exposure", "-8"]);
+    assert!(!dark.contains("automatic"), "{dark}");
+    let fixed = render(&png("fixed.png"), &["--exposure", &stops]);
+    assert!(!fixed.contains("automatic"), "{fixed}");
+    let (auto, dark, fixed) = (
+        mean(&png("auto.png")),
+        mean(&png("dark.png")),
+        mean(&png("fixed.png")),
+    );
+    // Lit walls around middle grey on a black surround: neither dark nor washed out.
+    assert!((40.0..170.0).contains(&auto), "{auto}");
+    assert!(dark < 0.25 * auto, "{dark} {auto}");
+    // The exposure said (rounded to hundredths of a stop) gives the same image.
+    assert!((fixed - auto).abs() < 1.0, "{fixed} {auto}");
+}

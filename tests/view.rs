@@ -84,9 +84,16 @@ fn window_matches_render(dir: &Path, args: &[&str], frames: &str, size: (u32, u3
     // The image came from the window's loop, not from an offscreen fallback.
     assert!(stderr(&out).contains("viewing "), "{}", stderr(&out));
     let mut render = cssm_command();
+    // The window's exposure is fixed (0 unless given); `cssm render` meters its own unless told.
+    let fixed = if args.iter().any(|a| a.starts_with("--exposure")) {
+        &[][..]
+    } else {
+        &["--exposure", "0"][..]
+    };
     render
         .arg("render")
         .args(args)
+        .args(fixed)
         .args(["--frames", frames, "--out"])
         .arg(&rendered);
     let out = run(render);

@@ -142,8 +142,9 @@ fn fixed_flags(config: &ViewConfig) -> Vec<String> {
     if let Some(cssm) = &render.cssm {
         flags.push(format!("--cssm {}", cssm.display()));
     }
-    if render.exposure != 0.0 {
-        flags.push(format!("--exposure {}", render.exposure));
+    // Always: the window's exposure is fixed, where `cssm render`'s default is automatic.
+    if let Some(exposure) = render.exposure {
+        flags.push(format!("--exposure {exposure}"));
     }
     if render.shadow_resolution != runtime::common::shadow_map::DEFAULT_RESOLUTION {
         flags.push(format!("--shadow-resolution {}", render.shadow_resolution));

@@ -127,16 +127,17 @@ pub struct Image {
 }
 
 impl Image {
+    /// Tone-maps the radiance anew at `exposure` (a multiplier), on the CPU with the GPU's curve
+    /// ([`crate::common::tonemap::tonemap`]): for an exposure known only once the frame is read
+    /// back ([`crate::common::tonemap::auto_exposure_stops`]).
+    pub fn retonemap(&mut self, exposure: f32) {
+        self.display = tonemapped(&self.radiance, exposure);
+    }
+
     /// An image of linear `radiance` computed on the CPU (the path tracer), tone-mapped with the
     /// GPU's curve ([`crate::common::tonemap::tonemap`]) at `exposure`; no timings.
     pub fn from_cpu(width: u32, height: u32, radiance: Vec<[f32; 4]>, exposure: f32) -> Self {
-        let display = radiance
-            .iter()
-            .flat_map(|c| {
-                let [r, g, b] = crate::common::tonemap::tonemap([c[0], c[1], c[2]], exposure);
-                [r, g, b, 255]
-            })
-            .collect();
+        let display = tonemapped(&radiance, exposure);
         Self {
             width,
             height,
@@ -146,6 +147,17 @@ impl Image {
             timings: Vec::new(),
         }
     }
+}
+
+/// `radiance` as opaque tone-mapped sRGB bytes, RGBA.
+fn tonemapped(radiance: &[[f32; 4]], exposure: f32) -> Vec<u8> {
+    radiance
+        .iter()
+        .flat_map(|c| {
+            let [r, g, b] = crate::common::tonemap::tonemap([c[0], c[1], c[2]], exposure);
+            [r, g, b, 255]
+        })
+        .collect()
 }
 
 /// An `Rgba8Unorm` target of `width` x `height` to render into, read back and sample (the

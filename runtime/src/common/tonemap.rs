@@ -26,6 +26,30 @@ pub fn tonemap(radiance: [f32; 3], exposure: f32) -> [u8; 3] {
     radiance.map(|c| (srgb_encode(aces(c.max(0.0) * exposure)) * 255.0).round() as u8)
 }
 
+/// Where automatic exposure puts the image's log-average luminance: middle grey (Reinhard et
+/// al. 2002, "Photographic Tone Reproduction for Digital Images", §2: the scene's "key").
+pub const AUTO_EXPOSURE_KEY: f32 = 0.18;
+
+/// Automatic exposure in stops: the exposure that brings the log-average luminance (Rec. 709
+/// weights) of the pixels of `radiance` that hold light to [`AUTO_EXPOSURE_KEY`], as engines
+/// meter a frame. Pixels without light (the void around a box seen through its open side,
+/// surfaces no light reaches) are left out: they would expose for the dark. Clamped to ±32
+/// stops; `None` when no pixel holds light.
+pub fn auto_exposure_stops(radiance: &[[f32; 4]]) -> Option<f32> {
+    let (sum, count) = radiance
+        .iter()
+        .map(|c| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2])
+        .filter(|l| *l > 0.0 && l.is_finite())
+        .fold((0.0f64, 0u64), |(sum, n), l| {
+            (sum + f64::from(l).ln(), n + 1)
+        });
+    (count > 0).then(|| {
+        let log_average = sum / count as f64;
+        ((f64::from(AUTO_EXPOSURE_KEY).ln() - log_average) / std::f64::consts::LN_2)
+            .clamp(-32.0, 32.0) as f32
+    })
+}
+
 /// The tone-mapping pass: `hdr` (an `Rgba32Float` texture) drawn into the caller's target, a
 /// swapchain texture or an offscreen one, of the format given at creation. Into an `*Srgb`
 /// target the shader leaves the sRGB encoding to the hardware; into any other it encodes itself,
@@ -145,5 +169,25 @@ impl Tonemap {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.draw(0..3, 0..1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_exposure_brings_the_lit_pixels_log_average_to_middle_grey() {
+        // Half the pixels at luminance 2, half at 8: log-average 4, so 0.18 / 4 = 2^-4.47.
+        let mut image = vec![[2.0, 2.0, 2.0, 1.0]; 50];
+        image.extend(vec![[8.0, 8.0, 8.0, 1.0]; 50]);
+        let stops = auto_exposure_stops(&image).unwrap();
+        assert!((stops - (0.18f32 / 4.0).log2()).abs() < 1e-4, "{stops}");
+        // Pixels of no light do not drag it down; a non-finite one is left out.
+        image.extend(vec![[0.0; 4]; 1000]);
+        image.push([f32::INFINITY, 0.0, 0.0, 1.0]);
+        assert!((auto_exposure_stops(&image).unwrap() - stops).abs() < 1e-4);
+        assert_eq!(auto_exposure_stops(&[[0.0; 4]; 10]), None);
+        assert_eq!(auto_exposure_stops(&[[1e-30, 0.0, 0.0, 1.0]]), Some(32.0));
     }
 }
