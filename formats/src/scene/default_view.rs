@@ -24,6 +24,11 @@ const OPEN_FRACTION: f32 = 0.5;
 const NEARLY_AS_OPEN: f32 = 0.1;
 /// Field of view inside an enclosed room.
 const INSIDE_FOV_Y_DEG: f32 = 60.0;
+/// A scene lower than this fraction of its diameter is flat (a floor with a few objects on it,
+/// a terrain): seen from the side at its centre's height, it would be a line.
+const FLAT_FRACTION: f32 = 0.1;
+/// How far above a flat scene's horizon the camera looks down on it from its open side.
+const FLAT_ELEVATION_DEG: f32 = 35.0;
 
 /// A side of the bounding box the camera may look from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,8 +101,16 @@ pub(super) fn default_camera(
             } else {
                 Vec3::Y
             };
+            // A flat scene is looked down on from its side, not seen edge on.
+            let extent = hi - lo;
+            let toward = if side != Side::Top && extent.y < FLAT_FRACTION * extent.length() {
+                let elevation = FLAT_ELEVATION_DEG.to_radians();
+                side.normal() * elevation.cos() + Vec3::Y * elevation.sin()
+            } else {
+                side.normal()
+            };
             let camera = Camera {
-                position: centre + side.normal() * distance,
+                position: centre + toward * distance,
                 target: centre,
                 up,
                 fov_y_deg: DEFAULT_FOV_Y_DEG,
@@ -139,7 +152,7 @@ pub(super) fn default_light(
     let height = hi.y - lo.y;
     // diameter^2 W/sr at about half a diameter: the irradiance the ceiling light gives.
     let intensity_at = |distance: f32| diameter * diameter * (distance / (0.5 * diameter)).powi(2);
-    let flat = height < 0.1 * diameter;
+    let flat = height < FLAT_FRACTION * diameter;
     if !flat && openness(positions, triangles, lo, hi, Side::Top) < OPEN_FRACTION {
         let light = SpotLight {
             position: Vec3::new(centre.x, hi.y - 0.02 * height, centre.z),
@@ -359,6 +372,34 @@ mod tests {
             }
             assert!(light.intensity[0] > 0.0 && light.intensity[0].is_finite());
         }
+    }
+
+    /// A flat scene (a 20x10 floor with a 1 m cube on it) is looked down on from its open side,
+    /// not seen edge on from its centre's height; the light at the camera lights it.
+    #[test]
+    fn a_flat_scene_is_looked_down_on() {
+        let (mut positions, mut triangles) = walls(Vec3::new(1.0, 1.0, 1.0), &[], false);
+        let base = positions.len() as u32;
+        let v = Vec3::new;
+        positions.extend([
+            v(-10., 0., -5.),
+            v(10., 0., -5.),
+            v(10., 0., 5.),
+            v(-10., 0., 5.),
+        ]);
+        triangles.extend([[base, base + 2, base + 1], [base, base + 3, base + 2]]);
+        let (camera, placement) = framed(&positions, &triangles);
+        assert!(
+            matches!(placement, Placement::Outside(Side::PosZ, _)),
+            "{placement:?}"
+        );
+        let view = (camera.target - camera.position).normalize();
+        let down = (-view.y).asin().to_degrees();
+        assert!((down - FLAT_ELEVATION_DEG).abs() < 0.01, "{down}");
+        let (lo, hi) = (v(-10., 0., -5.), v(10., 1., 5.));
+        let (light, _) = default_light(&positions, &triangles, lo, hi, &camera);
+        assert_eq!(light.position, camera.position);
+        assert!(light.direction.dot(view) > 0.999);
     }
 
     /// A closed box is seen from inside, across its longer horizontal axis.
