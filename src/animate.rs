@@ -236,12 +236,15 @@ fn prepare_output(
             out.display()
         ));
     }
-    std::fs::create_dir_all(out)
-        .map_err(|e| format!("cannot create the directory {}: {e}", out.display()))?;
-    let files: Vec<PathBuf> = (0..frames).map(|i| out.join(frame_name(i))).collect();
+    // The frames' fixed names are never written through a link planted in OUT.
+    let output =
+        |name: &str| cssm::formats::files::output_in(out, name).map_err(|e| format!("--out: {e}"));
+    let files = (0..frames)
+        .map(|i| output(&frame_name(i)))
+        .collect::<Result<Vec<PathBuf>, String>>()?;
     let mut outputs = files.clone();
     if options.gif {
-        outputs.push(out.join(GIF_NAME));
+        outputs.push(output(GIF_NAME)?);
     }
     let inputs = scene.input_files();
     for path in &outputs {

@@ -156,23 +156,28 @@ pub fn run_merge(args: MergeArgs) -> CliResult {
         .expect("valid template")
         .progress_chars("=> "),
     );
-    let mut chunks = Vec::with_capacity(args.chunks.len());
+    // One chunk at a time: each one's tables are checked against the first's and dropped, so
+    // memory does not grow with the number of chunks.
+    let mut merger = formats::cssm::ChunkMerger::default();
+    let mut output = None;
     for path in &args.chunks {
         let chunk = formats::cssm::read_chunk(path).map_err(|e| e.to_string())?;
-        chunks.push((path.clone(), chunk));
+        if output.is_none() {
+            let name = cssm::safe_file_stem(&chunk.file().scene.name);
+            let path = args
+                .output
+                .clone()
+                .unwrap_or_else(|| format!("{name}.cssm").into());
+            check_writable(&path, &args.chunks)?;
+            output = Some(path);
+        }
+        merger.add(path.clone(), chunk).map_err(|e| e.to_string())?;
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let count = chunks.len();
-    let scene_name = chunks
-        .first()
-        .map(|(_, c)| c.file().scene.name.clone())
-        .unwrap_or_default();
-    let output = args
-        .output
-        .unwrap_or_else(|| format!("{}.cssm", cssm::safe_file_stem(&scene_name)).into());
-    check_writable(&output, &args.chunks)?;
-    let (file, coding) = formats::cssm::merge_chunks(chunks).map_err(|e| e.to_string())?;
+    let count = args.chunks.len();
+    let (file, coding) = merger.finish().map_err(|e| e.to_string())?;
+    let output = output.unwrap_or_default();
     let file_bytes =
         formats::cssm::write_atomic_with(&output, &file, coding).map_err(|e| e.to_string())?;
     let summary = InspectSummary::new(&output, &file, file_bytes);

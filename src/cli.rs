@@ -36,6 +36,11 @@ use runtime::{
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+    /// Let a glTF file's buffers and images be files outside its own directory (an absolute
+    /// path, a `..` leading out, a link pointing out). Without it such a scene is refused: a
+    /// downloaded model cannot make cssm read, or quote in an error, files elsewhere.
+    #[arg(long, global = true)]
+    pub allow_outside_files: bool,
 }
 
 #[derive(Subcommand)]
@@ -528,7 +533,8 @@ pub struct ErrorArgs {
     /// Cube-map face resolution of that bake (8 to 128).
     #[arg(long, default_value_t = 32)]
     cube: u32,
-    /// Directory of the report (created; only the report's own files in it are replaced).
+    /// Directory of the report (created; only the report's own files in it are replaced, and
+    /// never through a symbolic link: a link under one of their names is refused).
     #[arg(long)]
     out: PathBuf,
     /// Reuse OUT/SCENE-reference.exr when its sidecar SCENE-reference.json records the same
@@ -744,9 +750,9 @@ pub struct CompareArgs {
     /// Cube-map face resolution of that bake (8 to 128).
     #[arg(long, default_value_t = 32)]
     cube: u32,
-    /// Directory of the page (created; only the page's own files in it are replaced):
-    /// index.html, chart.svg, compare.csv, compare.json, compare.md, images/ and
-    /// reference-cache/.
+    /// Directory of the page (created; only the page's own files in it are replaced, and never
+    /// through a symbolic link: a link under one of their names is refused): index.html,
+    /// chart.svg, compare.csv, compare.json, compare.md, images/ and reference-cache/.
     #[arg(long, default_value = "compare")]
     out: PathBuf,
     /// Path trace the references again even where OUT/reference-cache/ holds one of the same

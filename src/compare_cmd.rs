@@ -46,21 +46,13 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
     let out = &config.out;
     measure::check_out_dir(out)?;
     let scenes = measure::load_scenes(&config.scenes)?;
+    // Every fixed name is checked before the first render: a link planted as `index.html`
+    // or `images` is refused now, not after minutes of rendering (and never written through).
     for name in PAGE_FILES {
-        let path = out.join(name);
-        if path.exists() && !path.is_file() {
-            return Err(format!(
-                "{}: exists and is not a file (the page would write it)",
-                path.display()
-            ));
-        }
+        output(out, name)?;
     }
-
-    let cache = out.join("reference-cache");
-    for dir in [out.clone(), cache.clone()] {
-        std::fs::create_dir_all(&dir).map_err(|e| format!("--out {}: {e}", dir.display()))?;
-    }
-
+    let cache = cssm::formats::files::output_dir_in(out, "reference-cache")
+        .map_err(|e| format!("--out: {e}"))?;
     let mut gpu: Option<runtime::Gpu> = None;
     let mut comparisons = Vec::new();
     for scene in &scenes {
@@ -86,12 +78,15 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
         seconds: start.elapsed().as_secs_f64(),
     };
     // The chart and the data first, the page that links them last.
-    write_text(&out.join("chart.svg"), &compare_html::chart_svg(&report)?)?;
-    write_text(&out.join("compare.csv"), &compare::csv(&report))?;
-    write_text(&out.join("compare.json"), &compare::json(&report)?)?;
+    write_text(
+        &output(out, "chart.svg")?,
+        &compare_html::chart_svg(&report)?,
+    )?;
+    write_text(&output(out, "compare.csv")?, &compare::csv(&report))?;
+    write_text(&output(out, "compare.json")?, &compare::json(&report)?)?;
     let md = compare::markdown(&report);
-    write_text(&out.join("compare.md"), &md)?;
-    write_text(&out.join("index.html"), &compare_html::html(&report))?;
+    write_text(&output(out, "compare.md")?, &md)?;
+    write_text(&output(out, "index.html")?, &compare_html::html(&report))?;
     print!("{md}");
     let failed: Vec<String> = report
         .scenes
@@ -114,6 +109,11 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
         ));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `name` inside `--out`, never through a link ([`formats::files::output_in`]).
+fn output(out: &Path, name: &str) -> Result<PathBuf, String> {
+    cssm::formats::files::output_in(out, name).map_err(|e| format!("--out: {e}"))
 }
 
 /// The reference cache's file of `scene`'s `component` reference at these settings, with
@@ -148,8 +148,6 @@ fn compare_scene(
     // The scene's name as one path component: a name with `/` or `..` in it (it comes from the
     // scene's own file) writes nowhere outside OUT.
     let images_rel = format!("images/{}", file_stem(&scene.name));
-    let images = out.join(&images_rel);
-    std::fs::create_dir_all(&images).map_err(|e| format!("{}: {e}", images.display()))?;
     let (w, h) = (config.frame.width, config.frame.height);
 
     let reference = |component: Component| -> Result<(Image, ReferenceEntry), String> {
@@ -166,7 +164,7 @@ fn compare_scene(
             &ReferenceFiles {
                 exr: file("exr"),
                 json: file("json"),
-                png: out.join(&png_rel),
+                png: output(out, &png_rel)?,
             },
             config.reuse_references,
         )?;
@@ -207,10 +205,10 @@ fn compare_scene(
                 indirect: format!("{images_rel}/{stem}-indirect.png"),
                 indirect_error: format!("{images_rel}/{stem}-indirect-error.png"),
             };
-            save_png(&out.join(&paths.full), &full.image)?;
-            save_png(&out.join(&paths.indirect), &indirect.image)?;
+            save_png(&output(out, &paths.full)?, &full.image)?;
+            save_png(&output(out, &paths.indirect)?, &indirect.image)?;
             let map = error::flip_map(w, h, &indirect_ref.0.display, &indirect.image.display);
-            save_rgba_png(&out.join(&paths.indirect_error), w, h, map)?;
+            save_rgba_png(&output(out, &paths.indirect_error)?, w, h, map)?;
             Ok(MethodMeasured {
                 figures: Components {
                     full: against(&full.image, &full_ref),

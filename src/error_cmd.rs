@@ -26,7 +26,12 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
     let out = &config.out;
     measure::check_out_dir(out)?;
     let scenes = measure::load_scenes(&config.scenes)?;
-    std::fs::create_dir_all(out).map_err(|e| format!("--out {}: {e}", out.display()))?;
+    let output =
+        |name: &str| cssm::formats::files::output_in(out, name).map_err(|e| format!("--out: {e}"));
+    // The fixed names are checked before the first render, not after minutes of it.
+    for name in ["error.md", "error.csv"] {
+        output(name)?;
+    }
 
     let (w, h) = (config.frame.width, config.frame.height);
     let mut gpu: Option<runtime::Gpu> = None;
@@ -34,7 +39,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
     for scene in &scenes {
         // File names from the scene's name as one safe component (it may hold `/` or `..`).
         let scene_stem = cssm::safe_file_stem(&scene.name);
-        let files = |ext: &str| out.join(format!("{scene_stem}-reference.{ext}"));
+        let files = |ext: &str| output(&format!("{scene_stem}-reference.{ext}"));
         let measure::Reference {
             image: reference,
             summary,
@@ -47,9 +52,9 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
                 component: config.component,
             },
             &ReferenceFiles {
-                exr: files("exr"),
-                json: files("json"),
-                png: files("png"),
+                exr: files("exr")?,
+                json: files("json")?,
+                png: files("png")?,
             },
             config.reference_cache,
         )?;
@@ -73,7 +78,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
                         (&reference.radiance, &reference.display),
                     );
                     let stem = error_write::file_stem(&variant.spec);
-                    save_png(&out.join(format!("{scene_stem}-{stem}.png")), &image)?;
+                    save_png(&output(&format!("{scene_stem}-{stem}.png"))?, &image)?;
                     strip.push(image.display);
                     Ok(Measured {
                         figures,
@@ -95,7 +100,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
         let images: Vec<&[u8]> = strip.iter().map(Vec::as_slice).collect();
         let (strip_w, pixels) = error_write::strip(w, h, &images);
         save_rgba_png(
-            &out.join(format!("{scene_stem}-strip.png")),
+            &output(&format!("{scene_stem}-strip.png"))?,
             strip_w,
             h,
             pixels,
@@ -127,7 +132,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
         ("error.md", error_write::markdown(&report)),
         ("error.csv", error_write::csv(&report)),
     ] {
-        write_text(&out.join(name), &text)?;
+        write_text(&output(name)?, &text)?;
     }
     print!("{}", error_write::table(&report));
     let failed = report.rows.iter().filter(|r| r.outcome.is_err()).count();

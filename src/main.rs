@@ -37,7 +37,11 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let command = cli::Cli::parse().command;
+    let cli = cli::Cli::parse();
+    let _ = LOAD_OPTIONS.set(formats::LoadOptions {
+        files_outside: cli.allow_outside_files,
+    });
+    let command = cli.command;
     // Before any thread exists (the set_var in it needs that): every command that may open the
     // GPU.
     // The private directory, if one was made, is removed when `main` returns.
@@ -83,13 +87,17 @@ fn scene_dir(scene: Option<PathBuf>) -> Result<PathBuf, String> {
     }
 }
 
+/// How scenes are loaded, from the global flags (`--allow-outside-files`); set once in `main`.
+static LOAD_OPTIONS: std::sync::OnceLock<formats::LoadOptions> = std::sync::OnceLock::new();
+
 /// Loads the scene at `dir` with a spinner on a terminal (parsing a large OBJ takes seconds)
 /// and prints its warnings.
 fn load_scene(dir: &Path) -> Result<Scene, String> {
     let spinner = indicatif::ProgressBar::new_spinner()
         .with_message(format!("loading {}", printable(&dir.display().to_string())));
     spinner.enable_steady_tick(std::time::Duration::from_millis(200));
-    let scene = Scene::load(dir).map_err(|e| e.to_string());
+    let options = LOAD_OPTIONS.get().copied().unwrap_or_default();
+    let scene = Scene::load_with(dir, options).map_err(|e| e.to_string());
     spinner.finish_and_clear();
     let scene = scene?;
     for w in &scene.warnings {

@@ -13,6 +13,8 @@ use std::{
 
 #[path = "reliability/geometry.rs"]
 mod geometry;
+#[path = "reliability/inputs.rs"]
+mod inputs;
 
 /// The binary under test: this build's, or the one `CSSM_RELIABILITY_BIN` names (to show that
 /// an older build fails these tests: reports/reliability.md).

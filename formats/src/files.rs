@@ -83,12 +83,99 @@ pub fn read_bounded(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
         return Err(too_large(size));
     }
     let mut bytes = Vec::new();
-    bytes
-        .try_reserve_exact(size as usize)
-        .map_err(|_| too_large(size))?;
+    // A failed reservation is the machine's memory, not the file's size against the limit.
+    bytes.try_reserve_exact(size as usize).map_err(|_| {
+        io::Error::new(
+            io::ErrorKind::OutOfMemory,
+            format!("cannot reserve {size} bytes of memory to read it"),
+        )
+    })?;
     file.take(limit + 1).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > limit {
         return Err(too_large(bytes.len() as u64));
     }
     Ok(bytes)
+}
+
+/// The path of `name` inside the output directory `out`, ready to be written by a command that
+/// writes fixed names there (`index.html`, `images/SCENE/x.png`): the directories on the way are
+/// created, and neither they nor the file may be a symbolic link, the file only a regular file
+/// or absent. A link planted in `out` under one of those names would otherwise have the command
+/// write wherever it points. `out` itself is the user's choice and may be a link. `name` is
+/// split at `/`; a component that is empty, `.` or `..` is refused.
+///
+/// # Errors
+/// [`io::ErrorKind::InvalidInput`] naming the path and what it is; a directory's creation error.
+///
+/// ```
+/// # let dir = tempfile::tempdir().unwrap();
+/// # #[cfg(unix)] {
+/// std::os::unix::fs::symlink("/elsewhere", dir.path().join("index.html")).unwrap();
+/// let e = cssm_formats::files::output_in(dir.path(), "index.html").unwrap_err();
+/// assert!(e.to_string().ends_with("index.html is a symbolic link: the tool writes its own \
+///     files in an output directory only as new or regular files (remove it or choose another \
+///     directory)"));
+/// let png = cssm_formats::files::output_in(dir.path(), "images/a/b.png").unwrap();
+/// assert!(dir.path().join("images/a").is_dir() && !png.exists());
+/// # }
+/// ```
+pub fn output_in(out: &Path, name: &str) -> io::Result<std::path::PathBuf> {
+    output_walk(out, name, false)
+}
+
+/// The directory `name` inside the output directory `out`, created if missing, checked as
+/// [`output_in`] checks the way to a file.
+///
+/// # Errors
+/// As [`output_in`].
+pub fn output_dir_in(out: &Path, name: &str) -> io::Result<std::path::PathBuf> {
+    output_walk(out, name, true)
+}
+
+fn output_walk(out: &Path, name: &str, directory: bool) -> io::Result<std::path::PathBuf> {
+    let refuse = |path: &Path, what: &str| {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "{} {what}: the tool writes its own files in an output directory only as new or \
+                 regular files (remove it or choose another directory)",
+                path.display()
+            ),
+        )
+    };
+    let named =
+        |path: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+    std::fs::create_dir_all(out).map_err(|e| named(out, e))?;
+    let components: Vec<&str> = name.split('/').collect();
+    if components
+        .iter()
+        .any(|c| c.is_empty() || *c == "." || *c == "..")
+    {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{name:?} is not a plain relative name"),
+        ));
+    }
+    let mut path = out.to_path_buf();
+    for (i, component) in components.iter().enumerate() {
+        path.push(component);
+        let last = i + 1 == components.len();
+        match std::fs::symlink_metadata(&path) {
+            Ok(m) if m.file_type().is_symlink() => return Err(refuse(&path, "is a symbolic link")),
+            Ok(m) if last && !directory => {
+                if let Some(kind) = kind_of(&m) {
+                    return Err(refuse(&path, &format!("is {kind}")));
+                }
+            }
+            Ok(m) if !m.is_dir() => return Err(refuse(&path, "is not a directory")),
+            Ok(_) => {}
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                if !last || directory {
+                    std::fs::create_dir(&path).map_err(|e| named(&path, e))?;
+                }
+            }
+            Err(e) => return Err(named(&path, e)),
+        }
+    }
+    Ok(path)
 }

@@ -27,7 +27,7 @@ pub mod visibility;
 pub use cssm::{BakeParams, CssmError, CssmFile, RunData, SceneRef};
 pub use hierarchy::{Hierarchy, HierarchyNode};
 pub use scene::{
-    Camera, Material, NormalMap, NormalMapKind, ObjectKind, Scene, SceneError, SceneObject,
-    SpotLight, TextureSource, hash_hex,
+    Camera, LoadOptions, Material, NormalMap, NormalMapKind, ObjectKind, Scene, SceneError,
+    SceneObject, SpotLight, TextureSource, hash_hex,
 };
 pub use texel::{Texel, Traversal};

@@ -388,7 +388,13 @@ impl FrameContext {
         let determinant = transform.matrix3.determinant();
         if !(transform.is_finite() && determinant.is_finite() && determinant.abs() > 1e-12) {
             return Err(RuntimeError::Unsupported(format!(
-                "object {index}: transform {transform:?} is not finite and invertible"
+                "object {index}: its transform ({}, determinant {determinant:e}) is not finite \
+                 and invertible",
+                if transform.is_finite() {
+                    "finite"
+                } else {
+                    "not finite"
+                }
             )));
         }
         let motion = transform * loaded.inverse();

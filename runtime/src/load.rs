@@ -667,14 +667,11 @@ fn resampled(
         }
     }
     .map_err(|e| texture_error(e.to_string()))?;
-    let rgb = img.to_rgb8();
     let table: Vec<u16> = (0..=255u8)
         .map(|c| (transfer(f32::from(c) / 255.0).clamp(0.0, 1.0) * 65535.0).round() as u16)
         .collect();
-    let wide: image::ImageBuffer<image::Rgb<u16>, Vec<u16>> =
-        image::ImageBuffer::from_fn(rgb.width(), rgb.height(), |x, y| {
-            image::Rgb(rgb.get_pixel(x, y).0.map(|c| table[c as usize]))
-        });
+    let wide = reduced_wide(&img, &table);
+    drop(img);
     let resized = image::imageops::resize(
         &wide,
         TEXTURE_SIZE,
@@ -685,6 +682,47 @@ fn resampled(
         .pixels()
         .map(|p| p.0.map(|c| f32::from(c) / 65535.0))
         .collect())
+}
+
+/// A side above which an image is first reduced by whole box factors ([`reduced_wide`]).
+const REDUCE_ABOVE: u32 = 2 * TEXTURE_SIZE;
+
+/// `img` through `table` (8-bit channel to 16-bit value) as 16-bit RGB. An image wider or
+/// taller than [`REDUCE_ABOVE`] is reduced on the way by whole factors that keep it at least
+/// that size, averaging each box after the table (so in linear space), a stripe of rows at a
+/// time: a 23000² texture costs its decode and a few megabytes, not two full-size copies.
+fn reduced_wide(
+    img: &image::DynamicImage,
+    table: &[u16],
+) -> image::ImageBuffer<image::Rgb<u16>, Vec<u16>> {
+    use image::GenericImageView;
+    let (w, h) = img.dimensions();
+    let (kx, ky) = ((w / REDUCE_ABOVE).max(1), (h / REDUCE_ABOVE).max(1));
+    if kx == 1 && ky == 1 {
+        let rgb = img.to_rgb8();
+        return image::ImageBuffer::from_fn(w, h, |x, y| {
+            image::Rgb(rgb.get_pixel(x, y).0.map(|c| table[c as usize]))
+        });
+    }
+    let (nw, nh) = (w.div_ceil(kx), h.div_ceil(ky));
+    let mut sums = vec![[0u64; 3]; nw as usize * nh as usize];
+    let mut counts = vec![0u32; nw as usize * nh as usize];
+    for row in 0..nh {
+        let y0 = row * ky;
+        let stripe = img.crop_imm(0, y0, w, ky.min(h - y0)).to_rgb8();
+        for (x, _, p) in stripe.enumerate_pixels() {
+            let i = (row * nw + x / kx) as usize;
+            for (sum, c) in sums[i].iter_mut().zip(p.0) {
+                *sum += u64::from(table[c as usize]);
+            }
+            counts[i] += 1;
+        }
+    }
+    image::ImageBuffer::from_fn(nw, nh, |x, y| {
+        let i = (y * nw + x) as usize;
+        let n = u64::from(counts[i].max(1));
+        image::Rgb(sums[i].map(|s| ((s + n / 2) / n) as u16))
+    })
 }
 
 /// The sRGB transfer function, inverted.
@@ -882,6 +920,30 @@ impl SceneGpu {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A texture far larger than the renderer's is reduced in linear space, a stripe at a
+    /// time, to the mean the full-size path gives (issue 53, class 5).
+    #[test]
+    fn a_huge_texture_is_reduced_in_stripes_to_the_same_linear_mean() {
+        // A checkerboard of sRGB 255 and 64: its linear mean is the mean of the two linear
+        // values (averaging in sRGB first would give a darker one).
+        let (w, h) = (3 * REDUCE_ABOVE + 5, REDUCE_ABOVE + 3);
+        let img = image::RgbImage::from_fn(w, h, |x, y| {
+            image::Rgb(if (x + y) % 2 == 0 { [255; 3] } else { [64; 3] })
+        });
+        let table: Vec<u16> = (0..=255u8)
+            .map(|c| (srgb_to_linear(f32::from(c) / 255.0) * 65535.0).round() as u16)
+            .collect();
+        let reduced = reduced_wide(&image::DynamicImage::ImageRgb8(img), &table);
+        assert_eq!(reduced.dimensions(), (w.div_ceil(3), h));
+        let mean = |v: &[u16]| v.iter().map(|&c| f64::from(c)).sum::<f64>() / v.len() as f64;
+        let expected = 0.5 * (f64::from(table[255]) + f64::from(table[64]));
+        assert!(
+            (mean(reduced.as_raw()) - expected).abs() < 0.01 * expected,
+            "{} vs {expected}",
+            mean(reduced.as_raw())
+        );
+    }
 
     /// A textured material reflects in the atlas Kd times its texture's linear mean (the
     /// G-buffer and the path tracer see Kd times the texture); an untextured one its Kd.

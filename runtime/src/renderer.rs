@@ -264,8 +264,11 @@ impl Renderer {
             || !(camera.fov_y_deg > 0.0 && camera.fov_y_deg < 180.0)
         {
             return Err(RuntimeError::Unsupported(format!(
-                "camera {camera:?}: needs a finite position, a distinct target and a field of \
-                 view between 0 and 180 degrees"
+                "camera at {} looking at {} with a field of view of {} degrees: needs a finite \
+                 position, a distinct target and a field of view between 0 and 180 degrees",
+                point(camera.position),
+                point(camera.target),
+                camera.fov_y_deg
             )));
         }
         let (w, h) = self.ctx.size();
@@ -371,4 +374,9 @@ fn zero_indirect(ctx: &FrameContext) -> wgpu::Buffer {
         usage: wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     })
+}
+
+/// A point as `(x, y, z)`, for messages.
+fn point(p: glam::Vec3) -> String {
+    format!("({}, {}, {})", p.x, p.y, p.z)
 }

@@ -60,11 +60,11 @@ pub fn build(sibenik: &Path, out: &Path) -> Result<Church, String> {
             m.name, m.kd[0], m.kd[1], m.kd[2], m.ks[0], m.ks[1], m.ks[2], m.ns
         );
     }
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     // Each file whole or not at all, the mesh last: an interrupted run never leaves a mesh that
     // names a missing material library.
     let write = |name: &str, bytes: &[u8]| {
-        let p = out.join(name);
+        // Never through a link planted under one of these fixed names.
+        let p = cssm_formats::files::output_in(out, name).map_err(|e| e.to_string())?;
         cssm_formats::cssm::write_bytes_atomic(&p, bytes)
             .map_err(|e| format!("{}: {e}", p.display()))
     };

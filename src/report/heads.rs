@@ -102,11 +102,11 @@ pub fn build(cornell: &Path, scenes: &Path, out: &Path) -> Result<Heads, String>
     let toml = toml
         .replace("name = \"cornell-box\"", "name = \"cornell-heads\"")
         .replace("mesh = \"cornell-box.obj\"", "mesh = \"cornell-heads.obj\"");
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     // Each file whole or not at all, the scene description last: an interrupted run never
     // leaves a scene.toml that names a missing or truncated mesh.
     let write = |name: &str, bytes: &[u8]| {
-        let p = out.join(name);
+        // Never through a link planted under one of these fixed names.
+        let p = cssm_formats::files::output_in(out, name).map_err(|e| e.to_string())?;
         cssm_formats::cssm::write_bytes_atomic(&p, bytes)
             .map_err(|e| format!("{}: {e}", p.display()))
     };

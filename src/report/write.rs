@@ -22,7 +22,9 @@ pub fn write_all(report: &Report, out: &Path) -> Result<(), String> {
         ("compression.svg", svg(report)?),
     ];
     for (name, text) in files {
-        cssm_formats::cssm::write_bytes_atomic(&out.join(name), text.as_bytes())
+        // Never through a link planted under one of these fixed names.
+        let path = cssm_formats::files::output_in(out, name).map_err(|e| e.to_string())?;
+        cssm_formats::cssm::write_bytes_atomic(&path, text.as_bytes())
             .map_err(|e| e.to_string())?;
     }
     Ok(())

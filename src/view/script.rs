@@ -77,10 +77,17 @@ pub struct Line {
     pub step: Step,
 }
 
+/// The longest script read: a tour of thousands of steps is a few hundred kilobytes.
+pub const MAX_SCRIPT_BYTES: u64 = 1 << 20;
+
 /// Reads and parses the script at `path`; errors name the file and line.
 pub fn load(path: &Path) -> Result<Vec<Line>, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read the script {}: {e}", path.display()))?;
+    let cannot =
+        |e: &dyn std::fmt::Display| format!("cannot read the script {}: {e}", path.display());
+    // Opened as every input is (a FIFO would block the open for ever, a device never end).
+    let bytes =
+        cssm_formats::files::read_bounded(path, MAX_SCRIPT_BYTES).map_err(|e| cannot(&e))?;
+    let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
     parse(&text).map_err(|(line, problem)| format!("{}:{line}: {problem}", path.display()))
 }
 

@@ -359,7 +359,8 @@ fn list(indices: &[u32]) -> String {
 
 /// Joins the chunks of one bake (each with the path it was read from, for the messages), in any
 /// order, into the file the single bake gives, and the coding to write it with. Every chunk
-/// `0..N` must be there exactly once and all must hold the same tables.
+/// `0..N` must be there exactly once and all must hold the same tables. [`ChunkMerger`] does the
+/// same one chunk at a time.
 ///
 /// ```
 /// # fn demo(parts: Vec<(std::path::PathBuf, cssm_formats::cssm::CssmChunk)>) {
@@ -376,29 +377,67 @@ fn list(indices: &[u32]) -> String {
 pub fn merge_chunks(
     chunks: Vec<(PathBuf, CssmChunk)>,
 ) -> Result<(CssmFile, FileCoding), MergeError> {
-    let Some((first_path, first)) = chunks.first() else {
-        return Err(MergeError::NoChunks);
-    };
-    let count = first.spec.count;
-    let mut slots: Vec<Option<usize>> = vec![None; count as usize];
-    for (i, (path, chunk)) in chunks.iter().enumerate() {
-        if chunk.spec.count != count {
+    let mut merger = ChunkMerger::default();
+    for (path, chunk) in chunks {
+        merger.add(path, chunk)?;
+    }
+    merger.finish()
+}
+
+/// Joins the chunks of one bake as they are read: the first chunk's tables are kept, every
+/// later chunk's are compared with them and dropped, and only its run data stays. Memory is
+/// one set of tables and the merged runs (what the file holds), whatever the number of chunks.
+///
+/// ```
+/// # fn demo(paths: &[std::path::PathBuf]) -> Result<(), Box<dyn std::error::Error>> {
+/// use cssm_formats::cssm;
+/// let mut merger = cssm::ChunkMerger::default();
+/// for path in paths {
+///     merger.add(path.clone(), cssm::read_chunk(path)?)?;
+/// }
+/// let (file, coding) = merger.finish()?;
+/// cssm::write_atomic_with("out.cssm".as_ref(), &file, coding)?;
+/// # Ok(()) }
+/// ```
+#[derive(Default)]
+pub struct ChunkMerger {
+    /// The first chunk added (its run data taken out) and its file.
+    first: Option<(PathBuf, CssmChunk)>,
+    /// By chunk index: the file it came from and its run data.
+    slots: Vec<Option<(PathBuf, RunData)>>,
+}
+
+impl ChunkMerger {
+    /// Adds the chunk read from `path`.
+    ///
+    /// # Errors
+    /// [`MergeError::OtherCut`], [`MergeError::Twice`] or [`MergeError::OtherBake`] against the
+    /// chunks added before.
+    pub fn add(&mut self, path: PathBuf, mut chunk: CssmChunk) -> Result<(), MergeError> {
+        let runs = std::mem::take(&mut chunk.file.runs);
+        let spec = chunk.spec;
+        let Some((first_path, first)) = &self.first else {
+            self.slots = vec![None; spec.count as usize];
+            self.slots[spec.index as usize] = Some((path.clone(), runs));
+            self.first = Some((path, chunk));
+            return Ok(());
+        };
+        if spec.count != first.spec.count {
             return Err(MergeError::OtherCut {
                 first: first_path.clone(),
                 first_spec: first.spec,
-                other: path.clone(),
-                other_spec: chunk.spec,
+                other: path,
+                other_spec: spec,
             });
         }
-        let slot = &mut slots[chunk.spec.index as usize];
-        if let Some(j) = *slot {
+        let slot = &mut self.slots[spec.index as usize];
+        if let Some((earlier, _)) = slot {
             return Err(MergeError::Twice {
-                first: chunks[j].0.clone(),
-                second: path.clone(),
-                spec: chunk.spec,
+                first: earlier.clone(),
+                second: path,
+                spec,
             });
         }
-        *slot = Some(i);
         let (a, b) = (&first.file, &chunk.file);
         let differs = [
             (a.params != b.params, "bake parameters"),
@@ -415,53 +454,61 @@ pub fn merge_chunks(
         if let Some(&(_, what)) = differs.iter().find(|(d, _)| *d) {
             return Err(MergeError::OtherBake {
                 first: first_path.clone(),
-                other: path.clone(),
+                other: path,
                 what,
             });
         }
+        *slot = Some((path, runs));
+        Ok(())
     }
-    let missing: Vec<u32> = (0..count)
-        .filter(|&i| slots[i as usize].is_none())
-        .collect();
-    if !missing.is_empty() {
-        return Err(MergeError::Missing { missing, count });
-    }
-    // Join the slices in order, each chunk's runs moved out and dropped as it is appended, so
-    // the peak is about one copy of the run data.
-    let coding = first.coding();
-    // Every index is there once: sorting by it puts the slices in traversal order.
-    let mut chunks = chunks;
-    chunks.sort_unstable_by_key(|(_, c)| c.spec.index);
-    let mut file: Option<CssmFile> = None;
-    let mut offsets: Vec<u32> = vec![0];
-    let mut runs: Vec<u32> = Vec::new();
-    let mut pixel_count = 0;
-    for (_, chunk) in chunks {
-        let mut part = chunk.file;
-        let base = runs.len() as u64;
-        let part_runs = std::mem::take(&mut part.runs);
-        pixel_count = part_runs.pixel_count;
-        let too_many = || {
-            MergeError::Invalid(CssmError::Invalid(
-                "more than 2^32 runs in all: too large for the run offsets".into(),
-            ))
+
+    /// The merged file and the coding to write it with.
+    ///
+    /// # Errors
+    /// [`MergeError::NoChunks`], [`MergeError::Missing`], or [`MergeError::Invalid`] when the
+    /// runs overflow the file's offsets.
+    pub fn finish(self) -> Result<(CssmFile, FileCoding), MergeError> {
+        let Some((_, first)) = self.first else {
+            return Err(MergeError::NoChunks);
         };
-        for &o in &part_runs.offsets[1..] {
-            offsets.push(u32::try_from(base + u64::from(o)).map_err(|_| too_many())?);
+        let missing: Vec<u32> = (0..first.spec.count)
+            .filter(|&i| self.slots[i as usize].is_none())
+            .collect();
+        if !missing.is_empty() {
+            return Err(MergeError::Missing {
+                missing,
+                count: first.spec.count,
+            });
         }
-        runs.extend_from_slice(&part_runs.runs);
-        drop(part_runs);
-        file.get_or_insert(part);
+        let coding = first.coding();
+        let mut file = first.file;
+        // The slices in traversal order, each one's runs dropped as it is appended, so the
+        // peak is about one copy of the run data.
+        let mut offsets: Vec<u32> = vec![0];
+        let mut runs: Vec<u32> = Vec::new();
+        let mut pixel_count = 0;
+        for (_, part_runs) in self.slots.into_iter().flatten() {
+            let base = runs.len() as u64;
+            pixel_count = part_runs.pixel_count;
+            let too_many = || {
+                MergeError::Invalid(CssmError::Invalid(
+                    "more than 2^32 runs in all: too large for the run offsets".into(),
+                ))
+            };
+            for &o in &part_runs.offsets[1..] {
+                offsets.push(u32::try_from(base + u64::from(o)).map_err(|_| too_many())?);
+            }
+            runs.extend_from_slice(&part_runs.runs);
+        }
+        file.runs = RunData {
+            map_count: file.texels.len() as u32,
+            pixel_count,
+            offsets,
+            runs,
+        };
+        super::validate(&file).map_err(MergeError::Invalid)?;
+        Ok((file, coding))
     }
-    let mut file = file.expect("at least one chunk");
-    file.runs = RunData {
-        map_count: file.texels.len() as u32,
-        pixel_count,
-        offsets,
-        runs,
-    };
-    super::validate(&file).map_err(MergeError::Invalid)?;
-    Ok((file, coding))
 }
 
 #[cfg(test)]

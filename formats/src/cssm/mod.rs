@@ -50,8 +50,8 @@ use crate::hierarchy::Hierarchy;
 use crate::texel::{Texel, Traversal};
 
 pub use chunk::{
-    ChunkSpec, CssmChunk, FLAG_CHUNK, MAX_CHUNKS, MergeError, decode_chunk, encode_chunk,
-    merge_chunks, read_chunk, write_chunk_atomic,
+    ChunkMerger, ChunkSpec, CssmChunk, FLAG_CHUNK, MAX_CHUNKS, MergeError, decode_chunk,
+    encode_chunk, merge_chunks, read_chunk, write_chunk_atomic,
 };
 pub use framing::{
     FLAG_PACKED_RUNS, FLAG_STAGGERED_GRID, FLAG_TURNED_FRAME, FORMAT_VERSION, HEADER_LEN, MAGIC,

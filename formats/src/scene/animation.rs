@@ -184,6 +184,10 @@ struct SpinToml {
 /// two, with finite values and strictly increasing times from 0 on; a spin with a finite non-zero
 /// axis and a finite non-zero speed; one of the two at least. Every error names the file, the
 /// object and the problem.
+/// Most keyframes of one object: each is kept for every frame's pose, and a file's count must
+/// not size the allocation.
+pub const MAX_KEYFRAMES: usize = 100_000;
+
 pub(super) fn check_animation(
     a: &AnimationToml,
     name: &str,
@@ -209,6 +213,11 @@ pub(super) fn check_animation(
                      translation and rotation_deg)"
                         .into(),
                 ));
+            }
+            n if n > MAX_KEYFRAMES => {
+                return Err(bad(format!(
+                    "keyframes has {n}; at most {MAX_KEYFRAMES} are read"
+                )));
             }
             _ => {}
         }

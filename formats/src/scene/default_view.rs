@@ -173,7 +173,9 @@ pub(super) fn default_light(
     let light = SpotLight {
         position: camera.position,
         direction,
-        cutoff_deg: (diagonal + 5.0).min(89.0),
+        // Within the widest cone the GPU methods render: a wide camera's corners go unlit
+        // rather than the scene not rendering at all.
+        cutoff_deg: (diagonal + 5.0).min(super::MAX_SPOT_CUTOFF_DEG),
         intensity: [intensity_at(distance); 3],
     };
     (light, "at the camera, the scene being open above")
@@ -372,6 +374,13 @@ mod tests {
             }
             assert!(light.intensity[0] > 0.0 && light.intensity[0].is_finite());
         }
+        // A camera wider than the widest cone the GPU methods render (a glTF's, say) gets a
+        // light they render, not one they refuse (issue 53, class 8).
+        let (positions, triangles) = walls(size, &[], false);
+        let (mut camera, _) = framed(&positions, &triangles);
+        camera.fov_y_deg = 150.0;
+        let (light, _) = default_light(&positions, &triangles, Vec3::ZERO, size, &camera);
+        assert_eq!(light.cutoff_deg, crate::scene::MAX_SPOT_CUTOFF_DEG);
     }
 
     /// A flat scene (a 20x10 floor with a 1 m cube on it) is looked down on from its open side,

@@ -6,7 +6,7 @@
 //! bounded, buffers hashed), and every range the file claims is checked against the bytes it
 //! holds before the `gltf` crate's readers see it.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -29,9 +29,8 @@ const MAX_NODE_DEPTH: usize = 1024;
 /// Vertical size of the image of a glTF camera that gives only its aspect ratio, pixels.
 const CAMERA_HEIGHT: u32 = DEFAULT_RESOLUTION[1];
 
-/// Widest cone of a converted spot light, degrees: the runtime's widest shadow map
-/// (`runtime/src/common/shadow_map.rs`, `MAX_CUTOFF_DEG`).
-const MAX_CONE_DEG: f32 = 80.0;
+/// Widest cone of a converted spot light, degrees: the runtime's widest shadow map.
+const MAX_CONE_DEG: f32 = super::MAX_SPOT_CUTOFF_DEG;
 
 /// Specular reflectance at normal incidence of a glTF dielectric (glTF 2.0, Appendix B).
 const DIELECTRIC_F0: f32 = 0.04;
@@ -112,9 +111,63 @@ fn data_uri(uri: &str) -> Option<Result<DataUri, String>> {
     Some(Ok((bytes, mime)))
 }
 
-/// The file a relative URI names, next to the glTF file.
-fn uri_path(dir: &Path, uri: &str) -> PathBuf {
-    dir.join(&*urlencoding::decode(uri).unwrap_or(uri.into()))
+/// The file a URI (not a `data:` one) of the glTF file in `dir` names: relative to `dir`,
+/// percent-decoded. Unless `outside` allows it, only a file in `dir` or below: an absolute path,
+/// a `..` that leads out of `dir` or a link that points out of it is refused, before anything
+/// is read (issue 53: a scene file must not make the tool read files elsewhere).
+fn uri_file(dir: &Path, uri: &str, outside: bool) -> Result<PathBuf, String> {
+    let shown = uri
+        .chars()
+        .take(120)
+        .collect::<String>()
+        .escape_debug()
+        .to_string();
+    let decoded = urlencoding::decode(uri)
+        .map_err(|_| format!("the URI \"{shown}\" is not UTF-8 once percent-decoded"))?;
+    if decoded.contains('\0') {
+        return Err(format!("the URI \"{shown}\" holds a NUL character"));
+    }
+    // A scheme other than data: (file:, http:) is not a relative reference (RFC 3986, §4.2).
+    if let Some((scheme, _)) = decoded.split_once(':')
+        && scheme.len() > 1
+        && scheme
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.'))
+    {
+        return Err(format!(
+            "the URI \"{shown}\" has the scheme {scheme}:; a glTF file's buffers and images are \
+             data: URIs or paths relative to the file"
+        ));
+    }
+    let relative = Path::new(&*decoded);
+    let file = dir.join(relative);
+    if outside {
+        return Ok(file);
+    }
+    let out = || {
+        format!(
+            "the URI \"{shown}\" names a file outside the glTF file's directory {}; \
+             pass --allow-outside-files if you trust the scene",
+            dir.display()
+        )
+    };
+    // Lexically first (a file that does not exist yet still may not be named), then by the
+    // file system (a link inside pointing out).
+    let mut depth = 0usize;
+    for component in relative.components() {
+        match component {
+            std::path::Component::Normal(_) => depth += 1,
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => depth = depth.checked_sub(1).ok_or_else(out)?,
+            std::path::Component::RootDir | std::path::Component::Prefix(_) => return Err(out()),
+        }
+    }
+    if let (Ok(real), Ok(real_dir)) = (std::fs::canonicalize(&file), std::fs::canonicalize(dir))
+        && !real.starts_with(&real_dir)
+    {
+        return Err(out());
+    }
+    Ok(file)
 }
 
 /// The Phong exponent of a glTF roughness: the GGX width alpha = roughness^2 (glTF 2.0,
@@ -181,16 +234,85 @@ impl Buffers {
     }
 }
 
-/// Checks that `accessor` reads only bytes its buffer view holds (and that a sparse accessor's
-/// count is no larger than the file's data), so that no reader walks past a buffer or
+/// Every accessor a primitive names (its attributes and indices) exists.
+fn check_attribute_accessors(root: &gltf::json::Root) -> Result<(), String> {
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(missing) = primitive
+                .attributes
+                .values()
+                .chain(&primitive.indices)
+                .find(|a| a.value() >= accessors)
+            {
+                return Err(format!(
+                    "mesh {m} primitive {p} names accessor {}; the file has {accessors}",
+                    missing.value()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// What a primitive reads an accessor as. The gltf crate's readers assume the types glTF 2.0
+/// allows for it (§3.7.2.1) and panic on any other, so each is checked first.
+#[derive(Clone, Copy)]
+enum Role {
+    Positions,
+    Indices,
+    TexCoords,
+}
+
+impl Role {
+    fn name(self) -> &'static str {
+        match self {
+            Role::Positions => "POSITION",
+            Role::Indices => "indices",
+            Role::TexCoords => "TEXCOORD",
+        }
+    }
+
+    /// Whether glTF allows `accessor` in this role, and what it allows if not.
+    fn check(self, accessor: &gltf::Accessor) -> Result<(), &'static str> {
+        use gltf::accessor::{DataType as T, Dimensions as D};
+        let ok = match self {
+            Role::Positions => accessor.dimensions() == D::Vec3 && accessor.data_type() == T::F32,
+            Role::Indices => {
+                accessor.dimensions() == D::Scalar
+                    && matches!(accessor.data_type(), T::U8 | T::U16 | T::U32)
+            }
+            Role::TexCoords => {
+                accessor.dimensions() == D::Vec2
+                    && matches!(accessor.data_type(), T::F32 | T::U8 | T::U16)
+            }
+        };
+        ok.then_some(()).ok_or(match self {
+            Role::Positions => "VEC3 of FLOAT",
+            Role::Indices => "SCALAR of UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT",
+            Role::TexCoords => "VEC2 of FLOAT, UNSIGNED_BYTE or UNSIGNED_SHORT",
+        })
+    }
+}
+
+/// Checks that `accessor` has a type glTF allows in its `role`, that it reads only bytes its
+/// buffer view holds, with a stride no shorter than an element (and that a sparse accessor's
+/// count is no larger than the file's data), so that no reader panics, walks past a buffer or
 /// allocates by a count the file merely claims.
 fn check_accessor(
     path: &Path,
     buffers: &Buffers,
-    accessor: &gltf::Accessor,
+    (accessor, role): (&gltf::Accessor, Role),
     total_bytes: usize,
 ) -> Result<(), SceneError> {
-    let bad = |what: String| gltf_error(path, format!("accessor {}: {what}", accessor.index()));
+    let bad = |what: String| {
+        gltf_error(
+            path,
+            format!("accessor {} ({}): {what}", accessor.index(), role.name()),
+        )
+    };
+    role.check(accessor)
+        .map_err(|allowed| bad(format!("glTF allows only {allowed} here")))?;
     let (count, size) = (accessor.count(), accessor.size());
     let claimed = count.checked_mul(size).filter(|&b| b <= total_bytes);
     if claimed.is_none() {
@@ -207,6 +329,13 @@ fn check_accessor(
             ))
         })?;
         let stride = view.stride().unwrap_or(size);
+        if stride < size {
+            return Err(bad(format!(
+                "buffer view {} has a byteStride of {stride}, less than the {size} bytes of an \
+                 element",
+                view.index()
+            )));
+        }
         let end = (count > 0).then(|| {
             stride
                 .checked_mul(count - 1)
@@ -289,12 +418,21 @@ impl Builder {
         let bytes = read_bounded(path)?;
         hasher.add(path, &bytes);
         let dir = path.parent().unwrap_or(Path::new("."));
+        let outside = self.options.files_outside;
         check_glb_header(&bytes).map_err(|e| gltf_error(path, e))?;
-        // The crate's parser validates every index the JSON holds; a panic on malformed input
-        // becomes an error like any other.
-        let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(&bytes))
-            .map_err(|_| gltf_error(path, "the glTF parser failed on malformed input"))?;
-        let gltf::Gltf { document, blob } = parsed.map_err(|e| gltf_error(path, e.to_string()))?;
+        // The crate's validation checks every index the JSON holds but one, which its own
+        // check of POSITION's bounds indexes unchecked: that one first, then the crate's. A
+        // panic on malformed input still becomes an error like any other.
+        let parsed = std::panic::catch_unwind(|| {
+            gltf::Gltf::from_slice_without_validation(&bytes)
+                .map(|g| (g.document.into_json(), g.blob))
+        })
+        .map_err(|_| gltf_error(path, "the glTF parser failed on malformed input"))?;
+        let (root, blob) = parsed.map_err(|e| gltf_error(path, e.to_string()))?;
+        check_attribute_accessors(&root).map_err(|e| gltf_error(path, e))?;
+        let document = std::panic::catch_unwind(|| gltf::Document::from_json(root))
+            .map_err(|_| gltf_error(path, "the glTF parser failed on malformed input"))?
+            .map_err(|e| gltf_error(path, e.to_string()))?;
         drop(bytes);
 
         if let Some(ext) = document
@@ -345,7 +483,9 @@ impl Builder {
                             .0
                     }
                     None => {
-                        let file = uri_path(dir, uri);
+                        let file = uri_file(dir, uri, outside).map_err(|e| {
+                            gltf_error(path, format!("buffer {}: {e}", buffer.index()))
+                        })?;
                         let bytes = read_bounded(&file)?;
                         hasher.add(&file, &bytes);
                         bytes
@@ -368,7 +508,9 @@ impl Builder {
         let buffers = Buffers { data };
         let total_bytes: usize = buffers.data.iter().map(Vec::len).sum();
 
-        // Images, as texture sources, each made once.
+        // Images, as texture sources, each made once; the bytes of a buffer view once however
+        // many images name it (64 images of one 64 MiB view are 64 MiB, not 4 GiB).
+        let mut view_bytes: HashMap<usize, Arc<[u8]>> = HashMap::new();
         let images = document
             .images()
             .map(|image| {
@@ -376,30 +518,53 @@ impl Builder {
                     Some(name) => format!("image {} `{name}`", image.index()),
                     None => format!("image {}", image.index()),
                 };
-                let embedded = |bytes: Vec<u8>, mime: Option<String>| TextureSource::Embedded {
+                let embedded = |bytes: Arc<[u8]>, mime: Option<String>| TextureSource::Embedded {
                     origin: path.to_path_buf(),
                     label: label.clone(),
-                    bytes: Arc::from(bytes),
+                    bytes,
                     mime,
                 };
-                Ok(match image.source() {
-                    gltf::image::Source::View { view, mime_type } => {
-                        let bytes = buffers.view(&view).ok_or_else(|| {
-                            gltf_error(
-                                path,
-                                format!("{label}: its buffer view reaches past its buffer"),
-                            )
-                        })?;
-                        embedded(bytes.to_vec(), Some(mime_type.to_string()))
-                    }
-                    gltf::image::Source::Uri { uri, mime_type } => match data_uri(uri) {
-                        Some(decoded) => {
-                            let (bytes, mime) =
-                                decoded.map_err(|e| gltf_error(path, format!("{label}: {e}")))?;
-                            embedded(bytes, mime_type.map(str::to_string).or(mime))
+                // The gltf crate's `source()` unwraps what the JSON may lack: checked here.
+                let json = &document.as_json().images[image.index()];
+                if let Some(view) = json.buffer_view {
+                    let view = document.views().nth(view.value()).ok_or_else(|| {
+                        gltf_error(path, format!("{label}: its buffer view does not exist"))
+                    })?;
+                    let bytes = match view_bytes.get(&view.index()) {
+                        Some(bytes) => bytes.clone(),
+                        None => {
+                            let bytes: Arc<[u8]> =
+                                Arc::from(buffers.view(&view).ok_or_else(|| {
+                                    gltf_error(
+                                        path,
+                                        format!("{label}: its buffer view reaches past its buffer"),
+                                    )
+                                })?);
+                            view_bytes.insert(view.index(), bytes.clone());
+                            bytes
                         }
-                        None => TextureSource::File(uri_path(dir, uri)),
-                    },
+                    };
+                    // A view without the mimeType glTF requires: the image's own bytes say.
+                    let mime = json.mime_type.as_ref().map(|m| m.0.clone());
+                    return Ok(embedded(bytes, mime));
+                }
+                let Some(uri) = json.uri.as_deref() else {
+                    return Err(gltf_error(
+                        path,
+                        format!("{label} has neither a uri nor a bufferView"),
+                    ));
+                };
+                let mime_type = json.mime_type.as_ref().map(|m| m.0.clone());
+                Ok(match data_uri(uri) {
+                    Some(decoded) => {
+                        let (bytes, mime) =
+                            decoded.map_err(|e| gltf_error(path, format!("{label}: {e}")))?;
+                        embedded(Arc::from(bytes), mime_type.or(mime))
+                    }
+                    None => TextureSource::File(
+                        uri_file(dir, uri, outside)
+                            .map_err(|e| gltf_error(path, format!("{label}: {e}")))?,
+                    ),
                 })
             })
             .collect::<Result<Vec<_>, SceneError>>()?;
@@ -521,6 +686,19 @@ impl Builder {
                 ));
             }
             let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            // A finite file can multiply out to infinity (a scale of 1e30 under another): the
+            // node is named here, not found later as NaN in a transform or a camera.
+            if !world.is_finite() {
+                let name = node.name().map_or_else(String::new, |n| format!(" `{n}`"));
+                return Err(gltf_error(
+                    path,
+                    format!(
+                        "node {}{name}: its world transform (its own times its parents') \
+                         is not finite",
+                        node.index()
+                    ),
+                ));
+            }
             for child in node.children().collect::<Vec<_>>().into_iter().rev() {
                 stack.push((child, world, depth + 1));
             }
@@ -541,9 +719,14 @@ impl Builder {
                 let Some(positions_accessor) = primitive.get(&gltf::Semantic::Positions) else {
                     continue;
                 };
-                check_accessor(path, &buffers, &positions_accessor, total_bytes)?;
+                check_accessor(
+                    path,
+                    &buffers,
+                    (&positions_accessor, Role::Positions),
+                    total_bytes,
+                )?;
                 if let Some(indices) = primitive.indices() {
-                    check_accessor(path, &buffers, &indices, total_bytes)?;
+                    check_accessor(path, &buffers, (&indices, Role::Indices), total_bytes)?;
                 }
                 let material = primitive.material();
                 let pbr = material.pbr_metallic_roughness();
@@ -559,7 +742,7 @@ impl Builder {
                     .get(&gltf::Semantic::TexCoords(set))
                     .map(|a| (set, a));
                 if let Some((_, a)) = &uv_set {
-                    check_accessor(path, &buffers, a, total_bytes)?;
+                    check_accessor(path, &buffers, (a, Role::TexCoords), total_bytes)?;
                 }
                 let reader = primitive.reader(|b| buffers.data.get(b.index()).map(Vec::as_slice));
                 let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -1112,6 +1295,23 @@ pub(crate) mod tests {
         // A node that is its own child.
         let e = error_of(&ok.replace(r#""translation": [0, 2, 0]"#, r#""children": [1]"#));
         assert!(e.contains("node"), "{e}");
+        // Finite numbers whose product is not: the node is named (class 8 of issue 53; this
+        // was a `Debug` dump of a NaN matrix when the renderer placed the object).
+        let e = error_of(
+            &ok.replace(
+                r#""translation": [0, 2, 0]"#,
+                r#""translation": [0, 2, 0], "scale": [1e30, 1, 1]"#,
+            )
+            .replace(
+                r#""translation": [10, 0, 0]"#,
+                r#""translation": [10, 0, 0], "scale": [1e30, 1, 1]"#,
+            ),
+        );
+        assert!(
+            e.contains("node 1: its world transform") && e.contains("is not finite"),
+            "{e}"
+        );
+        assert!(!e.contains("Affine3A") && !e.contains("Mat4"), "{e}");
         // Bad base64.
         let e = error_of(&quad_json(Some("data:application/octet-stream;base64,@@@")));
         assert!(e.contains("base64"), "{e}");

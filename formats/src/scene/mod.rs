@@ -10,6 +10,8 @@
 mod animation;
 mod default_view;
 mod gltf;
+#[cfg(test)]
+mod gltf_refusals;
 mod obj;
 mod objects;
 mod toml;
@@ -175,6 +177,11 @@ pub struct Camera {
     pub resolution: [u32; 2],
 }
 
+/// Widest cone of a spot light the GPU methods render, degrees (half-angle): one perspective
+/// shadow map covers it. A scene file may name a wider cone (the path tracer takes it); the
+/// lights the tool makes itself (the default light, a converted glTF light) stay within it.
+pub const MAX_SPOT_CUTOFF_DEG: f32 = 80.0;
+
 /// Spot light: constant radiant intensity inside the cone, zero outside.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpotLight {
@@ -303,8 +310,17 @@ impl Scene {
     }
 }
 
-/// Largest OBJ (or MTL, or `scene.toml`) file the loader reads: 2 GiB.
+/// Largest OBJ, MTL, glTF or buffer file the loader reads: 2 GiB.
 pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Most triangles a scene holds, all files and every placement of a glTF mesh counted: some
+/// 2 GB of scene, BVH and atlas tables before any bake.
+pub const MAX_SCENE_TRIANGLES: usize = 1 << 24;
+
+/// Largest `scene.toml` the loader reads: 8 MiB, some 100,000 keyframes. A TOML document
+/// parsed takes about 50 times its text, so this bounds the parse at a few hundred MB where
+/// [`MAX_FILE_BYTES`] would allow 100 GB.
+pub const MAX_SCENE_TOML_BYTES: u64 = 8 << 20;
 
 /// Default vertical field of view of the camera chosen when there is no `scene.toml`, degrees.
 pub const DEFAULT_FOV_Y_DEG: f32 = 40.0;
@@ -344,13 +360,15 @@ pub enum SceneError {
         /// The underlying error.
         error: std::io::Error,
     },
-    /// A file is larger than [`MAX_FILE_BYTES`].
-    #[error("{}: file is {size} bytes, larger than the limit of {MAX_FILE_BYTES} bytes", .path.display())]
+    /// A file is larger than its limit ([`MAX_FILE_BYTES`], [`MAX_SCENE_TOML_BYTES`]).
+    #[error("{}: file is {size} bytes, larger than the limit of {limit} bytes", .path.display())]
     TooLarge {
         /// The file.
         path: PathBuf,
         /// Its size.
         size: u64,
+        /// The limit.
+        limit: u64,
     },
     /// `scene.toml` is not valid TOML or does not match the schema (unknown key, wrong type,
     /// missing field); the message carries the line and column.
@@ -464,14 +482,19 @@ impl Hasher {
 }
 
 fn read_bounded(path: &Path) -> Result<Vec<u8>, SceneError> {
-    // A regular file only (a FIFO would hang the open, /dev/zero never end), at most
-    // MAX_FILE_BYTES of it.
-    crate::files::read_bounded(path, MAX_FILE_BYTES).map_err(|error| {
+    read_at_most(path, MAX_FILE_BYTES)
+}
+
+fn read_at_most(path: &Path, limit: u64) -> Result<Vec<u8>, SceneError> {
+    // A regular file only (a FIFO would hang the open, /dev/zero never end), at most `limit`
+    // bytes of it.
+    crate::files::read_bounded(path, limit).map_err(|error| {
         if error.kind() == std::io::ErrorKind::FileTooLarge {
-            let size = std::fs::metadata(path).map_or(MAX_FILE_BYTES + 1, |m| m.len());
+            let size = std::fs::metadata(path).map_or(limit + 1, |m| m.len());
             SceneError::TooLarge {
                 path: path.to_path_buf(),
                 size,
+                limit,
             }
         } else {
             SceneError::Io {
@@ -494,6 +517,19 @@ struct Builder {
     default_material: Option<u32>,
     objects: Vec<SceneObject>,
     warnings: Vec<String>,
+    options: LoadOptions,
+    /// Triangles placed so far, degenerate ones included ([`MAX_SCENE_TRIANGLES`]).
+    placed_triangles: usize,
+}
+
+/// What [`Scene::load_with`] lets the files it reads do.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Let a glTF file's buffer and image URIs name files outside the glTF's own directory (an
+    /// absolute path, a `..` leading out, a link pointing out). Off, such a URI is an error
+    /// naming it: a scene file downloaded with a model cannot make the tool read files
+    /// elsewhere, nor quote their bytes back in an error.
+    pub files_outside: bool,
 }
 
 impl Builder {
@@ -563,6 +599,20 @@ impl Builder {
     ) -> Result<(), SceneError> {
         let n = positions.len();
         let texcoords = texcoords.filter(|t| t.len() == n);
+        let triangles = triangles.into_iter();
+        // Before allocating: a small file can place one mesh many times (glTF instancing).
+        let adding = triangles.size_hint().0;
+        if self.placed_triangles.saturating_add(adding) > MAX_SCENE_TRIANGLES {
+            return Err(SceneError::Invalid {
+                path: path.to_path_buf(),
+                message: format!(
+                    "the scene would hold more than {MAX_SCENE_TRIANGLES} triangles ({} so far, \
+                     {adding} more here; a glTF places each mesh once per node that names it)",
+                    self.placed_triangles
+                ),
+            });
+        }
+        self.placed_triangles += adding;
         let mut remap = vec![u32::MAX; n];
         let mut any = false;
         for tri in triangles {
@@ -761,6 +811,14 @@ impl Scene {
     /// glTF file of it, and one rigid object per `[[objects]]` entry, over the triangles each
     /// kept.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_with(path, LoadOptions::default())
+    }
+
+    /// [`Scene::load`] with `options`.
+    ///
+    /// # Errors
+    /// As [`Scene::load`].
+    pub fn load_with(path: &Path, options: LoadOptions) -> Result<Scene, SceneError> {
         let path = match std::fs::canonicalize(path) {
             Ok(d) => d,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
@@ -791,6 +849,7 @@ impl Scene {
             files: Vec::new(),
         };
         let mut b = Builder::new();
+        b.options = options;
         let mut extras = gltf::GltfExtras::default();
         let toml_path = dir.join("scene.toml");
         // A directory's (or file's) name with control characters (a terminal escape, say) is
@@ -808,7 +867,7 @@ impl Scene {
             b.add_static(std::slice::from_ref(&path), &mut hasher, &mut extras)?;
             (default_name, None, Vec::new())
         } else if toml_path.exists() {
-            let bytes = read_bounded(&toml_path)?;
+            let bytes = read_at_most(&toml_path, MAX_SCENE_TOML_BYTES)?;
             hasher.add(&toml_path, &bytes);
             let text = String::from_utf8(bytes).map_err(|_| SceneError::Toml {
                 path: toml_path.clone(),

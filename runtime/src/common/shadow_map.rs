@@ -17,7 +17,7 @@ use crate::{
 pub const DEFAULT_RESOLUTION: u32 = 2048;
 
 /// Widest cone a single perspective shadow map covers, degrees (half-angle).
-pub const MAX_CUTOFF_DEG: f32 = 80.0;
+pub const MAX_CUTOFF_DEG: f32 = cssm_formats::scene::MAX_SPOT_CUTOFF_DEG;
 
 /// Full field of view of the shadow map of a cone of half-angle `cutoff_deg`, radians: one
 /// degree wider than the cone on each side.
