@@ -26,7 +26,35 @@ fn cssm_binary() -> PathBuf {
 /// Runs `cssm` with `args` in `cwd` (and `env`; an empty value unsets), killing it after
 /// `limit`: a hang is a failure.
 fn run_in(cwd: &Path, args: &[&str], env: &[(&str, &str)], limit: Duration) -> Output {
+    run_with(cwd, args, env, limit, None)
+}
+
+/// [`run_in`], with the address space capped at `cap` bytes if given: an allocation sized by
+/// the input's claims then aborts the command (and fails the test).
+fn run_with(
+    cwd: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+    limit: Duration,
+    cap: Option<u64>,
+) -> Output {
     let mut command = Command::new(cssm_binary());
+    if let Some(cap) = cap {
+        use std::os::unix::process::CommandExt;
+        // SAFETY: setrlimit only, between fork and exec.
+        unsafe {
+            command.pre_exec(move || {
+                let limit = libc::rlimit {
+                    rlim_cur: cap,
+                    rlim_max: cap,
+                };
+                if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+    }
     command
         .args(args)
         .current_dir(cwd)

@@ -52,39 +52,9 @@ fn gltf_scene(dir: &Path, json: &str) -> PathBuf {
     scene.join("quad.gltf")
 }
 
-/// Runs `cssm args` with its address space capped at `cap` bytes: an allocation sized by the
-/// input's claims aborts it, and the test with it.
+/// Runs `cssm args` with its address space capped at `cap` bytes.
 fn run_capped(cwd: &Path, args: &[&str], cap: u64) -> Output {
-    use std::os::unix::process::CommandExt;
-    let mut command = Command::new(cssm_binary());
-    command
-        .args(args)
-        .current_dir(cwd)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
-    // SAFETY: setrlimit only, between fork and exec.
-    unsafe {
-        command.pre_exec(move || {
-            let limit = libc::rlimit {
-                rlim_cur: cap,
-                rlim_max: cap,
-            };
-            if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
-    let mut child = command.spawn().expect("run cssm");
-    let start = Instant::now();
-    while child.try_wait().expect("wait").is_none() {
-        if start.elapsed() > Duration::from_secs(120) {
-            let _ = child.kill();
-            panic!("cssm {args:?} hung");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().expect("output")
+    run_with(cwd, args, &[], Duration::from_secs(120), Some(cap))
 }
 
 /// The cap of the probe that found these (issue 53): 4 GB of address space.
