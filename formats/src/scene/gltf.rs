@@ -21,8 +21,8 @@ use checks::{
 };
 
 use super::{
-    Builder, Camera, DEFAULT_RESOLUTION, FileCounts, Hasher, Material, NormalMap, NormalMapKind,
-    ObjectKind, SceneError, SpotLight, TextureSource, read_bounded,
+    Builder, Camera, DEFAULT_RESOLUTION, FileCounts, Hasher, MAX_FILE_BYTES, Material, NormalMap,
+    NormalMapKind, ObjectKind, SceneError, SpotLight, TextureSource, read_bounded,
 };
 
 /// Extensions the loader understands; a file that requires any other is refused, as the glTF
@@ -228,6 +228,28 @@ impl Builder {
 
         // Buffers: the GLB's binary chunk, data URIs, or files next to the glTF.
         let mut blob = blob;
+        // The buffer files' sizes in all, before any is read: one file named by many buffers
+        // is read once per buffer.
+        let mut file_bytes = 0u64;
+        for buffer in document.buffers() {
+            if let gltf::buffer::Source::Uri(uri) = buffer.source()
+                && data_uri(uri).is_none()
+                && let Ok(file) = uri_file(dir, uri, outside)
+                && let Ok(metadata) = std::fs::metadata(&file)
+            {
+                file_bytes = file_bytes.saturating_add(metadata.len());
+                if file_bytes > MAX_FILE_BYTES {
+                    return Err(gltf_error(
+                        path,
+                        format!(
+                            "buffer {}: the buffer files come to more than {MAX_FILE_BYTES} bytes \
+                             in all, the most a glTF's buffers may hold",
+                            buffer.index()
+                        ),
+                    ));
+                }
+            }
+        }
         let mut data = Vec::new();
         for buffer in document.buffers() {
             let bytes = match buffer.source() {

@@ -186,3 +186,26 @@ fn instancing_past_the_triangle_limit_is_refused_before_allocating() {
         "{e}"
     );
 }
+
+/// Class 5: one buffer file named by many buffers was read once for each; the files' sizes in
+/// all are limited before any is read (a sparse file here: nothing is allocated).
+#[test]
+fn buffer_files_past_the_limit_in_all_are_refused_before_reading() {
+    use super::MAX_FILE_BYTES;
+    let dir = tempfile::tempdir().unwrap();
+    let big = std::fs::File::create(dir.path().join("big.bin")).unwrap();
+    big.set_len(MAX_FILE_BYTES / 2 + 1).unwrap();
+    let json = quad_json(Some("big.bin")).replace(
+        r#""buffers": [{"uri": "big.bin", "byteLength": 104}]"#,
+        r#""buffers": [{"uri": "big.bin", "byteLength": 104}, {"uri": "big.bin", "byteLength": 104}]"#,
+    );
+    assert!(json.contains(r#"{"uri": "big.bin", "byteLength": 104}, {"#));
+    std::fs::write(dir.path().join("two.gltf"), json).unwrap();
+    let e = Scene::load(&dir.path().join("two.gltf"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("buffer 1: the buffer files come to more than"),
+        "{e}"
+    );
+}
