@@ -237,8 +237,7 @@ fn prepare_output(
         ));
     }
     // The frames' fixed names are never written through a link planted in OUT.
-    let output =
-        |name: &str| cssm::formats::files::output_in(out, name).map_err(|e| format!("--out: {e}"));
+    let output = |name: &str| crate::out_path(out, name, false);
     let files = (0..frames)
         .map(|i| output(&frame_name(i)))
         .collect::<Result<Vec<PathBuf>, String>>()?;

@@ -51,8 +51,7 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
     for name in PAGE_FILES {
         output(out, name)?;
     }
-    let cache = cssm::formats::files::output_dir_in(out, "reference-cache")
-        .map_err(|e| format!("--out: {e}"))?;
+    let cache = crate::out_path(out, "reference-cache", true)?;
     let mut gpu: Option<runtime::Gpu> = None;
     let mut comparisons = Vec::new();
     for scene in &scenes {
@@ -111,9 +110,9 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `name` inside `--out`, never through a link ([`formats::files::output_in`]).
+/// `name` inside `--out`, never through a link ([`crate::out_path`]).
 fn output(out: &Path, name: &str) -> Result<PathBuf, String> {
-    cssm::formats::files::output_in(out, name).map_err(|e| format!("--out: {e}"))
+    crate::out_path(out, name, false)
 }
 
 /// The reference cache's file of `scene`'s `component` reference at these settings, with

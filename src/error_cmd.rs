@@ -26,8 +26,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
     let out = &config.out;
     measure::check_out_dir(out)?;
     let scenes = measure::load_scenes(&config.scenes)?;
-    let output =
-        |name: &str| cssm::formats::files::output_in(out, name).map_err(|e| format!("--out: {e}"));
+    let output = |name: &str| crate::out_path(out, name, false);
     // The fixed names are checked before the first render, not after minutes of it.
     for name in ["error.md", "error.csv"] {
         output(name)?;

@@ -132,6 +132,17 @@ fn quiet_mesa_wsi() -> Option<tempfile::TempDir> {
 /// not a regular file (a device, a FIFO, a directory: [`formats::cssm::destination`]), it is one
 /// of the command's own `inputs` (through any link), its name is too long, or its directory
 /// does not exist or cannot be written.
+/// `name` inside the `--out` directory `out`, never through a link planted there
+/// ([`formats::files::output_in`]; with `directory`, [`formats::files::output_dir_in`]).
+fn out_path(out: &Path, name: &str, directory: bool) -> Result<PathBuf, String> {
+    let path = if directory {
+        formats::files::output_dir_in(out, name)
+    } else {
+        formats::files::output_in(out, name)
+    };
+    path.map_err(|e| format!("--out: {e}"))
+}
+
 fn check_writable(output: &Path, inputs: &[PathBuf]) -> Result<(), String> {
     let target = formats::cssm::destination(output).map_err(|e| match e {
         formats::cssm::CssmError::Io { error, .. } => {

@@ -233,7 +233,7 @@ impl Builder {
         let mut file_bytes = 0u64;
         for buffer in document.buffers() {
             if let gltf::buffer::Source::Uri(uri) = buffer.source()
-                && data_uri(uri).is_none()
+                && !uri.starts_with("data:")
                 && let Ok(file) = uri_file(dir, uri, outside)
                 && let Ok(metadata) = std::fs::metadata(&file)
             {

@@ -8,6 +8,7 @@
 //! triangles with its object-to-world transform (the bake still treats all of it as static).
 
 mod animation;
+pub use animation::MAX_KEYFRAMES;
 mod default_view;
 mod gltf;
 #[cfg(test)]
