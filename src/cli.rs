@@ -636,6 +636,15 @@ impl MeasureFlags {
     /// the bake options by the bake library, the frame count against [`MAX_FRAMES`]; an error
     /// names the flag.
     fn check(&self) -> Result<MeasureChecked, String> {
+        // Until converged, the reference and each method would stop where their own light
+        // says: a comparison needs them to compute the same bounces.
+        if self.bounces == 0 {
+            return Err(
+                "--bounces 0 (until converged) cannot be compared: the reference and \
+                        the methods must compute the same bounces; give a count, 1 to 8"
+                    .into(),
+            );
+        }
         let reference_entry = runtime::method::find("reference").map_err(|e| e.to_string())?;
         for (name, value) in [("samples", self.samples), ("bounces", self.bounces)] {
             if let Some(spec) = reference_entry.option(name) {
@@ -1113,8 +1122,10 @@ impl ViewArgs {
 pub struct RenderArgs {
     /// Scene directory or mesh file (.obj, .gltf, .glb). Default: the built-in Cornell box.
     scene: Option<PathBuf>,
-    /// Rendering method (see the list below).
-    #[arg(long, default_value = "direct", value_parser = parse_method)]
+    /// Rendering method (see the list below). The default, lightmap, is the hierarchical
+    /// radiosity's converged solution looked up per pixel (a .cssm baked first when none is
+    /// given); direct is instant but holds the lights' direct light only.
+    #[arg(long, default_value = "lightmap", value_parser = parse_method)]
     method: &'static MethodEntry,
     /// Output PNG (tone-mapped sRGB), default render.png. With --animate: the directory the
     /// frames go into (created if missing; required).

@@ -205,6 +205,7 @@ pub fn reference_image(
         let options = ReferenceOptions {
             samples_per_pixel: n,
             bounces: spec.bounces,
+            converge: 0.0,
             component: spec.component,
             seed,
             clamp: None,

@@ -8,7 +8,7 @@ use cssm::{bake, formats, runtime};
 use formats::{CssmFile, Scene};
 use runtime::{
     Renderer, RendererSettings,
-    common::readback,
+    common::{converge::BouncePlan, readback},
     frame::FrameSettings,
     method::{Backend, CpuSetup},
 };
@@ -93,6 +93,15 @@ pub fn run_render(config: RenderConfig) -> CliResult {
                 scene.name,
                 gpu.describe()
             );
+            let automatic = renderer.method().option("bounces").is_some()
+                && renderer.options().count("bounces") == 0;
+            if let (true, Some(convergence)) = (automatic, renderer.convergence()) {
+                let convergence = convergence.map_err(gpu_error)?;
+                eprintln!(
+                    "bounces: automatic, {convergence} (--bounces {} fixes it)",
+                    convergence.bounces
+                );
+            }
             image
         }
     };
@@ -226,8 +235,8 @@ fn print_stats(
     let bounces = config.resolved.count("bounces");
     let threshold = config.resolved.number("threshold");
     let exposure = settings.frame.exposure;
-    // Node radiance after `iterations` radiosity bounces, on the GPU.
-    let radiance = |iterations: u32| -> Result<Vec<glam::Vec3>, String> {
+    // Node radiance after the radiosity bounces of `iterations`, on the GPU.
+    let radiance = |iterations: BouncePlan| -> Result<Vec<glam::Vec3>, String> {
         let atlas = runtime::radiosity::atlas_radiosity(
             &gpu.device,
             &gpu.queue,
@@ -248,12 +257,18 @@ fn print_stats(
             .collect())
     };
     // The radiosity's bounces (lightcuts': all but the last, which its final gather does).
-    let radiosity_bounces = if method == "lightcuts" {
-        bounces.saturating_sub(1)
+    let plan = BouncePlan::from_option(bounces);
+    let radiosity_plan = if method == "lightcuts" {
+        plan.one_fewer()
     } else {
-        bounces
+        plan
     };
-    if radiosity_bounces > 0 {
+    let radiosity_bounces = if radiosity_plan.fraction > 0.0 {
+        format!("up to {} (until converged)", radiosity_plan.max)
+    } else {
+        radiosity_plan.max.to_string()
+    };
+    if radiosity_plan.max > 0 {
         let (materials, _) = runtime::load::cpu_materials(scene).map_err(|e| e.to_string())?;
         let albedo: Vec<glam::Vec3> = runtime::radiosity::texel_albedo(&materials, file)
             .iter()
@@ -261,7 +276,7 @@ fn print_stats(
             .collect();
         let stats = runtime::work::passes::radiosity_gather_stats(
             file,
-            &radiance(0)?,
+            &radiance(BouncePlan::exactly(0))?,
             &albedo,
             threshold,
             exposure,
@@ -281,7 +296,7 @@ fn print_stats(
             scene,
             file,
             &view,
-            &radiance(radiosity_bounces)?,
+            &radiance(radiosity_plan)?,
             options.downsample,
             threshold,
             exposure,

@@ -945,6 +945,69 @@ fn radiosity_matches_cpu_twin() {
     }
 }
 
+/// A converging run ends where its CPU twin's does, the later bounces' gathers dispatched with
+/// no workgroups and the solution held in both buffers: at 5% the box converges before its
+/// 8 bounces run out (the held buffer checked), at the default 1% as it will.
+#[test]
+fn radiosity_converges_where_its_cpu_twin_does() {
+    use cssm_runtime::{
+        common::converge::BouncePlan,
+        radiosity::{RadiosityOptions, cpu},
+    };
+    let (scene, file) = cornell32();
+    let options = RadiosityOptions::default();
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
+        &materials(scene),
+        file,
+    ));
+    let query = VisibilityQuery::new(file, QueryOptions::default());
+    let traversal = cpu::Traversal {
+        threshold: options.threshold,
+        exposure: options.exposure,
+    };
+    for plan in [
+        BouncePlan {
+            fraction: 0.05,
+            ..BouncePlan::converged()
+        },
+        BouncePlan::converged(),
+    ] {
+        let gpu = gpu();
+        let solved = cssm_runtime::radiosity::atlas_radiosity(
+            &gpu.device,
+            &gpu.queue,
+            scene,
+            file,
+            GI_SHADOW,
+            plan,
+            options,
+        )
+        .expect("radiosity");
+        gpu.wait().expect("no GPU error");
+        let twin = cpu::radiosity(&query, &vec3s(&solved.direct), &albedo, &traversal, plan);
+        eprintln!(
+            "radiosity until {}%: GPU {}, CPU twin {}",
+            100.0 * plan.fraction,
+            solved.convergence,
+            twin.convergence
+        );
+        assert_eq!(solved.convergence.bounces, twin.convergence.bounces);
+        assert_eq!(solved.convergence.converged, twin.convergence.converged);
+        assert!((solved.convergence.added - twin.convergence.added).abs() < 1e-4);
+        if plan.fraction > 0.02 {
+            assert!(solved.convergence.converged && solved.convergence.bounces < plan.max);
+        }
+        let all = vec![true; twin.texel_irradiance.len()];
+        let rmse = relative_rmse(&vec3s(&solved.irradiance), &twin.texel_irradiance, &all);
+        let nodes = relative_rmse(
+            &vec3s(&solved.node_radiance),
+            &twin.node_radiance,
+            &vec![true; twin.node_radiance.len()],
+        );
+        assert!(rmse < 1e-3 && nodes < 1e-3, "{rmse} {nodes}");
+    }
+}
+
 /// Relative RMSE of the GPU radiosity (2 bounces) against brute-force radiosity over the same
 /// texels with exact visibility, and the work of the CPU twin at `threshold`.
 fn radiosity_error(threshold: f32) -> (f64, u64) {

@@ -38,6 +38,14 @@ fn run_with(
     limit: Duration,
     cap: Option<u64>,
 ) -> Output {
+    // A `render` that names no method draws the direct light here: the default, lightmap, bakes
+    // and iterates its radiosity first (seconds a render on lavapipe); its own test is
+    // `tests/gpu/emissive.rs::a_room_lit_by_emitters_renders_lit_and_converged_with_no_options`.
+    let mut args = args.to_vec();
+    if args.first() == Some(&"render") && !args.iter().any(|a| a.starts_with("--method")) {
+        args.extend(["--method", "direct"]);
+    }
+    let args = args.as_slice();
     let mut command = Command::new(cssm_binary());
     if let Some(cap) = cap {
         use std::os::unix::process::CommandExt;

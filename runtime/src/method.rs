@@ -62,6 +62,17 @@ pub trait GiMethod {
     /// # Errors
     /// When the new size exceeds a device limit.
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError>;
+
+    /// How many bounces the last [`GiMethod::prepare`] ran, read back (waits for the GPU), for
+    /// a method whose bounces stop once converged ([`crate::common::converge`]); `None` (the
+    /// default) for the others.
+    fn convergence(
+        &self,
+        ctx: &FrameContext,
+    ) -> Option<Result<crate::common::converge::Convergence, RuntimeError>> {
+        let _ = ctx;
+        None
+    }
 }
 
 /// What a method's constructor gets.
@@ -531,13 +542,15 @@ impl Resolved {
 /// Most indirect bounces a method accepts.
 pub const MAX_BOUNCES: u32 = 8;
 
-/// `bounces`: indirect bounces (the hierarchical-radiosity methods and the path tracer).
+/// `bounces`: indirect bounces (the hierarchical-radiosity methods and the path tracer); 0,
+/// the default, until converged ([`crate::common::converge`]).
 pub const BOUNCES: OptionSpec = OptionSpec {
     name: "bounces",
-    help: "indirect bounces",
+    help: "indirect bounces; 0 (the default): until a bounce adds at most 1% of the light, \
+           at most 8",
     kind: OptionKind::Count {
-        default: 1,
-        min: 1,
+        default: 0,
+        min: 0,
         max: MAX_BOUNCES,
     },
 };
@@ -584,7 +597,7 @@ mod tests {
         let mut values = OptionValues::default();
         values.set("bounces", OptionValue::Count(9));
         let err = lightcuts.resolve(&values).unwrap_err().to_string();
-        assert!(err.contains("out of range 1..=8"), "{err}");
+        assert!(err.contains("out of range 0..=8"), "{err}");
         values.set("bounces", OptionValue::Count(3));
         values.set("threshold", OptionValue::Number(-1.0));
         let err = lightcuts.resolve(&values).unwrap_err().to_string();

@@ -276,6 +276,7 @@ mod tests {
         let options = ReferenceOptions {
             samples_per_pixel: 1,
             bounces: 0,
+            converge: 0.0,
             component: Component::Direct,
             seed: 1,
             clamp: None,

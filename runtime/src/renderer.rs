@@ -354,6 +354,17 @@ impl Renderer {
         &self.options
     }
 
+    /// How many bounces the method's last view-independent pass ran, for a method whose
+    /// bounces stop once converged (read back: waits for the GPU); `None` for the others.
+    ///
+    /// # Errors
+    /// GPU errors of the read-back.
+    pub fn convergence(
+        &self,
+    ) -> Option<Result<crate::common::converge::Convergence, RuntimeError>> {
+        self.method.convergence(&self.ctx)
+    }
+
     /// Frames rendered since accumulation last restarted.
     pub fn frames_accumulated(&self) -> u32 {
         self.accumulated

@@ -244,6 +244,9 @@ pub enum Shader {
     RadiosityGather,
     /// `radiosity/pull.wgsl`.
     RadiosityPull,
+    /// `common/converge.wgsl`: the test that ends a run of bounces (`check`) and the copy that
+    /// holds its solution (`hold`).
+    Converge,
     /// `lightmap/lookup.wgsl` with the CSSM library.
     AtlasLookup,
     /// `lightcuts/final_gather.wgsl` with the CSSM library and `radiosity/transfer.wgsl`.
@@ -314,13 +317,14 @@ pub enum Shader {
 
 impl Shader {
     /// Every module.
-    pub const ALL: [Shader; 33] = [
+    pub const ALL: [Shader; 34] = [
         Shader::ShadowMap,
         Shader::GBuffer,
         Shader::DirectScreen,
         Shader::DirectAtlas,
         Shader::RadiosityGather,
         Shader::RadiosityPull,
+        Shader::Converge,
         Shader::AtlasLookup,
         Shader::FinalGather,
         Shader::Compose,
@@ -359,6 +363,7 @@ impl Shader {
             Shader::DirectAtlas => "direct atlas",
             Shader::RadiosityGather => "radiosity gather",
             Shader::RadiosityPull => "radiosity pull",
+            Shader::Converge => "converge",
             Shader::AtlasLookup => "atlas lookup",
             Shader::FinalGather => "final gather",
             Shader::Compose => "compose",
@@ -415,6 +420,10 @@ impl Shader {
             Shader::RadiosityPull => (
                 "runtime/src/radiosity/pull.wgsl",
                 include_str!("radiosity/pull.wgsl"),
+            ),
+            Shader::Converge => (
+                "runtime/src/common/converge.wgsl",
+                include_str!("common/converge.wgsl"),
             ),
             Shader::AtlasLookup => (
                 "runtime/src/lightmap/lookup.wgsl",

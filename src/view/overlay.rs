@@ -235,7 +235,12 @@ fn panel(ui: &mut egui::Ui, view: &ViewState, stats: &Stats, actions: &mut Vec<A
             {
                 actions.push(Action::Bounces(bounces - 1));
             }
-            ui.label(bounces.to_string());
+            // 0: until converged (`runtime::common::converge`).
+            ui.label(if bounces == 0 {
+                "auto".to_string()
+            } else {
+                bounces.to_string()
+            });
             if ui
                 .add_enabled(bounces < max, egui::Button::new("+"))
                 .clicked()

@@ -714,3 +714,46 @@ fn the_command_line_bakes_and_renders_a_scene_lit_by_emitters() {
         assert!(lit * 2 > image.pixels().len(), "{method}: {lit} pixels lit");
     }
 }
+
+/// What a new user meets (issue 52): `cssm render` with no options on a room lit by its
+/// emitters alone bakes a `.cssm`, runs the radiosity until a bounce adds at most 1% of the
+/// light, and meters the exposure: the image is neither dark nor washed out, and the ceiling,
+/// which only light reflected off the walls reaches (the lamp faces down), is lit. With the
+/// direct light alone (the default until then) every surface but the emitters is black.
+#[test]
+fn a_room_lit_by_emitters_renders_lit_and_converged_with_no_options() {
+    let dir = tempfile::tempdir().unwrap();
+    write_room(dir.path(), false);
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("room-default.png");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_cssm"))
+        .args(["render", dir.path().to_str().unwrap(), "--size", "64x48"])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("run cssm");
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{said}");
+    assert!(
+        said.contains("with lightmap") && said.contains("exposure: automatic"),
+        "{said}"
+    );
+    assert!(
+        said.contains("bounces: automatic, ") && said.contains("bounces, the last adding"),
+        "{said}"
+    );
+    let image = image::open(&out).expect("the PNG reads").to_luma8();
+    let mean = |rows: std::ops::Range<u32>, columns: std::ops::Range<u32>| {
+        let (mut sum, mut n) = (0.0, 0.0);
+        for y in rows {
+            for x in columns.clone() {
+                sum += f64::from(image.get_pixel(x, y).0[0]);
+                n += 1.0;
+            }
+        }
+        sum / n
+    };
+    let all = mean(0..48, 0..64);
+    assert!((40.0..170.0).contains(&all), "mean {all}");
+    let ceiling = mean(0..4, 16..48);
+    assert!(ceiling > 0.3 * all, "ceiling {ceiling}, image {all}");
+}

@@ -1,10 +1,12 @@
-//! GPU pieces every technique shares, each defined once: the camera, the G-buffer, the
-//! spot-light shadow map (and its reflective shadow map), tone mapping, pass timing, read-back,
-//! bind-group shorthands, the edge-aware blur and up-sampling of indirect light computed at
-//! reduced resolution, and the conservative voxelisation the voxel techniques start from.
+//! GPU pieces every technique shares, each defined once: the camera, the G-buffer, the test
+//! that ends a run of bounces once converged, the spot-light shadow map (and its reflective
+//! shadow map), tone mapping, pass timing, read-back, bind-group shorthands, the edge-aware
+//! blur and up-sampling of indirect light computed at reduced resolution, and the conservative
+//! voxelisation the voxel techniques start from.
 
 pub mod camera;
 pub mod compose;
+pub mod converge;
 pub mod filters;
 pub mod gbuffer;
 pub mod history;

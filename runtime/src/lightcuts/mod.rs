@@ -27,6 +27,7 @@ use crate::{
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     gpu_types::GpuTraversalParams,
     method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    common::converge::{BouncePlan, Convergence},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders::{self, Shader},
 };
@@ -361,7 +362,8 @@ pub const METHOD: MethodEntry = MethodEntry {
 /// The options of `lightcuts`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightcutsOptions {
-    /// Indirect bounces: the radiosity iterates `bounces - 1` times, the final gather is the last.
+    /// Indirect bounces: the radiosity iterates `bounces - 1` times, the final gather is the
+    /// last (0: the radiosity until converged, then the final gather).
     pub bounces: u32,
     /// Oracle threshold (§4.3), of the radiosity and of the final gather.
     pub threshold: f32,
@@ -397,7 +399,6 @@ struct Lightcuts {
     gather: FinalGather,
     planes: Planes,
     resolve: PlaneResolve,
-    iterations: u32,
     jitter: bool,
 }
 
@@ -409,12 +410,12 @@ impl Lightcuts {
             threshold: options.threshold,
             exposure: ctx.settings.exposure,
         };
-        let gi = AtlasGi::new(ctx, setup.cssm_file()?, radiosity_options)?;
-        let iterations = options.bounces.saturating_sub(1);
+        let plan = BouncePlan::from_option(options.bounces).one_fewer();
+        let gi = AtlasGi::new(ctx, setup.cssm_file()?, radiosity_options, plan)?;
         let planes = Planes::new(ctx, &options)?;
         let gather = FinalGather::new(
             ctx,
-            gi.radiosity.radiance(iterations),
+            gi.radiosity.radiance(),
             options.threshold,
             options.downsample,
             planes.gathered(),
@@ -425,7 +426,6 @@ impl Lightcuts {
             gather,
             planes,
             resolve,
-            iterations,
             jitter: options.jitter,
         }))
     }
@@ -433,7 +433,7 @@ impl Lightcuts {
 
 impl GiMethod for Lightcuts {
     fn prepare(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
-        self.gi.run(ctx, frame, self.iterations);
+        self.gi.run(ctx, frame);
     }
 
     fn encode(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
@@ -448,10 +448,19 @@ impl GiMethod for Lightcuts {
 
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
         self.planes.resize(ctx);
-        let radiance = self.gi.radiosity.radiance(self.iterations);
+        let radiance = self.gi.radiosity.radiance();
         self.gather.resize(ctx, radiance, self.planes.gathered())?;
         self.resolve.resize(ctx, self.planes.resolved());
         Ok(())
+    }
+
+    /// The radiosity's bounces and the final gather's.
+    fn convergence(&self, ctx: &FrameContext) -> Option<Result<Convergence, RuntimeError>> {
+        let radiosity = self.gi.radiosity.convergence(&ctx.device, &ctx.queue);
+        Some(radiosity.map(|c| Convergence {
+            bounces: c.bounces + 1,
+            ..c
+        }))
     }
 }
 

@@ -17,6 +17,7 @@ use crate::{
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     load::CssmGpu,
     method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, Resolved},
+    common::converge::{BouncePlan, Convergence},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders::{self, Shader},
 };
@@ -229,7 +230,7 @@ pub const LIGHTMAP: MethodEntry = MethodEntry {
 /// The options of `hrc` and `lightmap`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LookupOptions {
-    /// Radiosity iterations (indirect bounces).
+    /// Radiosity iterations (indirect bounces; 0: until converged).
     pub bounces: u32,
     /// Oracle threshold (§4.3).
     pub threshold: f32,
@@ -249,7 +250,6 @@ impl LookupOptions {
 struct AtlasGiLookup {
     gi: AtlasGi,
     lookup: AtlasLookup,
-    bounces: u32,
 }
 
 impl AtlasGiLookup {
@@ -261,24 +261,21 @@ impl AtlasGiLookup {
             threshold: options.threshold,
             exposure: ctx.settings.exposure,
         };
-        let gi = AtlasGi::new(ctx, file, radiosity_options)?;
+        let plan = BouncePlan::from_option(options.bounces);
+        let gi = AtlasGi::new(ctx, file, radiosity_options, plan)?;
         let lookup = AtlasLookup::new(
             ctx,
             &ctx.cssm()?.query,
             &gi.radiosity.texel_irradiance,
             filter,
         );
-        Ok(Box::new(Self {
-            gi,
-            lookup,
-            bounces: options.bounces,
-        }))
+        Ok(Box::new(Self { gi, lookup }))
     }
 }
 
 impl GiMethod for AtlasGiLookup {
     fn prepare(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
-        self.gi.run(ctx, frame, self.bounces);
+        self.gi.run(ctx, frame);
     }
 
     fn encode(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
@@ -294,6 +291,10 @@ impl GiMethod for AtlasGiLookup {
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
         self.lookup.resize(ctx, &self.gi.radiosity.texel_irradiance);
         Ok(())
+    }
+
+    fn convergence(&self, ctx: &FrameContext) -> Option<Result<Convergence, RuntimeError>> {
+        Some(self.gi.radiosity.convergence(&ctx.device, &ctx.queue))
     }
 }
 

@@ -25,7 +25,10 @@ use super::transfer::{
     irradiance_bound, irradiance_from_cluster, irradiance_from_texel, node_spreads, tone_mapped,
     visibility_sender,
 };
-use crate::gpu_types::{GpuNode, GpuNodeSpread};
+use crate::{
+    common::converge::{BouncePlan, Convergence, run_plan},
+    gpu_types::{GpuNode, GpuNodeSpread},
+};
 
 const PI: f32 = std::f32::consts::PI;
 
@@ -126,6 +129,8 @@ pub struct CpuRadiosity {
     /// Nodes gathered from, summed over the receivers of the last iteration (the work the
     /// threshold trades against error).
     pub gathered: u64,
+    /// How many bounces ran.
+    pub convergence: Convergence,
 }
 
 /// The oracle's and the gather's constants (the GPU's `TraversalParams`).
@@ -252,13 +257,14 @@ pub fn pull(nodes: &[GpuNode], radiance: &mut [Vec3]) {
 }
 
 /// The GPU iteration on the CPU: the direct light `direct` (radiance per texel) pulled into
-/// the tree, then `iterations` bounces of gather and pull; every object where it was baked.
+/// the tree, then the bounces of gather and pull `iterations` asks for (a count, or until
+/// converged, tested on the root as the GPU does); every object where it was baked.
 pub fn radiosity(
     query: &VisibilityQuery,
     direct: &[Vec3],
     albedo: &[Vec3],
     traversal: &Traversal,
-    iterations: u32,
+    iterations: impl Into<BouncePlan>,
 ) -> CpuRadiosity {
     radiosity_over(
         &TwinScene::baked(query),
@@ -275,8 +281,9 @@ pub fn radiosity_over(
     direct: &[Vec3],
     albedo: &[Vec3],
     traversal: &Traversal,
-    iterations: u32,
+    iterations: impl Into<BouncePlan>,
 ) -> CpuRadiosity {
+    let plan = iterations.into();
     let nodes = &scene.hierarchy.nodes;
     let leaf_texels = &scene.hierarchy.leaf_texels;
     let leaf_nodes: Vec<(u32, usize)> = nodes
@@ -292,7 +299,9 @@ pub fn radiosity_over(
     pull(nodes, &mut radiance);
     let mut irradiance = vec![Vec3::ZERO; scene.texels.len()];
     let mut gathered_total = 0;
-    for _ in 0..iterations {
+    // The test reads the root, node 0 (none in a hierarchy without texels).
+    let root = |radiance: &[Vec3]| radiance.first().copied().unwrap_or_default();
+    let convergence = run_plan(plan, root(&radiance), |_| {
         let gathered: Vec<(u32, usize, Vec3, u32)> = leaf_nodes
             .par_iter()
             .map(|&(t, i)| {
@@ -319,11 +328,13 @@ pub fn radiosity_over(
         }
         pull(nodes, &mut next);
         radiance = next;
-    }
+        root(&radiance)
+    });
     CpuRadiosity {
         node_radiance: radiance,
         texel_irradiance: irradiance,
         gathered: gathered_total,
+        convergence,
     }
 }
 

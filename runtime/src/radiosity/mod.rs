@@ -11,7 +11,9 @@
 //!   ([`crate::direct::AtlasDirect`]).
 //!
 //! After `k` iterations a node's radiance holds the direct light plus `k` diffuse bounces, and
-//! every texel's indirect irradiance the last `k`-bounce gather.
+//! every texel's indirect irradiance the last `k`-bounce gather. The number of iterations is a
+//! [`BouncePlan`]: exactly `k`, or until a bounce adds at most 1% of the light, tested after
+//! each pull on the root, the area-weighted mean of every texel ([`crate::common::converge`]).
 //!
 //! CPU references: [`cpu::radiosity`] runs the same iteration with the CPU query (its twin,
 //! held to it by `runtime/tests/gpu.rs::radiosity_matches_cpu_twin`) and [`cpu::brute_force`]
@@ -29,7 +31,11 @@ use cssm_formats::{CssmFile, Scene};
 
 use crate::{
     RuntimeError,
-    common::{layout, readback, timestamps::PassTimer},
+    common::{
+        converge::{BouncePlan, ConvergeGpu, Convergence},
+        layout, readback,
+        timestamps::PassTimer,
+    },
     direct::AtlasDirect,
     frame::{FrameContext, FrameEncoder, FrameSettings, PassInfo, Slot, Stage},
     gpu_types::{GpuHierarchyNode, GpuMaterial, GpuNode, GpuTraversalParams},
@@ -236,12 +242,15 @@ pub struct Radiosity {
     pull_groups: Vec<[wgpu::BindGroup; 2]>,
     leaf_count: u32,
     level_sizes: Vec<u32>,
+    /// The test that ends the iteration once converged, on the root (node 0).
+    converge: ConvergeGpu,
 }
 
 impl Radiosity {
     /// The passes over `cssm` and `hierarchy`, starting from `texel_direct` (`vec4f` radiance per
     /// texel, [`crate::direct::AtlasDirect::texel_radiance`]) with `texel_albedo` (rgb diffuse
-    /// albedo per texel, texel order).
+    /// albedo per texel, texel order), iterating as `plan` says.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         device: &wgpu::Device,
         cssm: &CssmGpu,
@@ -250,6 +259,7 @@ impl Radiosity {
         texel_direct: &wgpu::Buffer,
         texel_albedo: &[[f32; 4]],
         options: RadiosityOptions,
+        plan: BouncePlan,
     ) -> Result<Self, RuntimeError> {
         let node_bytes = 16 * hierarchy.node_count.max(1) as u64;
         limit_check(device, "node radiance", node_bytes)?;
@@ -375,6 +385,14 @@ impl Radiosity {
                 })
             })
             .collect();
+        let converge = ConvergeGpu::new(
+            device,
+            plan,
+            [&node_radiance[0], &node_radiance[1]],
+            0,
+            hierarchy.node_count,
+            shaders::groups_1d(hierarchy.leaf_count),
+        );
         Ok(Self {
             node_radiance,
             texel_irradiance,
@@ -384,22 +402,32 @@ impl Radiosity {
             pull_groups,
             leaf_count: hierarchy.leaf_count,
             level_sizes: hierarchy.levels.iter().map(|&(s, e)| e - s).collect(),
+            converge,
         })
     }
 
-    /// The buffer holding the node radiance after `iterations` bounces.
-    pub fn radiance(&self, iterations: u32) -> &wgpu::Buffer {
-        &self.node_radiance[(iterations % 2) as usize]
+    /// The buffer holding the node radiance after the iteration (both do once it converged).
+    pub fn radiance(&self) -> &wgpu::Buffer {
+        &self.node_radiance[(self.converge.plan().max % 2) as usize]
     }
 
-    /// Records the start (direct light into the leaves, pulled) and `iterations` bounces.
-    pub fn run(
+    /// How many bounces the last recorded iteration ran (read back; waits for the GPU).
+    ///
+    /// # Errors
+    /// GPU errors of the read-back.
+    pub fn convergence(
         &self,
-        frame: &mut FrameEncoder,
-        cssm: &crate::frame::CssmResources,
-        iterations: u32,
-    ) {
-        for k in 0..=iterations {
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<Convergence, RuntimeError> {
+        self.converge.read(device, queue)
+    }
+
+    /// Records the start (direct light into the leaves, pulled) and the plan's bounces: each a
+    /// gather of as many workgroups as the convergence test leaves it (none once converged),
+    /// then the pull and the test on the root.
+    pub fn run(&self, frame: &mut FrameEncoder, cssm: &crate::frame::CssmResources) {
+        for k in 0..=self.converge.plan().max {
             let written = (k % 2) as usize;
             let gather = usize::from(k > 0);
             {
@@ -412,14 +440,24 @@ impl Radiosity {
                 pass.set_bind_group(0, &self.gather_groups[gather][written], &[]);
                 pass.set_bind_group(1, &cssm.query.bind_group, &[]);
                 cssm.moving.bind(&mut pass, 2);
-                pass.dispatch_workgroups(shaders::groups_1d(self.leaf_count), 1, 1);
+                if k == 0 {
+                    pass.dispatch_workgroups(shaders::groups_1d(self.leaf_count), 1, 1);
+                } else {
+                    pass.dispatch_workgroups_indirect(self.converge.bounce_args(), 0);
+                }
             }
-            // wgpu orders the dispatches of one pass: each level reads what the one before wrote.
+            // wgpu orders the dispatches of one pass: each level reads what the one before wrote,
+            // and the test reads the root the last level wrote.
             let mut pass = frame.compute_pass("radiosity: pull");
             pass.set_pipeline(&self.pull_pipeline);
             for (groups, &size) in self.pull_groups.iter().zip(&self.level_sizes) {
                 pass.set_bind_group(0, &groups[written], &[]);
                 pass.dispatch_workgroups(shaders::groups_1d(size), 1, 1);
+            }
+            if k == 0 {
+                self.converge.start(&mut pass);
+            } else {
+                self.converge.check(&mut pass, k);
             }
         }
     }
@@ -490,6 +528,7 @@ impl AtlasGi {
         ctx: &FrameContext,
         file: &CssmFile,
         options: RadiosityOptions,
+        plan: BouncePlan,
     ) -> Result<Self, RuntimeError> {
         let cssm = ctx.cssm()?;
         let atlas = AtlasDirect::new(ctx, &cssm.query, &cssm.moving);
@@ -501,15 +540,16 @@ impl AtlasGi {
             &atlas.texel_radiance,
             &texel_albedo(&ctx.scene.cpu_materials, file),
             options,
+            plan,
         )?;
         Ok(Self { atlas, radiosity })
     }
 
-    /// Records the direct light into the atlas and `iterations` bounces.
-    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder, iterations: u32) {
+    /// Records the direct light into the atlas and the plan's bounces.
+    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder) {
         let Some(cssm) = &ctx.cssm else { return };
         self.atlas.run(frame, &cssm.moving);
-        self.radiosity.run(frame, cssm, iterations);
+        self.radiosity.run(frame, cssm);
     }
 }
 
@@ -540,12 +580,15 @@ pub struct AtlasRadiosity {
     pub irradiance: Vec<[f32; 4]>,
     /// Mean radiance of every hierarchy node after the iterations (rgb).
     pub node_radiance: Vec<[f32; 4]>,
+    /// How many bounces ran.
+    pub convergence: Convergence,
     /// GPU milliseconds per pass, empty without timestamps.
     pub timings: Vec<(&'static str, f64)>,
 }
 
-/// Runs the direct light into the atlas and `iterations` radiosity bounces (§4.1-§4.3) on
-/// `file` (baked from `scene`), and reads the solution back.
+/// Runs the direct light into the atlas and the radiosity bounces (§4.1-§4.3) of `iterations`
+/// (a count, or [`BouncePlan::converged`]) on `file` (baked from `scene`), and reads the
+/// solution back.
 ///
 /// # Errors
 /// Unsupported lights, buffers beyond the device's limits, GPU errors.
@@ -555,7 +598,7 @@ pub fn atlas_radiosity(
     scene: &Scene,
     file: &CssmFile,
     shadow_resolution: u32,
-    iterations: u32,
+    iterations: impl Into<BouncePlan>,
     options: RadiosityOptions,
 ) -> Result<AtlasRadiosity, RuntimeError> {
     atlas_radiosity_posed(
@@ -583,7 +626,7 @@ pub fn atlas_radiosity_posed(
     scene: &Scene,
     file: &CssmFile,
     shadow_resolution: u32,
-    iterations: u32,
+    iterations: impl Into<BouncePlan>,
     options: RadiosityOptions,
     placed: &[(usize, Affine3A)],
 ) -> Result<AtlasRadiosity, RuntimeError> {
@@ -598,7 +641,7 @@ pub fn atlas_radiosity_posed(
     for &(index, transform) in placed {
         ctx.place_object(index, transform)?;
     }
-    let gi = AtlasGi::new(&ctx, file, options)?;
+    let gi = AtlasGi::new(&ctx, file, options, iterations.into())?;
     let mut timer = PassTimer::new(device, queue);
     let mut encoder = device.create_command_encoder(&Default::default());
     let mut frame = FrameEncoder {
@@ -607,7 +650,7 @@ pub fn atlas_radiosity_posed(
         index: 0,
     };
     ctx.shadows.render(&mut frame, &ctx.scene);
-    gi.run(&ctx, &mut frame, iterations);
+    gi.run(&ctx, &mut frame);
     timer.resolve(&mut encoder);
     queue.submit([encoder.finish()]);
     let timings = timer.read(device, queue)?;
@@ -621,7 +664,8 @@ pub fn atlas_radiosity_posed(
     Ok(AtlasRadiosity {
         direct: read(&atlas.texel_radiance, texels)?,
         irradiance: read(&radiosity.texel_irradiance, texels)?,
-        node_radiance: read(radiosity.radiance(iterations), 16 * node_count)?,
+        node_radiance: read(radiosity.radiance(), 16 * node_count)?,
+        convergence: radiosity.convergence(device, queue)?,
         timings,
     })
 }
