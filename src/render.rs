@@ -463,15 +463,33 @@ pub(crate) fn render_cssm(config: &RenderConfig, scene: &Scene) -> Result<CssmFi
          pass --cssm to skip this)",
         scene.name
     );
-    let options = bake::BakeOptions {
-        atlas_resolution: 64,
-        cube_resolution: 32,
-        ..Default::default()
-    };
-    let baked = bake_with_progress(scene, &options)
-        .map_err(|e| format!("{}: {e}", scene.path.display()))?;
-    Ok(baked.file)
+    // A scene of many charts (the Sibenik's 6,913) does not fit 64²: the smallest page from
+    // there up that holds them, as the query benchmark picks its atlas.
+    let mut atlas = 64;
+    loop {
+        let options = bake::BakeOptions {
+            atlas_resolution: atlas,
+            cube_resolution: 32,
+            ..Default::default()
+        };
+        match bake_with_progress(scene, &options) {
+            Ok(baked) => return Ok(baked.file),
+            Err(bake::BakeError::Atlas(e))
+                if e.contains("could not fit") && atlas < LARGEST_IN_MEMORY_ATLAS =>
+            {
+                atlas *= 2;
+                eprintln!(
+                    "its charts do not fit atlas {}: baking at atlas {atlas}",
+                    atlas / 2
+                );
+            }
+            Err(e) => return Err(format!("{}: {e}", scene.path.display())),
+        }
+    }
 }
+
+/// The largest atlas `cssm render` bakes in memory when no `--cssm` is given.
+const LARGEST_IN_MEMORY_ATLAS: u32 = 512;
 
 /// Encodes `image` as `format` in memory and writes it with the project's one atomic write
 /// (`formats::cssm::write_bytes_atomic`): a failed write never leaves a half-written image.
