@@ -741,8 +741,9 @@ fn render_stats_count_the_final_gather() {
     assert!(visited > 1.0, "{stdout}");
     let stdout = stats("lightmap");
     assert!(
-        stdout.contains("radiosity gather of lightmap, its first of 1 bounce(s)")
-            && stdout.contains("threads 2715"),
+        stdout.contains(
+            "radiosity gather of lightmap, its first of up to 8 (until converged) bounce(s)"
+        ) && stdout.contains("threads 2715"),
         "{stdout}"
     );
     assert!(stats("direct").contains("no pass of direct is counted yet"));
