@@ -170,6 +170,7 @@ fn main() {
             component: Component::Indirect,
             options: &resolved,
             progress: &|_, _| {},
+            on_bounces: &|_| {},
         })
         .expect("path tracer");
         let traced: f64 = traced

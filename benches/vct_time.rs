@@ -92,6 +92,7 @@ fn main() {
             true,
             false,
             &cones,
+            runtime::common::converge::BouncePlan::exactly(0),
         )
         .expect("voxels");
         let (nodes, bricks, node_values) = voxels.svo.pool_bytes(&voxels.octree);

@@ -238,7 +238,7 @@ measure() {
     }
     nvidia-smi -L > "$out/runtime-device.txt" 2>&1 || true
     # Does a GPU answer? One small image; nothing else runs if not.
-    run adapter "$c/cssm" render --size 64x48 --timings --out "$out/adapter.png"
+    run adapter "$c/cssm" render --method direct --size 64x48 --timings --out "$out/adapter.png"
     if [ ${#failures[@]} -gt 0 ] ||
         { command -v nvidia-smi > /dev/null && ! grep -q NVIDIA "$out/runtime-adapter.txt"; }; then
         echo "no GPU adapter (or not the NVIDIA one): nothing measured" | tee "$out/runtime-failures.txt" >&2
@@ -268,7 +268,8 @@ measure() {
     run frame-time-all "$c/frame_time" --size $wide --frames $frames --one-shots 1 \
         --methods direct,hrc,lightmap,lightcuts,rsm,vct,ssil,vf --out "$out/runtime-frame-time-all.md"
     for size in $view_sizes; do
-        run "direct-$size" "$c/cssm" render --size "$size" --timings --out "$out/direct-$size.png"
+        run "direct-$size" "$c/cssm" render --method direct --size "$size" --timings \
+            --out "$out/direct-$size.png"
     done
     # Global illumination, GPU ms per pass (Table 1): final gather (lightcuts) and the atlas
     # lightmap, 1 and 2 bounces; the bunny in the Cornell box as a moving object (issue 21),

@@ -979,11 +979,12 @@ pub struct ViewArgs {
     /// Scene directory or mesh file (.obj, .gltf, .glb). Default: the built-in Cornell box.
     scene: Option<PathBuf>,
     /// Method to start with (`cssm render --help` lists them; Tab switches in the window).
-    #[arg(long, default_value = "direct", value_parser = parse_method)]
+    /// The default, lightmap, is `cssm render`'s.
+    #[arg(long, default_value = "lightmap", value_parser = parse_method)]
     method: &'static MethodEntry,
     /// The scene's baked CSSM (`cssm bake`), for the methods that need one. Default: bake one
-    /// in memory at atlas 64, cube 32 when the first method needs it; without one, Tab skips
-    /// the methods that need it.
+    /// in memory at atlas 64 (or the smallest larger page that holds the charts), cube 32 when
+    /// the first method needs it; without one, Tab skips the methods that need it.
     #[arg(long)]
     cssm: Option<PathBuf>,
     /// Image (and window) size WIDTHxHEIGHT. Default: the scene camera's resolution.
@@ -1162,7 +1163,8 @@ pub struct RenderArgs {
     #[arg(long)]
     stats: bool,
     /// The scene's baked CSSM (`cssm bake`), for the methods that need one. Default: bake one
-    /// in memory at atlas 64, cube 32.
+    /// in memory at atlas 64 (or the smallest larger page that holds the scene's charts),
+    /// cube 32.
     #[arg(long)]
     cssm: Option<PathBuf>,
     /// Indirect bounces (the option `bounces`; lightcuts: the final gather is the last).

@@ -371,6 +371,7 @@ pub fn render_variant(
                 component: spec.component,
                 options: &variant.resolved,
                 progress: &|done, _| bar.set_position(done / w.max(1) as u64),
+                on_bounces: &|_| {},
             })
             .map_err(fail)?;
             bar.finish_and_clear();

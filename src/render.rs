@@ -96,11 +96,7 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             let automatic = renderer.method().option("bounces").is_some()
                 && renderer.options().count("bounces") == 0;
             if let (true, Some(convergence)) = (automatic, renderer.convergence()) {
-                let convergence = convergence.map_err(gpu_error)?;
-                eprintln!(
-                    "bounces: automatic, {convergence} (--bounces {} fixes it)",
-                    convergence.bounces
-                );
+                bounces_said(convergence.map_err(gpu_error)?);
             }
             image
         }
@@ -121,6 +117,15 @@ pub fn run_render(config: RenderConfig) -> CliResult {
             .unwrap_or_default()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Says how many bounces a method running them until converged took, so that `--bounces` can
+/// fix them.
+fn bounces_said(convergence: runtime::common::converge::Convergence) {
+    eprintln!(
+        "bounces: automatic, {convergence} (--bounces {} fixes it)",
+        convergence.bounces
+    );
 }
 
 /// Without `--exposure`, tone-maps `image` anew at the automatic exposure
@@ -434,6 +439,7 @@ fn render_on_cpu(
         component: settings.component,
         options: resolved,
         progress: &|done, _| bar.set_position(done / w.max(1) as u64),
+        on_bounces: &|convergence| bounces_said(convergence),
     })
     .map_err(|e| format!("{}: {e}", scene.path.display()))?;
     bar.finish_and_clear();

@@ -1643,3 +1643,41 @@ fn render_bakes_at_an_atlas_that_holds_the_charts() {
     );
     assert!(png.is_file());
 }
+
+/// The path tracer's bounces run until converged unless `--bounces` fixes them, and it says
+/// how many it kept (the Cornell box: about six at 1%).
+#[test]
+fn reference_says_the_bounces_it_kept_unless_told() {
+    let tmp = tempfile::tempdir().unwrap();
+    let png = tmp.path().join("reference.png");
+    let render = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--method",
+            "reference",
+            "--samples",
+            "4",
+            "--size",
+            "16x12",
+            "--out",
+            png.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let o = cssm(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let said = render(&[]);
+    let kept: u32 = said
+        .split("bounces: automatic, ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no bounces said: {said}"));
+    assert!((3..=8).contains(&kept), "{said}");
+    assert!(
+        said.contains(&format!("--bounces {kept} fixes it")),
+        "{said}"
+    );
+    assert!(!render(&["--bounces", "2"]).contains("bounces: automatic"));
+}

@@ -193,6 +193,7 @@ fn render_reference(
         component: options.component,
         options: &resolved,
         progress: &|_, _| {},
+        on_bounces: &|_| {},
     })?;
     Ok(Image::from_cpu(
         options.width,

@@ -111,6 +111,8 @@ pub struct CpuSetup<'a> {
     pub options: &'a Resolved,
     /// Called with (pixels done, pixels in all) as the work proceeds.
     pub progress: &'a (dyn Fn(u64, u64) + Sync),
+    /// Called once when the method's bounces ran until converged, with how many it kept.
+    pub on_bounces: &'a dyn Fn(crate::common::converge::Convergence),
 }
 
 /// How a method runs.

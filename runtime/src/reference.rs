@@ -127,7 +127,7 @@ fn render_method(setup: &CpuSetup) -> Result<Vec<[f32; 4]>, RuntimeError> {
         component: setup.component,
         ..Default::default()
     };
-    let image = render_reference(
+    let (image, convergence) = render_reference_converging(
         setup.scene,
         setup.view,
         &materials,
@@ -136,6 +136,9 @@ fn render_method(setup: &CpuSetup) -> Result<Vec<[f32; 4]>, RuntimeError> {
         &options,
         setup.progress,
     );
+    if let Some(convergence) = convergence {
+        (setup.on_bounces)(convergence);
+    }
     Ok(image.iter().map(|c| [c.x, c.y, c.z, 1.0]).collect())
 }
 

@@ -8,6 +8,7 @@ use cssm_formats::Scene;
 use cssm_runtime::{
     Renderer,
     common::{
+        converge::{BouncePlan, added_fraction},
         readback::{read_buffer, read_texture},
         timestamps::PassTimer,
         voxelize::VoxelFragment,
@@ -232,6 +233,19 @@ fn voxelised(
     correct: bool,
     bounces: u32,
 ) -> (Renderer, SparseVoxels) {
+    // The bounces into the leaves: the cones' own is the last.
+    let plan = BouncePlan::exactly(bounces.saturating_sub(1));
+    voxelised_with(scene, size, anisotropic, correct, plan)
+}
+
+/// [`voxelised`] with the bounces into the leaves of `plan`.
+fn voxelised_with(
+    scene: &Scene,
+    size: (u32, u32),
+    anisotropic: bool,
+    correct: bool,
+    plan: BouncePlan,
+) -> (Renderer, SparseVoxels) {
     let gpu = gpu();
     let renderer = rsm_renderer(scene, &OptionValues::default(), size, 256);
     let ctx = renderer.context();
@@ -242,6 +256,7 @@ fn voxelised(
         anisotropic,
         correct,
         &bounce_cones(),
+        plan,
     )
     .expect("voxels");
     let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
@@ -253,7 +268,6 @@ fn voxelised(
             timer: &mut timer,
             index: 0,
         },
-        bounces,
     );
     gpu.queue.submit([encoder.finish()]);
     gpu.wait().expect("the passes run");
@@ -539,5 +553,54 @@ fn second_bounce_matches_cpu_twin() {
     eprintln!(
         "second bounce at 32³: {} leaves checked, {brighter} brighter, worst off by {worst:.2e}",
         want.len()
+    );
+}
+
+/// The bounces into the leaves stop where the rule says, on the light of the octree's first
+/// level (nodes 8 to 15, the root's children): exact runs of 1, 2 and 3 bounces measure each
+/// bounce's share of the light; a converging run whose fraction lies between the second's and
+/// the first's stops after the second, its later bounce dispatched with no workgroups, and its
+/// voxels are those of the exact run of 2.
+#[test]
+fn vct_bounces_stop_once_converged() {
+    let gpu = gpu();
+    let (scene, _) = cornell();
+    let values = |voxels: &SparseVoxels| -> Vec<Vec4> {
+        let words = voxels.octree.tile_capacity as u64 * 8 * 16 * voxels.svo.params.faces as u64;
+        let raw = read_buffer(&gpu.device, &gpu.queue, &voxels.radiance.values, 0, words).unwrap();
+        bytemuck::cast_slice::<u8, [f32; 4]>(&raw)
+            .iter()
+            .map(|&v| Vec4::from(v))
+            .collect()
+    };
+    let light = |values: &[Vec4], faces: usize| -> Vec3 {
+        values[8 * faces..16 * faces]
+            .iter()
+            .fold(Vec3::ZERO, |sum, v| sum + v.truncate())
+    };
+    let exact: Vec<Vec<Vec4>> = (0..=3)
+        .map(|k| values(&voxelised_with(scene, (16, 16), false, false, BouncePlan::exactly(k)).1))
+        .collect();
+    let lights: Vec<Vec3> = exact.iter().map(|v| light(v, 1)).collect();
+    let shares: Vec<f32> = (1..=3)
+        .map(|k| added_fraction(lights[k - 1], lights[k]))
+        .collect();
+    eprintln!("vct: each bounce's share of the first level's light {shares:?}");
+    assert!(shares[1] < shares[0] && shares[1] > 0.0, "{shares:?}");
+    let plan = BouncePlan {
+        max: 3,
+        fraction: 0.5 * (shares[0] + shares[1]),
+    };
+    let (_renderer, converging) = voxelised_with(scene, (16, 16), false, false, plan);
+    let ended = converging
+        .radiance
+        .convergence(&gpu.device, &gpu.queue)
+        .unwrap();
+    assert_eq!((ended.bounces, ended.converged), (2, true), "{ended}");
+    assert!((ended.added - shares[1]).abs() < 1e-4, "{ended} {shares:?}");
+    assert_eq!(
+        values(&converging),
+        exact[2],
+        "the solution of 2 bounces is kept"
     );
 }

@@ -9,9 +9,9 @@
 //!
 //! On the GPU ([`ConvergeGpu`]) the test runs in one thread after each bounce and needs no read
 //! back: once a bounce has converged it sets the later bounces' indirect dispatches to zero
-//! workgroups and copies the solution into the other buffer of the method's ping-pong pair
-//! (`converge.wgsl`, `check` and `hold`), so the frame is still one submission and costs the
-//! bounces it needs.
+//! workgroups and, for a method iterating between two buffers, copies the solution into the
+//! other one (`converge.wgsl`, `check` and `hold`), so the frame is still one submission and
+//! costs the bounces it needs.
 //!
 //! What is left out is bounded: with a mean albedo `rho`, the bounces after the last add about
 //! `rho / (1 - rho)` times its share, 2.3% of the light at `rho` 0.7 for the fraction 1%.
@@ -144,12 +144,12 @@ impl std::fmt::Display for Convergence {
 struct ConvergeParams {
     fraction: f32,
     start: u32,
-    work_groups: u32,
+    work_index: u32,
     hold_groups: u32,
     mean_index: u32,
+    mean_count: u32,
     count: u32,
     bounce: u32,
-    _pad: u32,
 }
 
 /// `ConvergeState` of `converge.wgsl`.
@@ -160,10 +160,25 @@ struct ConvergeState {
     bounces: u32,
     added: f32,
     _pad: u32,
+    light: [f32; 4],
 }
 
-/// The GPU side of a [`BouncePlan`] over a ping-pong pair of `vec4f` buffers whose bounce `k`
-/// is written into buffer `k % 2`: see the module docs.
+/// Where a method's solution and its light are, for [`ConvergeGpu`].
+pub struct ConvergeInputs<'a> {
+    /// The solution after bounce `k` is `solution[k % 2]`: a method that iterates between two
+    /// buffers names both, one that updates a buffer in place names it twice.
+    pub solution: [&'a wgpu::Buffer; 2],
+    /// Elements of each buffer of a pair (the copy that holds a converged solution in both);
+    /// `None` for a solution updated in place.
+    pub held: Option<u32>,
+    /// The light is the sum of the solution's `vec4f`s from `mean.0`, `mean.1` of them.
+    pub mean: (u32, u32),
+    /// A bounce's main dispatch arguments as the method computes them: a buffer of `u32`
+    /// words (`STORAGE`) and the index of the first of the three.
+    pub work_args: (&'a wgpu::Buffer, u32),
+}
+
+/// The GPU side of a [`BouncePlan`]: see the module docs.
 pub struct ConvergeGpu {
     plan: BouncePlan,
     state: wgpu::Buffer,
@@ -173,21 +188,13 @@ pub struct ConvergeGpu {
     /// Index 0 starts; index `k` checks bounce `k`.
     groups: Vec<wgpu::BindGroup>,
     /// `hold`'s after bounce `k` (its own: the arguments it is dispatched with cannot be bound
-    /// in the same dispatch).
+    /// in the same dispatch); empty for a solution updated in place.
     hold_groups: Vec<wgpu::BindGroup>,
 }
 
 impl ConvergeGpu {
-    /// The test over `pair` (`count` elements each, the mean at `mean_index`) for a method
-    /// whose bounce dispatches `work_groups` workgroups.
-    pub fn new(
-        device: &wgpu::Device,
-        plan: BouncePlan,
-        pair: [&wgpu::Buffer; 2],
-        mean_index: u32,
-        count: u32,
-        work_groups: u32,
-    ) -> Self {
+    /// The test of `plan` over `inputs`.
+    pub fn new(device: &wgpu::Device, plan: BouncePlan, inputs: &ConvergeInputs) -> Self {
         let state = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("converge state"),
             size: size_of::<ConvergeState>() as u64,
@@ -201,15 +208,26 @@ impl ConvergeGpu {
             mapped_at_creation: false,
         });
         let c = wgpu::ShaderStages::COMPUTE;
-        let entries = [
-            layout::uniform(0, c),
-            layout::storage(1, false, c),
-            layout::storage(2, true, c),
-            layout::storage(3, false, c),
-            layout::storage(4, false, c),
-        ];
-        let bind_layout = layout::bind_group_layout(device, "converge", &entries);
-        let hold_layout = layout::bind_group_layout(device, "converge hold", &entries[..3]);
+        let bind_layout = layout::bind_group_layout(
+            device,
+            "converge",
+            &[
+                layout::uniform(0, c),
+                layout::storage(1, true, c),
+                layout::storage(2, false, c),
+                layout::storage(3, false, c),
+                layout::storage(4, true, c),
+            ],
+        );
+        let hold_layout = layout::bind_group_layout(
+            device,
+            "converge hold",
+            &[
+                layout::uniform(0, c),
+                layout::storage(1, true, c),
+                layout::storage(5, false, c),
+            ],
+        );
         let module = Shader::Converge.create(device);
         let check =
             layout::compute_pipeline_entry(device, "converge", &module, "check", &[&bind_layout]);
@@ -220,37 +238,51 @@ impl ConvergeGpu {
             "hold",
             &[&hold_layout],
         );
-        let (groups, hold_groups) = (0..=plan.max)
-            .map(|k| {
-                let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("converge params"),
-                    contents: bytemuck::bytes_of(&ConvergeParams {
-                        fraction: plan.fraction,
-                        start: u32::from(k == 0),
-                        work_groups,
-                        hold_groups: shaders::groups_1d(count),
-                        mean_index,
-                        count,
-                        bounce: k,
-                        _pad: 0,
-                    }),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
-                // Bounce k wrote buffer k % 2 from buffer (k - 1) % 2.
-                let after = (k % 2) as usize;
-                let bindings = [
-                    params.as_entire_binding(),
-                    pair[1 - after].as_entire_binding(),
-                    pair[after].as_entire_binding(),
-                    state.as_entire_binding(),
-                    args.as_entire_binding(),
-                ];
-                (
-                    layout::bind_group(device, "converge", &bind_layout, &bindings),
-                    layout::bind_group(device, "converge hold", &hold_layout, &bindings[..3]),
-                )
-            })
-            .unzip();
+        let (work_args, work_index) = inputs.work_args;
+        let mut groups = Vec::new();
+        let mut hold_groups = Vec::new();
+        for k in 0..=plan.max {
+            let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("converge params"),
+                contents: bytemuck::bytes_of(&ConvergeParams {
+                    fraction: plan.fraction,
+                    start: u32::from(k == 0),
+                    work_index,
+                    hold_groups: inputs.held.map_or(0, shaders::groups_1d),
+                    mean_index: inputs.mean.0,
+                    mean_count: inputs.mean.1,
+                    count: inputs.held.unwrap_or(0),
+                    bounce: k,
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            // Bounce k wrote buffer k % 2 from buffer (k - 1) % 2.
+            let after = (k % 2) as usize;
+            groups.push(layout::bind_group_at(
+                device,
+                "converge",
+                &bind_layout,
+                &[
+                    (0, params.as_entire_binding()),
+                    (1, inputs.solution[after].as_entire_binding()),
+                    (2, state.as_entire_binding()),
+                    (3, args.as_entire_binding()),
+                    (4, work_args.as_entire_binding()),
+                ],
+            ));
+            if inputs.held.is_some() {
+                hold_groups.push(layout::bind_group_at(
+                    device,
+                    "converge hold",
+                    &hold_layout,
+                    &[
+                        (0, params.as_entire_binding()),
+                        (1, inputs.solution[after].as_entire_binding()),
+                        (5, inputs.solution[1 - after].as_entire_binding()),
+                    ],
+                ));
+            }
+        }
         Self {
             plan,
             state,
@@ -267,7 +299,8 @@ impl ConvergeGpu {
         self.plan
     }
 
-    /// Records the reset before the first bounce into `pass`.
+    /// Records the reset before the first bounce into `pass` (the light so far measured, the
+    /// main dispatch's arguments copied).
     pub fn start(&self, pass: &mut wgpu::ComputePass) {
         pass.set_pipeline(&self.check);
         pass.set_bind_group(0, &self.groups[0], &[]);
@@ -275,14 +308,16 @@ impl ConvergeGpu {
     }
 
     /// Records the test after bounce `bounce` (1-based, at most the plan's `max`) into `pass`,
-    /// and the copy that holds a converged solution.
+    /// and for a pair of buffers the copy that holds a converged solution.
     pub fn check(&self, pass: &mut wgpu::ComputePass, bounce: u32) {
         pass.set_pipeline(&self.check);
         pass.set_bind_group(0, &self.groups[bounce as usize], &[]);
         pass.dispatch_workgroups(1, 1, 1);
-        pass.set_pipeline(&self.hold);
-        pass.set_bind_group(0, &self.hold_groups[bounce as usize], &[]);
-        pass.dispatch_workgroups_indirect(&self.args, 12);
+        if let Some(group) = self.hold_groups.get(bounce as usize) {
+            pass.set_pipeline(&self.hold);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups_indirect(&self.args, 12);
+        }
     }
 
     /// The arguments of the next bounce's main dispatch (zero workgroups once converged).
@@ -382,8 +417,8 @@ mod tests {
             size_of::<ConvergeParams>(),
             &[
                 ("fraction", offset_of!(ConvergeParams, fraction)),
-                ("work_groups", offset_of!(ConvergeParams, work_groups)),
-                ("mean_index", offset_of!(ConvergeParams, mean_index)),
+                ("work_index", offset_of!(ConvergeParams, work_index)),
+                ("mean_count", offset_of!(ConvergeParams, mean_count)),
                 ("bounce", offset_of!(ConvergeParams, bounce)),
             ],
         );
@@ -394,6 +429,7 @@ mod tests {
             &[
                 ("bounces", offset_of!(ConvergeState, bounces)),
                 ("added", offset_of!(ConvergeState, added)),
+                ("light", offset_of!(ConvergeState, light)),
             ],
         );
     }

@@ -32,7 +32,7 @@ use cssm_formats::{CssmFile, Scene};
 use crate::{
     RuntimeError,
     common::{
-        converge::{BouncePlan, ConvergeGpu, Convergence},
+        converge::{BouncePlan, ConvergeGpu, ConvergeInputs, Convergence},
         layout, readback,
         timestamps::PassTimer,
     },
@@ -385,13 +385,22 @@ impl Radiosity {
                 })
             })
             .collect();
+        // The gather's dispatch, one thread per leaf, until the test sets it to none.
+        let gather_args = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("radiosity gather arguments"),
+            contents: bytemuck::cast_slice(&[shaders::groups_1d(hierarchy.leaf_count), 1, 1]),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
         let converge = ConvergeGpu::new(
             device,
             plan,
-            [&node_radiance[0], &node_radiance[1]],
-            0,
-            hierarchy.node_count,
-            shaders::groups_1d(hierarchy.leaf_count),
+            &ConvergeInputs {
+                solution: [&node_radiance[0], &node_radiance[1]],
+                held: Some(hierarchy.node_count),
+                // The root: the area-weighted mean of every texel.
+                mean: (0, 1),
+                work_args: (&gather_args, 0),
+            },
         );
         Ok(Self {
             node_radiance,

@@ -46,6 +46,7 @@ use glam::Vec3;
 use crate::{
     RuntimeError,
     common::{
+        converge::{BouncePlan, Convergence},
         readback::read_buffer,
         voxelize::{self, VoxelFragment, VoxelGrid, Voxelizer},
     },
@@ -72,7 +73,8 @@ pub struct VctOptions {
     pub offset: f32,
     /// A sample's opacity corrected for a step shorter than its voxel (§5).
     pub correct_opacity: bool,
-    /// Diffuse bounces: 1 the direct light's, each more gathered into the leaves (§8.1).
+    /// Diffuse bounces: 1 the direct light's, each more gathered into the leaves (§8.1); 0
+    /// until converged ([`crate::common::converge`]).
     pub bounces: u32,
     /// The ambient occlusion view's reach in leaf voxels (§6), `None` for the indirect light.
     pub occlusion: Option<f32>,
@@ -132,11 +134,12 @@ pub const METHOD: MethodEntry = MethodEntry {
         OptionSpec {
             name: "bounces",
             help: "indirect bounces: each after the first gathers, with the diffuse cones, from \
-                   the voxels into their leaves (§8.1)",
+                   the voxels into their leaves (§8.1); 0 (the default): until a bounce adds at \
+                   most 1% of the voxels' light, at most 8",
             kind: OptionKind::Count {
-                default: 1,
-                min: 1,
-                max: 8,
+                default: 0,
+                min: 0,
+                max: crate::method::MAX_BOUNCES,
             },
         },
         OptionSpec {
@@ -266,7 +269,6 @@ pub const METHOD: MethodEntry = MethodEntry {
 struct VctMethod {
     voxels: SparseVoxels,
     trace: ConeTrace,
-    bounces: u32,
 }
 
 impl VctMethod {
@@ -289,19 +291,17 @@ impl VctMethod {
             options.anisotropic,
             options.correct_opacity,
             &params,
+            // The cones' gather is the last bounce.
+            BouncePlan::from_option(options.bounces).one_fewer(),
         )?;
         let trace = ConeTrace::new(ctx, &voxels.svo, params);
-        Ok(Box::new(Self {
-            voxels,
-            trace,
-            bounces: options.bounces,
-        }))
+        Ok(Box::new(Self { voxels, trace }))
     }
 }
 
 impl GiMethod for VctMethod {
     fn prepare(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
-        self.voxels.run(ctx, frame, self.bounces);
+        self.voxels.run(ctx, frame);
     }
 
     fn encode(&mut self, _ctx: &FrameContext, frame: &mut FrameEncoder) {
@@ -315,6 +315,15 @@ impl GiMethod for VctMethod {
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
         self.trace.resize(ctx);
         Ok(())
+    }
+
+    /// The bounces into the leaves and the cones' own.
+    fn convergence(&self, ctx: &FrameContext) -> Option<Result<Convergence, RuntimeError>> {
+        let leaves = self.voxels.radiance.convergence(&ctx.device, &ctx.queue);
+        Some(leaves.map(|c| Convergence {
+            bounces: c.bounces + 1,
+            ..c
+        }))
     }
 }
 
@@ -339,7 +348,8 @@ pub struct SparseVoxels {
 impl SparseVoxels {
     /// The octree of `ctx`'s scene (`bounds` its bounds) at `resolution` leaves per side, its
     /// voxels anisotropic (§9) or not, its cones' opacity corrected for their step (§5) or
-    /// not; bounces after the first gather with `cones`. The pools are sized from a first voxelisation read back
+    /// not; bounces after the first gather with `cones`, as many as `plan` says (those into the
+    /// leaves: the cones' own is not counted). The pools are sized from a first voxelisation read back
     /// (its fragments, then the nodes they occupy at every level), with room for half as much
     /// again.
     ///
@@ -353,6 +363,7 @@ impl SparseVoxels {
         anisotropic: bool,
         correct_opacity: bool,
         cones: &TraceParams,
+        plan: BouncePlan,
     ) -> Result<Self, RuntimeError> {
         let device = &ctx.device;
         let grid = VoxelGrid::of_scene(bounds, resolution);
@@ -396,7 +407,7 @@ impl SparseVoxels {
         let octree = OctreeBuild::new(device, &voxelizer, tile_capacity)?;
         let svo = Svo::new(device, &octree, &grid, pool, correct_opacity)?;
         let radiance =
-            VoxelRadiance::new(device, &voxelizer, &octree, &svo, &ctx.shadows, cones)?;
+            VoxelRadiance::new(device, &voxelizer, &octree, &svo, &ctx.shadows, cones, plan)?;
         Ok(Self {
             voxelizer,
             octree,
@@ -419,11 +430,11 @@ impl SparseVoxels {
         Ok(u32::from_le_bytes([count[0], count[1], count[2], count[3]]))
     }
 
-    /// Records every pass, after the shadow maps' raster (the RSM), for `bounces` bounces
-    /// (§8.1: each after the first gathers from the bricks into the leaves).
-    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder, bounces: u32) {
+    /// Records every pass, after the shadow maps' raster (the RSM), with the bounces of the
+    /// plan given at creation (§8.1: each gathers from the bricks into the leaves).
+    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder) {
         self.voxelizer.run(frame);
         self.octree.run(frame, &ctx.queue);
-        self.radiance.run(frame, &self.svo, bounces);
+        self.radiance.run(frame, &self.svo);
     }
 }

@@ -26,6 +26,7 @@ use wgpu::util::DeviceExt;
 use crate::{
     RuntimeError,
     common::{
+        converge::{BouncePlan, ConvergeGpu, ConvergeInputs, Convergence},
         layout,
         shadow_map::ShadowMaps,
         voxelize::{VoxelGrid, Voxelizer, split_groups},
@@ -314,11 +315,14 @@ pub struct VoxelRadiance {
     level_groups: Vec<wgpu::BindGroup>,
     max_level: u32,
     rsm_size: (u32, u32, u32),
+    /// The test that ends the bounces once converged, on the first level's light.
+    converge: ConvergeGpu,
 }
 
 impl VoxelRadiance {
     /// The passes over `octree`'s pool (built from `voxelizer`'s fragments) into `svo`'s
-    /// bricks, from `shadows`' RSM; bounces after the first gather with `cones`.
+    /// bricks, from `shadows`' RSM; bounces after the first gather with `cones`, as many as
+    /// `bounces` says (the bounces into the leaves, the cones' own not counted).
     ///
     /// # Errors
     /// Shadow maps without their RSM, per-node values beyond the device's largest storage
@@ -330,6 +334,7 @@ impl VoxelRadiance {
         svo: &Svo,
         shadows: &ShadowMaps,
         cones: &TraceParams,
+        bounces: BouncePlan,
     ) -> Result<Self, RuntimeError> {
         let rsm = shadows.rsm.as_ref().ok_or_else(|| {
             RuntimeError::Unsupported("voxel light injection needs the shadow maps' RSM".into())
@@ -526,6 +531,19 @@ impl VoxelRadiance {
             rsm.position.height(),
             shadows.light_count,
         );
+        // The light: the first level's values (tile 1, nodes 8 to 15, the root's children),
+        // each the box filter of its leaves; the bounce's dispatch: the leaves'.
+        let faces = svo.params.faces;
+        let converge = ConvergeGpu::new(
+            device,
+            bounces,
+            &ConvergeInputs {
+                solution: [&values, &values],
+                held: None,
+                mean: (8 * faces, 8 * faces),
+                work_args: (&args, 4 * max_level),
+            },
+        );
         Ok(Self {
             flux,
             values,
@@ -546,12 +564,27 @@ impl VoxelRadiance {
             level_groups,
             max_level,
             rsm_size,
+            converge,
         })
     }
 
+    /// How many bounces into the leaves the last run computed (read back; waits for the GPU).
+    ///
+    /// # Errors
+    /// GPU errors of the read-back.
+    pub fn convergence(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<Convergence, RuntimeError> {
+        self.converge.read(device, queue)
+    }
+
     /// Records the passes, after the octree's build and the RSM's raster: the direct light
-    /// into the bricks, then `bounces - 1` more bounces (§8.1).
-    pub fn run(&self, frame: &mut FrameEncoder, svo: &Svo, bounces: u32) {
+    /// into the bricks, then the plan's bounces into the leaves (§8.1), each dispatched with as
+    /// many workgroups as the convergence test leaves it (none once converged; the MIP-mapping
+    /// and the bricks after it then compute the same values again).
+    pub fn run(&self, frame: &mut FrameEncoder, svo: &Svo) {
         frame.encoder.clear_buffer(&self.flux, 0, None);
         frame.encoder.clear_buffer(&self.values, 0, None);
         let max = self.max_level as usize;
@@ -575,13 +608,15 @@ impl VoxelRadiance {
             pass.set_bind_group(0, &self.level_groups[max], &[]);
             pass.dispatch_workgroups_indirect(&self.args, 16 * max as u64);
             self.mip(&mut pass);
+            self.converge.start(&mut pass);
         }
         {
             let mut pass = frame.compute_pass("svo bricks");
             pass.set_bind_group(1, &svo.nodes_group, &[]);
             self.bricks(&mut pass);
         }
-        if bounces <= 1 {
+        let bounces = self.converge.plan().max;
+        if bounces == 0 {
             return;
         }
         frame.encoder.clear_buffer(&self.surface, 0, None);
@@ -590,13 +625,15 @@ impl VoxelRadiance {
         pass.set_bind_group(0, &self.surface_group, &[]);
         pass.set_bind_group(1, &svo.nodes_group, &[]);
         pass.dispatch_workgroups(self.fragment_groups.0, self.fragment_groups.1, 1);
-        for _ in 1..bounces {
+        for k in 1..=bounces {
             pass.set_pipeline(&self.bounce);
             pass.set_bind_group(0, &self.bounce_group, &[]);
             pass.set_bind_group(1, &svo.sample_group, &[]);
-            pass.dispatch_workgroups_indirect(&self.args, 16 * max as u64);
+            pass.dispatch_workgroups_indirect(self.converge.bounce_args(), 0);
             pass.set_bind_group(1, &svo.nodes_group, &[]);
             self.mip(&mut pass);
+            self.converge.check(&mut pass, k);
+            pass.set_bind_group(1, &svo.nodes_group, &[]);
             self.bricks(&mut pass);
         }
     }
