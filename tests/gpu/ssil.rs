@@ -569,3 +569,70 @@ fn bounces_accumulate_as_the_twin() {
         fine = got;
     }
 }
+
+/// `bounces=0` gathers until a bounce reflects at most 1% of the light so far, decided every
+/// frame on the light pyramid's top level: the light each exact run's last pyramid holds (the
+/// direct light's with one bounce, the first bounce's reflection with two, ...) gives the
+/// shares, the rule on them says where the converging run stops, and its summed light is that
+/// exact run's. At 1% the box runs out of its 4 bounces (shares 21%, 6%, 2%); at 5% it stops
+/// after 3, the fourth gathering nothing.
+#[test]
+fn bounces_stop_once_converged() {
+    use cssm_runtime::common::converge::{BouncePlan, CONVERGED_FRACTION, run_plan};
+    let (scene, _) = cornell();
+    let renderer = context_renderer(scene, (40, 30));
+    let ctx = renderer.context();
+    let with = |bounces| SsilOptions {
+        bounces,
+        visibility: Visibility::None,
+        ..test_options()
+    };
+    // The light the last pyramid of an exact run of `n` bounces holds, summed over its top.
+    let top = |gi: &ScreenSpaceGi| -> Vec3 {
+        let light = read4(ctx, &gi.light().signal);
+        level_of(&light, gi, gi.levels().last)
+            .iter()
+            .fold(Vec3::ZERO, |sum, v| sum + v.truncate())
+    };
+    let exact: Vec<ScreenSpaceGi> = (1..=4).map(|n| run(ctx, scene, &with(n), 1)).collect();
+    gpu().wait().expect("the frames run");
+    let tops: Vec<Vec3> = exact.iter().map(top).collect();
+    let mut stopped = Vec::new();
+    for fraction in [CONVERGED_FRACTION, 0.05] {
+        let mut cumulative = tops[0];
+        let expected = run_plan(BouncePlan { max: 3, fraction }, cumulative, |k| {
+            cumulative += tops[k as usize];
+            cumulative
+        });
+        let kept = if expected.converged {
+            expected.bounces
+        } else {
+            4
+        };
+        let options = SsilOptions {
+            converge: fraction,
+            ..with(0)
+        };
+        let auto = run(ctx, scene, &options, 1);
+        let ended = auto.convergence(ctx).expect("read");
+        eprintln!("ssil until {fraction}: {ended}; the rule on the exact runs: {expected:?}");
+        assert_eq!(ended.bounces, kept, "{ended} {expected:?}");
+        assert_eq!(ended.converged, expected.converged);
+        assert!(
+            (ended.added - expected.added).abs() < 1e-4,
+            "{ended} {expected:?}"
+        );
+        let summed = read4(ctx, auto.summed());
+        let want = read4(ctx, exact[kept as usize - 1].summed());
+        let scale = want.iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
+        for (a, b) in summed.iter().zip(&want) {
+            assert!((*a - *b).abs().max_element() <= 1e-5 * scale, "{a} {b}");
+        }
+        stopped.push(ended.converged);
+    }
+    assert_eq!(
+        stopped,
+        [false, true],
+        "one run stops early, its later gathers skipped"
+    );
+}

@@ -560,7 +560,7 @@ fn second_bounce_matches_cpu_twin() {
 /// level (nodes 8 to 15, the root's children): exact runs of 1, 2 and 3 bounces measure each
 /// bounce's share of the light; a converging run whose fraction lies between the second's and
 /// the first's stops after the second, its later bounce dispatched with no workgroups, and its
-/// voxels are those of the exact run of 2.
+/// voxels hold the light of the exact run of 2.
 #[test]
 fn vct_bounces_stop_once_converged() {
     let gpu = gpu();
@@ -598,9 +598,18 @@ fn vct_bounces_stop_once_converged() {
         .unwrap();
     assert_eq!((ended.bounces, ended.converged), (2, true), "{ended}");
     assert!((ended.added - shares[1]).abs() < 1e-4, "{ended} {shares:?}");
-    assert_eq!(
-        values(&converging),
-        exact[2],
-        "the solution of 2 bounces is kept"
-    );
+    // The octree's tiles are allocated in whatever order the GPU's threads take them, so the
+    // same voxels sit at other nodes (and their bricks elsewhere) from run to run: compared by
+    // the first level's light and the sum over every node, where a third bounce would add 2.7%.
+    let kept = values(&converging);
+    let total = |v: &[Vec4]| v.iter().fold(Vec3::ZERO, |sum, x| sum + x.truncate());
+    for (got, want) in [
+        (light(&kept, 1), lights[2]),
+        (total(&kept), total(&exact[2])),
+    ] {
+        assert!(
+            (got - want).abs().max_element() <= 1e-4 * want.max_element(),
+            "the solution of 2 bounces is kept: {got} against {want}"
+        );
+    }
 }

@@ -150,6 +150,8 @@ struct ConvergeParams {
     mean_count: u32,
     count: u32,
     bounce: u32,
+    additive: u32,
+    _pad: [u32; 3],
 }
 
 /// `ConvergeState` of `converge.wgsl`.
@@ -173,6 +175,9 @@ pub struct ConvergeInputs<'a> {
     pub held: Option<u32>,
     /// The light is the sum of the solution's `vec4f`s from `mean.0`, `mean.1` of them.
     pub mean: (u32, u32),
+    /// Whether that sum is the bounce's own light, added to the light so far (a method that
+    /// keeps each bounce's light apart), rather than the light so far.
+    pub additive: bool,
     /// A bounce's main dispatch arguments as the method computes them: a buffer of `u32`
     /// words (`STORAGE`) and the index of the first of the three.
     pub work_args: (&'a wgpu::Buffer, u32),
@@ -253,6 +258,8 @@ impl ConvergeGpu {
                     mean_count: inputs.mean.1,
                     count: inputs.held.unwrap_or(0),
                     bounce: k,
+                    additive: u32::from(inputs.additive),
+                    _pad: [0; 3],
                 }),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
@@ -323,6 +330,12 @@ impl ConvergeGpu {
     /// The arguments of the next bounce's main dispatch (zero workgroups once converged).
     pub fn bounce_args(&self) -> &wgpu::Buffer {
         &self.args
+    }
+
+    /// The state the test writes, for a method whose kernels read it themselves: its first
+    /// word is 1 once converged.
+    pub fn state(&self) -> &wgpu::Buffer {
+        &self.state
     }
 
     /// How the last recorded run ended (read back; waits for the GPU).
@@ -420,6 +433,7 @@ mod tests {
                 ("work_index", offset_of!(ConvergeParams, work_index)),
                 ("mean_count", offset_of!(ConvergeParams, mean_count)),
                 ("bounce", offset_of!(ConvergeParams, bounce)),
+                ("additive", offset_of!(ConvergeParams, additive)),
             ],
         );
         crate::shaders::tests::check_struct(

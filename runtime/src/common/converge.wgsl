@@ -1,7 +1,9 @@
-// Converged bounces: after each bounce a method's light (the sum of `means[mean_index ..
+// Converged bounces: after each bounce a method's light (the sum of `after[mean_index ..
 // mean_index + mean_count]`: the radiosity's hierarchy root, the area-weighted mean of every
 // texel, §4.1.1; the voxel octree's first level, every leaf's light box-filtered) is compared
-// with the light before it, kept in `state`. Once a bounce adds at most `fraction` of the
+// with the light before it, kept in `state`. With `additive`, that sum is the light the bounce
+// added alone (ssil: the top of the pyramid of the light the bounce reflects), and the light
+// so far is the sum of them all. Once a bounce adds at most `fraction` of the
 // light, the later bounces' main dispatches read zero workgroups from `args`, and, for a method
 // that iterates between two buffers, `hold` copies the solution into the other one, so that
 // whichever buffer the method reads holds it. With `fraction` 0 every bounce runs
@@ -20,6 +22,11 @@ struct ConvergeParams {
     // The elements `hold` copies.
     count: u32,
     bounce: u32,
+    // 1: the sum is the bounce's own light, added to the light so far.
+    additive: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 struct ConvergeState {
@@ -82,11 +89,17 @@ fn check(@builtin(global_invocation_id) id: vec3u) {
     if state.done != 0u {
         return;
     }
-    let total = luminance(now);
-    let added = abs(total - luminance(state.light.rgb));
+    var light_after = now;
+    var total = luminance(now);
+    var added = abs(total - luminance(state.light.rgb));
+    if params.additive != 0u {
+        light_after = state.light.rgb + now;
+        total = luminance(light_after);
+        added = luminance(now);
+    }
     state.bounces = params.bounce;
     state.added = select(0.0, added / total, total > 0.0);
-    state.light = vec4f(now, 0.0);
+    state.light = vec4f(light_after, 0.0);
     if params.fraction > 0.0 && added <= params.fraction * total {
         state.done = 1u;
         args[0] = 0u;

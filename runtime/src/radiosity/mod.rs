@@ -399,6 +399,7 @@ impl Radiosity {
                 held: Some(hierarchy.node_count),
                 // The root: the area-weighted mean of every texel.
                 mean: (0, 1),
+                additive: false,
                 work_args: (&gather_args, 0),
             },
         );

@@ -77,6 +77,9 @@ struct FrameParams {
 @group(0) @binding(7) var<storage, read> grid: array<u32>;
 // Two planes (diffuse, lobe-weighted), `pixels` apart.
 @group(0) @binding(8) var<storage, read_write> acc: array<vec4f>;
+// The convergence test's state (common/converge.wgsl): its first word 1 once a bounce added at
+// most 1% of the light, after which the later bounces gather nothing.
+@group(0) @binding(12) var<storage, read> converge_state: array<u32>;
 // `accumulate`'s own.
 @group(0) @binding(9) var<storage, read_write> total: array<vec4f>;
 @group(0) @binding(10) var<storage, read_write> next_sender: array<vec4f>;
@@ -197,7 +200,7 @@ fn gather(@builtin(global_invocation_id) id: vec3u) {
     }
     let i = params.offset + id.y * params.size.x + id.x;
     let x4 = pyramid_position[i];
-    if x4.w <= 0.0 {
+    if x4.w <= 0.0 || (params.bounce > 0u && converge_state[0] != 0u) {
         acc[i] = vec4f(0.0);
         acc[params.pixels + i] = vec4f(0.0);
         return;

@@ -51,6 +51,7 @@ use wgpu::util::DeviceExt;
 use crate::{
     RuntimeError,
     common::{
+        converge::{BouncePlan, CONVERGED_FRACTION, ConvergeGpu, ConvergeInputs, Convergence},
         filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
         layout,
         pyramid::{GBufferPyramid, PyramidLayout, SignalPyramid},
@@ -67,6 +68,9 @@ use crate::{
 
 /// Slices of view depth per voxel column (`voxels.wgsl`: `SLICES`).
 pub const SLICES: u32 = 128;
+
+/// Most bounces (each a gather of every level, every frame).
+pub const MAX_BOUNCES: u32 = 4;
 
 /// Most gathered levels.
 pub const MAX_LEVELS: u32 = 8;
@@ -112,8 +116,11 @@ pub struct SsilOptions {
     pub visibility: Visibility,
     /// Whether the bounces after the first test visibility too.
     pub later_visibility: bool,
-    /// Bounces.
+    /// Bounces; 0 until converged ([`Self::plan`]).
     pub bounces: u32,
+    /// With `bounces` 0: the share of the light a bounce reflects at most to be the last
+    /// ([`CONVERGED_FRACTION`], the option table's; tests choose others).
+    pub converge: f32,
     /// Level pixels skipped at both ends of a visibility march.
     pub bias: f32,
     /// Taps on each side of the edge-aware blur at the finest gathered level.
@@ -144,6 +151,7 @@ impl SsilOptions {
             },
             later_visibility: options.switch("later-visibility"),
             bounces: options.count("bounces"),
+            converge: CONVERGED_FRACTION,
             bias: options.number("bias"),
             blur: options.count("blur"),
             temporal: options.number("temporal"),
@@ -171,6 +179,18 @@ impl SsilOptions {
     /// The coarsest gathered level.
     pub fn last_level(&self) -> u32 {
         self.start_level + self.levels - 1
+    }
+
+    /// The bounces: `bounces`, or with `bounces` 0 until one adds at most `converge` of the
+    /// light, at most [`MAX_BOUNCES`] ([`crate::common::converge`]).
+    pub fn plan(&self) -> BouncePlan {
+        match self.bounces {
+            0 => BouncePlan {
+                max: MAX_BOUNCES,
+                fraction: self.converge,
+            },
+            n => BouncePlan::exactly(n),
+        }
     }
 
     /// Whether bounce `bounce` (0 for the first) tests visibility.
@@ -373,7 +393,7 @@ impl Levels {
             depth_sigma: filter.depth_sigma,
             normal_power: filter.normal_power,
             bounce,
-            next_bounce: u32::from(bounce + 1 < options.bounces),
+            next_bounce: u32::from(bounce + 1 < options.plan().max),
             pixels: self.pyramid.pixels(),
             uniform_weight: UNIFORM_WEIGHT,
             sample_disc: u32::from(options.form_factor == FormFactor::SampleDisc),
@@ -468,6 +488,7 @@ impl Pipelines {
             layout::storage(6, true, c),
             layout::storage(7, true, c),
             layout::storage(8, false, c),
+            layout::storage(12, true, c),
         ]);
         let gather_module = Shader::SsilGather.create(device);
         let gather = layout::compute_pipeline_entry(
@@ -583,6 +604,8 @@ struct Sized {
     gather_groups: Vec<Vec<wgpu::BindGroup>>,
     accumulate_groups: Vec<wgpu::BindGroup>,
     temporal_group: wgpu::BindGroup,
+    /// The test that ends the bounces once converged (with `bounces` 0).
+    converge: ConvergeGpu,
 }
 
 /// The whole SSIL pipeline over a frame context: the method's engine, which the tests and
@@ -743,28 +766,50 @@ impl ScreenSpaceGi {
             })
             .collect();
 
-        let gather_groups = (0..options.bounces)
+        // After the first light pyramid: the light so far; after each later one, the light the
+        // bounce before reflects, from the pyramid's top level (every pixel's, box-filtered).
+        let top = levels.pyramid.size(levels.last);
+        // ssil's gathers are dispatched directly: they read the state and gather nothing once
+        // converged, so the arguments the test copies go unused.
+        let unused_args = crate::load::storage_buffer(
+            device,
+            "ssil converge arguments",
+            bytemuck::cast_slice(&[1u32, 1, 1]),
+        );
+        let converge = ConvergeGpu::new(
+            device,
+            options.plan(),
+            &ConvergeInputs {
+                solution: [&light.signal, &light.signal],
+                held: None,
+                mean: (levels.pyramid.offset(levels.last), top.0 * top.1),
+                additive: true,
+                work_args: (&unused_args, 0),
+            },
+        );
+        let gather_groups = (0..options.plan().max)
             .map(|bounce| {
                 (levels.start..=levels.last)
                     .map(|level| {
                         let p = levels.gather_params(level, bounce, options);
                         let params = uniform_buffer(device, "ssil gather level", &p);
-                        layout::bind_group(device, "ssil gather", &pipelines.gather_layout, &[
-                            params.as_entire_binding(),
-                            ctx.view.as_entire_binding(),
-                            frame_params.as_entire_binding(),
-                            ctx.scene.materials.as_entire_binding(),
-                            pyramid.position.as_entire_binding(),
-                            pyramid.normal.as_entire_binding(),
-                            light.signal.as_entire_binding(),
-                            grid.as_entire_binding(),
-                            acc.as_entire_binding(),
+                        layout::bind_group_at(device, "ssil gather", &pipelines.gather_layout, &[
+                            (0, params.as_entire_binding()),
+                            (1, ctx.view.as_entire_binding()),
+                            (2, frame_params.as_entire_binding()),
+                            (3, ctx.scene.materials.as_entire_binding()),
+                            (4, pyramid.position.as_entire_binding()),
+                            (5, pyramid.normal.as_entire_binding()),
+                            (6, light.signal.as_entire_binding()),
+                            (7, grid.as_entire_binding()),
+                            (8, acc.as_entire_binding()),
+                            (12, converge.state().as_entire_binding()),
                         ])
                     })
                     .collect()
             })
             .collect();
-        let accumulate_groups = (0..options.bounces)
+        let accumulate_groups = (0..options.plan().max)
             .map(|bounce| {
                 let p = levels.gather_params(levels.start, bounce, options);
                 let params = uniform_buffer(device, "ssil accumulate", &p);
@@ -811,6 +856,7 @@ impl ScreenSpaceGi {
             gather_groups,
             accumulate_groups,
             temporal_group,
+            converge,
         }
     }
 
@@ -904,6 +950,24 @@ impl ScreenSpaceGi {
         self.resolve.indirect()
     }
 
+    /// How many bounces the last frame gathered (read back; waits for the GPU); with
+    /// `bounces` fixed, all of them and never converged.
+    ///
+    /// # Errors
+    /// GPU errors of the read-back.
+    pub fn convergence(&self, ctx: &FrameContext) -> Result<Convergence, RuntimeError> {
+        let ended = self.sized.converge.read(&ctx.device, &ctx.queue)?;
+        // The test runs after every bounce but the last: a run that did not stop ran them all.
+        Ok(if ended.converged {
+            ended
+        } else {
+            Convergence {
+                bounces: self.options.plan().max,
+                ..ended
+            }
+        })
+    }
+
     /// Records a frame: sender, pyramids, voxels, the bounces' gathers, filters, temporal
     /// filter, resolve.
     pub fn encode(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
@@ -947,10 +1011,15 @@ impl ScreenSpaceGi {
         }
         self.pyramid.run(frame);
         self.light.run(frame, "ssil light pyramid", 1);
+        {
+            let mut pass = frame.compute_pass("ssil converge");
+            sized.converge.start(&mut pass);
+        }
         if self.options.visibility == Visibility::Voxels {
             self.voxelize(ctx, frame);
         }
-        for bounce in 0..self.options.bounces as usize {
+        let bounces = self.options.plan().max as usize;
+        for bounce in 0..bounces {
             {
                 let mut pass = frame.compute_pass("ssil gather");
                 pass.set_pipeline(&self.pipelines.gather);
@@ -965,9 +1034,13 @@ impl ScreenSpaceGi {
                 let (x, y) = shaders::groups_2d((cw, ch));
                 pass.dispatch_workgroups(x, y, 1);
             }
-            if bounce + 1 < self.options.bounces as usize {
+            if bounce + 1 < bounces {
                 self.light
                     .run(frame, "ssil light pyramid", levels.start + 1);
+                // The light this bounce reflects: the next bounces gather nothing once it is at
+                // most 1% of the light so far.
+                let mut pass = frame.compute_pass("ssil converge");
+                sized.converge.check(&mut pass, bounce as u32 + 1);
             }
         }
         self.filter.run(frame);
@@ -1089,11 +1162,13 @@ pub const METHOD: MethodEntry = MethodEntry {
         },
         OptionSpec {
             name: "bounces",
-            help: "indirect bounces, each gathering the previous one's light (§4)",
+            help: "indirect bounces, each gathering the previous one's light (§4); 0: until a \
+                   bounce adds at most 1% of the light, at most 4, decided every frame (the \
+                   default is the paper's 2: each bounce costs every frame's time)",
             kind: OptionKind::Count {
                 default: 2,
-                min: 1,
-                max: 4,
+                min: 0,
+                max: MAX_BOUNCES,
             },
         },
         OptionSpec {
@@ -1142,6 +1217,12 @@ pub const METHOD: MethodEntry = MethodEntry {
         },
         PassInfo {
             name: "ssil light pyramid",
+            stage: Stage::Frame,
+            reads: &[Slot::Reduced],
+            writes: &[Slot::Reduced],
+        },
+        PassInfo {
+            name: "ssil converge",
             stage: Stage::Frame,
             reads: &[Slot::Reduced],
             writes: &[Slot::Reduced],
@@ -1212,6 +1293,11 @@ impl GiMethod for SsilMethod {
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
         self.gi.resize(ctx);
         Ok(())
+    }
+
+    /// The last frame's bounces.
+    fn convergence(&self, ctx: &FrameContext) -> Option<Result<Convergence, RuntimeError>> {
+        Some(self.gi.convergence(ctx))
     }
 }
 

@@ -541,6 +541,7 @@ impl VoxelRadiance {
                 solution: [&values, &values],
                 held: None,
                 mean: (8 * faces, 8 * faces),
+                additive: false,
                 work_args: (&args, 4 * max_level),
             },
         );
