@@ -900,13 +900,35 @@ fn solve_atlas(
     Ok(solved)
 }
 
+/// The CPU twin's radiosity over `file` (baked from `scene`) from the texels' `direct` light,
+/// with the oracle of `options`, for the bounces of `plan`.
+fn radiosity_twin(
+    scene: &Scene,
+    file: &CssmFile,
+    options: cssm_runtime::radiosity::RadiosityOptions,
+    direct: &[glam::Vec3],
+    plan: impl Into<cssm_runtime::common::converge::BouncePlan>,
+) -> cssm_runtime::radiosity::cpu::CpuRadiosity {
+    use cssm_runtime::radiosity::cpu;
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
+        &materials(scene),
+        file,
+    ));
+    let query = VisibilityQuery::new(file, QueryOptions::default());
+    let traversal = cpu::Traversal {
+        threshold: options.threshold,
+        exposure: options.exposure,
+    };
+    cpu::radiosity(&query, direct, &albedo, &traversal, plan)
+}
+
 /// At the default threshold, and at a coarse one whose cut is mostly clusters: their
 /// projected area from the normals' moment and the other-side texel's visibility
 /// (`transfer::node_spreads`) must be the same on both sides (a kernel without the other-side
 /// choice measures 0.0072% at the default threshold, far more at the coarse one).
 #[test]
 fn radiosity_matches_cpu_twin() {
-    use cssm_runtime::radiosity::{RadiosityOptions, cpu};
+    use cssm_runtime::radiosity::RadiosityOptions;
     let (scene, file) = cornell32();
     for threshold in [cssm_runtime::radiosity::DEFAULT_THRESHOLD, 0.5] {
         let options = RadiosityOptions {
@@ -915,16 +937,7 @@ fn radiosity_matches_cpu_twin() {
         };
         let gpu_result = solve_atlas(scene, file, 2, options).expect("radiosity");
         let direct = vec3s(&gpu_result.direct);
-        let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
-            &materials(scene),
-            file,
-        ));
-        let query = VisibilityQuery::new(file, QueryOptions::default());
-        let traversal = cpu::Traversal {
-            threshold: options.threshold,
-            exposure: options.exposure,
-        };
-        let twin = cpu::radiosity(&query, &direct, &albedo, &traversal, 2);
+        let twin = radiosity_twin(scene, file, options, &direct, 2);
         let all = vec![true; direct.len()];
         let rmse = relative_rmse(&vec3s(&gpu_result.irradiance), &twin.texel_irradiance, &all);
         let nodes = relative_rmse(
@@ -951,21 +964,9 @@ fn radiosity_matches_cpu_twin() {
 /// 8 bounces run out (the held buffer checked), at the default 1% as it will.
 #[test]
 fn radiosity_converges_where_its_cpu_twin_does() {
-    use cssm_runtime::{
-        common::converge::BouncePlan,
-        radiosity::{RadiosityOptions, cpu},
-    };
+    use cssm_runtime::{common::converge::BouncePlan, radiosity::RadiosityOptions};
     let (scene, file) = cornell32();
     let options = RadiosityOptions::default();
-    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
-        &materials(scene),
-        file,
-    ));
-    let query = VisibilityQuery::new(file, QueryOptions::default());
-    let traversal = cpu::Traversal {
-        threshold: options.threshold,
-        exposure: options.exposure,
-    };
     for plan in [
         BouncePlan {
             fraction: 0.05,
@@ -985,7 +986,7 @@ fn radiosity_converges_where_its_cpu_twin_does() {
         )
         .expect("radiosity");
         gpu.wait().expect("no GPU error");
-        let twin = cpu::radiosity(&query, &vec3s(&solved.direct), &albedo, &traversal, plan);
+        let twin = radiosity_twin(scene, file, options, &vec3s(&solved.direct), plan);
         eprintln!(
             "radiosity until {}%: GPU {}, CPU twin {}",
             100.0 * plan.fraction,
