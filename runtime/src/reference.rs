@@ -76,13 +76,16 @@ use rayon::prelude::*;
 
 use crate::{
     RuntimeError,
-    common::camera::View,
+    common::{
+        camera::View,
+        converge::{BouncePlan, Convergence, run_plan},
+        tonemap::luminance,
+    },
     direct::cpu::{
         albedo_at, brdf, direct_radiance, emission_at, emitted_radiance, facing_normal,
         front_normal, ray_epsilon, shading_normal,
     },
     gpu_types::GpuMaterial,
-    common::converge::{BouncePlan, Convergence, run_plan},
     load::AlbedoTexture,
     method::{self, Backend, Checks, Energy, CpuSetup, MethodEntry, OptionKind, OptionSpec},
 };
@@ -275,11 +278,6 @@ impl Emitters {
         let cos_l = front_normal(scene, t).dot(-d) / dist2.sqrt();
         (cos_l > 0.0 && dist2 > 0.0).then(|| self.area_pdf[t as usize] * dist2 / cos_l)
     }
-}
-
-/// Rec. 709 luminance of a linear RGB colour.
-fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
 /// The power heuristic (exponent 2) weight of a strategy of density `pdf` against another of

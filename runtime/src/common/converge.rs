@@ -4,8 +4,10 @@
 //! (Rec. 709 luminance of the method's mean radiance), or when [`MAX_BOUNCES`] have run. Each
 //! method measures the light it computes itself: the radiosity the hierarchy's root (the pull
 //! leaves it holding the area-weighted mean radiance of every texel, §4.1.1), the voxel cone
-//! tracing its octree's root, the path tracer its image. `bounces=0`, every method's default,
-//! asks for this; `bounces=N` runs exactly `N` ([`BouncePlan::from_option`]).
+//! tracing its octree's first level (the root's eight children), ssil the top of the pyramid of
+//! each bounce's light, the path tracer its image. `bounces=0`, the default of every method but
+//! ssil (which keeps its paper's 2), asks for this; `bounces=N` runs exactly `N`
+//! ([`BouncePlan::from_option`]).
 //!
 //! On the GPU ([`ConvergeGpu`]) the test runs in one thread after each bounce and needs no read
 //! back: once a bounce has converged it sets the later bounces' indirect dispatches to zero
@@ -21,7 +23,7 @@ use wgpu::util::DeviceExt;
 
 use crate::{
     RuntimeError,
-    common::{layout, readback},
+    common::{layout, readback, tonemap::luminance},
     shaders::{self, Shader},
 };
 
@@ -88,11 +90,6 @@ impl From<u32> for BouncePlan {
     fn from(n: u32) -> Self {
         Self::exactly(n)
     }
-}
-
-/// Rec. 709 luminance of a radiance (the auto exposure's weights).
-pub fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// The luminance a bounce added and the total after it, from the mean radiance `before` and

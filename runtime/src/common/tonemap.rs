@@ -26,6 +26,12 @@ pub fn tonemap(radiance: [f32; 3], exposure: f32) -> [u8; 3] {
     radiance.map(|c| (srgb_encode(aces(c.max(0.0) * exposure)) * 255.0).round() as u8)
 }
 
+/// Rec. 709 luminance of a linear RGB colour: what the automatic exposure meters, the path
+/// tracer's emitter sampling weighs and the converged bounces compare.
+pub fn luminance(c: glam::Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
 /// Where automatic exposure puts the image's log-average luminance: middle grey (Reinhard et
 /// al. 2002, "Photographic Tone Reproduction for Digital Images", §2: the scene's "key").
 pub const AUTO_EXPOSURE_KEY: f32 = 0.18;
@@ -38,7 +44,7 @@ pub const AUTO_EXPOSURE_KEY: f32 = 0.18;
 pub fn auto_exposure_stops(radiance: &[[f32; 4]]) -> Option<f32> {
     let (sum, count) = radiance
         .iter()
-        .map(|c| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2])
+        .map(|c| luminance(glam::Vec3::new(c[0], c[1], c[2])))
         .filter(|l| *l > 0.0 && l.is_finite())
         .fold((0.0f64, 0u64), |(sum, n), l| {
             (sum + f64::from(l).ln(), n + 1)
