@@ -951,7 +951,7 @@ impl ScreenSpaceGi {
     }
 
     /// How many bounces the last frame gathered (read back; waits for the GPU); with
-    /// `bounces` fixed, all of them and never converged.
+    /// `bounces` fixed, all of them and never converged (the test is not run, its state zero).
     ///
     /// # Errors
     /// GPU errors of the read-back.
@@ -1011,7 +1011,10 @@ impl ScreenSpaceGi {
         }
         self.pyramid.run(frame);
         self.light.run(frame, "ssil light pyramid", 1);
-        {
+        // With a fixed count (the default) the test is not recorded: its state stays as
+        // created, zero, and every gather runs.
+        let converging = self.options.plan().fraction > 0.0;
+        if converging {
             let mut pass = frame.compute_pass("ssil converge");
             sized.converge.start(&mut pass);
         }
@@ -1039,8 +1042,10 @@ impl ScreenSpaceGi {
                     .run(frame, "ssil light pyramid", levels.start + 1);
                 // The light this bounce reflects: the next bounces gather nothing once it is at
                 // most 1% of the light so far.
-                let mut pass = frame.compute_pass("ssil converge");
-                sized.converge.check(&mut pass, bounce as u32 + 1);
+                if converging {
+                    let mut pass = frame.compute_pass("ssil converge");
+                    sized.converge.check(&mut pass, bounce as u32 + 1);
+                }
             }
         }
         self.filter.run(frame);
