@@ -8,18 +8,15 @@ use std::{
     process::{Command, Output},
 };
 
+mod common;
+
 /// Runs `cssm`; a `render` at the fixed exposure 0 unless the test gives one: the frames are
-/// compared with stills, and each still would otherwise meter its own automatic exposure.
-/// A `render` that names no method draws the direct light here: the default, lightmap, bakes
-/// and iterates its radiosity first (seconds a render on lavapipe); its own test is
-/// `tests/gpu/emissive.rs::a_room_lit_by_emitters_renders_lit_and_converged_with_no_options`.
+/// compared with stills, and each still would otherwise meter its own automatic exposure. A
+/// `render` that names no method draws the direct light ([`common::direct_unless_named`]).
 fn cssm(args: &[&str]) -> Output {
-    let mut args = args.to_vec();
+    let mut args = common::direct_unless_named(args);
     if args.first() == Some(&"render") && !args.iter().any(|a| a.starts_with("--exposure")) {
         args.extend(["--exposure", "0"]);
-    }
-    if args.first() == Some(&"render") && !args.iter().any(|a| a.starts_with("--method")) {
-        args.extend(["--method", "direct"]);
     }
     Command::new(env!("CARGO_BIN_EXE_cssm"))
         .args(args)

@@ -7,14 +7,12 @@ use std::{
     process::{Command, Output},
 };
 
-/// Runs `cssm`. A `render` that names no method draws the direct light here: the default, lightmap, bakes
-/// and iterates its radiosity first (seconds a render on lavapipe); its own test is
-/// `tests/gpu/emissive.rs::a_room_lit_by_emitters_renders_lit_and_converged_with_no_options`.
+mod common;
+
+/// Runs `cssm`; a `render` that names no method draws the direct light
+/// ([`common::direct_unless_named`]).
 fn cssm(args: &[&str]) -> Output {
-    let mut args = args.to_vec();
-    if args.first() == Some(&"render") && !args.iter().any(|a| a.starts_with("--method")) {
-        args.extend(["--method", "direct"]);
-    }
+    let args = common::direct_unless_named(args);
     Command::new(env!("CARGO_BIN_EXE_cssm"))
         .args(args)
         .output()

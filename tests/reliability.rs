@@ -11,6 +11,7 @@ use std::{
     time::{Duration, Instant},
 };
 
+mod common;
 #[path = "reliability/geometry.rs"]
 mod geometry;
 #[path = "reliability/inputs.rs"]
@@ -38,13 +39,8 @@ fn run_with(
     limit: Duration,
     cap: Option<u64>,
 ) -> Output {
-    // A `render` that names no method draws the direct light here: the default, lightmap, bakes
-    // and iterates its radiosity first (seconds a render on lavapipe); its own test is
-    // `tests/gpu/emissive.rs::a_room_lit_by_emitters_renders_lit_and_converged_with_no_options`.
-    let mut args = args.to_vec();
-    if args.first() == Some(&"render") && !args.iter().any(|a| a.starts_with("--method")) {
-        args.extend(["--method", "direct"]);
-    }
+    // A `render` that names no method draws the direct light (`common::direct_unless_named`).
+    let args = common::direct_unless_named(args);
     let args = args.as_slice();
     let mut command = Command::new(cssm_binary());
     if let Some(cap) = cap {
