@@ -115,7 +115,6 @@ fn spirv_of(module: &naga::Module) -> Vec<u32> {
 /// every call inlined, as a driver that inlines everything sees them (issue 48, item 5: the
 /// moving query's code should not grow with the objects).
 fn kernel_rows(steps: u32) {
-    use cssm::runtime::shaders::Shader;
     println!(
         "\n| kernel | objects with a CSM | search | SPIR-V instructions of `main` (calls inlined) |"
     );
@@ -128,10 +127,10 @@ fn kernel_rows(steps: u32) {
         };
         let form = if search_loop { "looped" } else { "unrolled" };
         let kernels = [
-            (Shader::Query, 0),
-            (Shader::MovingQuery, 1),
-            (Shader::MovingQuery, 4),
-            (Shader::MovingQuery, 8),
+            (cssm::runtime::visibility::QUERY_SHADER, 0),
+            (cssm::runtime::visibility::moving::SHADER, 1),
+            (cssm::runtime::visibility::moving::SHADER, 4),
+            (cssm::runtime::visibility::moving::SHADER, 8),
         ];
         for (shader, csms) in kernels {
             let module = shader

@@ -71,6 +71,10 @@ macro_rules! method_table {
 
         /// Every method, in the order `--help` lists them (see [`method`] for the seam).
         pub const METHODS: &[method::MethodEntry] = &[$($($module::$entry,)+)+];
+
+        /// Every method folder's WGSL (its `SHADERS`), which [`shaders::Shader::all`]
+        /// collects with the shared folders'.
+        const METHOD_SHADERS: &[shaders::ShaderSet] = &[$($module::SHADERS,)+];
     };
 }
 

@@ -8,7 +8,10 @@
 //!    and section, its options with defaults, when it fails), one file per pass with its WGSL
 //!    beside it, and `cpu.rs`, the CPU reference of the same computation.
 //! 2. In `mod.rs`, a type implementing [`GiMethod`] and a `pub const METHOD: MethodEntry` naming
-//!    it, its options and whether it needs a `.cssm`.
+//!    it, its options and whether it needs a `.cssm`; and `pub const SHADERS: ShaderSet`, its
+//!    WGSL: each pass file declares its module (`pub const SHADER: Shader = shader!("label",
+//!    "<name>/pass.wgsl")`) and `SHADERS` lists them with the folder's libraries
+//!    ([`crate::shaders`] collects them; its test fails on a WGSL file no folder lists).
 //! 3. One line in the table in `runtime/src/lib.rs` (`method_table!`), which declares the
 //!    folder's module and lists its entries in [`METHODS`].
 //!

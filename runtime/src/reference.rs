@@ -116,6 +116,9 @@ pub const METHOD: MethodEntry = MethodEntry {
     },
 };
 
+/// The path tracer runs on the CPU: no WGSL.
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet::NONE;
+
 /// [`METHOD`]'s entry point: the scene's materials and textures as the GPU sees them, a BVH,
 /// then [`render_reference`].
 fn render_method(setup: &CpuSetup) -> Result<Vec<[f32; 4]>, RuntimeError> {

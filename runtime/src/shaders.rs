@@ -2,6 +2,12 @@
 //! [`Shader::create`], and the test below validates every one with naga under the capabilities
 //! the runtime requests (none beyond core WGSL), so a shader error fails `cargo test` without a GPU.
 //!
+//! The registry lists no shader itself. Each folder of the runtime declares its WGSL once, as
+//! `pub const SHADERS: ShaderSet` (its modules, each a constant of the pass file that runs it,
+//! `pub const SHADER: Shader = shader!("label", "folder/pass.wgsl")`, and its libraries); the
+//! registry collects the shared folders' sets and, through the method table (`method_table!`),
+//! every method's. A test fails on a WGSL file under `runtime/src/` that no set lists.
+//!
 //! Modules are composed with naga_oil (Bevy's shader composer, on naga 30): each library
 //! declares its import path (`#define_import_path cssm::types`, `cssm::albedo`,
 //! `cssm::shadow_lookup`, `cssm::light`, `cssm::visibility`, `cssm::transfer`,
@@ -20,7 +26,7 @@ use std::{
 };
 
 use naga_oil::compose::{
-    ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue,
+    ComposableModuleDescriptor, Composer, ComposerErrorInner, NagaModuleDescriptor, ShaderDefValue,
 };
 
 /// Invocations per workgroup of the kernels with one invocation per item (texels, leaves,
@@ -30,67 +36,10 @@ pub const WORKGROUP_1D: u32 = 64;
 /// Side of the square workgroups of the kernels with one invocation per pixel.
 pub const WORKGROUP_2D: u32 = 8;
 
-/// The libraries the modules import (`#import cssm::...`), each defining its import path:
-/// the structs shared with Rust (`cssm::types`, twins in [`crate::gpu_types`]), albedo textures,
-/// the shadow lookup, the light model, the CSSM visibility query, the moving objects' query
-/// (§3.3), the light transfer, the
-/// low-res pixel's representative pixel, the voxel fragment, the sparse voxel octree's reads,
-/// the joint bilateral weight, the point proxy and its voxel grid, the sample patterns' hash,
-/// the atlas texels where their objects' motion puts them (§3.3), ray casting through a BVH
-/// (`cssm::bvh`).
-const LIBRARIES: [(&str, &str); 15] = [
-    ("runtime/src/types.wgsl", include_str!("types.wgsl")),
-    (
-        "runtime/src/common/albedo.wgsl",
-        include_str!("common/albedo.wgsl"),
-    ),
-    (
-        "runtime/src/common/shadow_lookup.wgsl",
-        include_str!("common/shadow_lookup.wgsl"),
-    ),
-    (
-        "runtime/src/direct/light.wgsl",
-        include_str!("direct/light.wgsl"),
-    ),
-    (
-        "runtime/src/visibility/cssm.wgsl",
-        include_str!("visibility/cssm.wgsl"),
-    ),
-    (
-        "runtime/src/visibility/moving.wgsl",
-        include_str!("visibility/moving.wgsl"),
-    ),
-    (
-        "runtime/src/radiosity/transfer.wgsl",
-        include_str!("radiosity/transfer.wgsl"),
-    ),
-    (
-        "runtime/src/common/lowres.wgsl",
-        include_str!("common/lowres.wgsl"),
-    ),
-    (
-        "runtime/src/common/voxel.wgsl",
-        include_str!("common/voxel.wgsl"),
-    ),
-    ("runtime/src/vct/svo.wgsl", include_str!("vct/svo.wgsl")),
-    (
-        "runtime/src/common/bilateral.wgsl",
-        include_str!("common/bilateral.wgsl"),
-    ),
-    ("runtime/src/vf/proxy.wgsl", include_str!("vf/proxy.wgsl")),
-    (
-        "runtime/src/common/random.wgsl",
-        include_str!("common/random.wgsl"),
-    ),
-    (
-        "runtime/src/visibility/posed.wgsl",
-        include_str!("visibility/posed.wgsl"),
-    ),
-    (
-        "runtime/src/visibility/bvh_trace.wgsl",
-        include_str!("visibility/bvh_trace.wgsl"),
-    ),
-];
+/// The project's own library (`cssm::types`): the structs shared with Rust, twins in
+/// [`crate::gpu_types`]. The other libraries live in the folders that own them
+/// ([`ShaderSet::libraries`]).
+const TYPES: Library = library!("types.wgsl");
 
 /// Bind group of the CSSM library in the runtime's own modules (group 0 is each pass's own).
 pub const CSSM_GROUP: u32 = 1;
@@ -195,26 +144,45 @@ const PER_MODULE_DEFS: [&str; 5] = [
 
 /// A naga_oil composer holding every library.
 ///
+/// The folders list their libraries in no particular order, and naga_oil takes a library only
+/// once the ones it imports are in: each round adds every library whose imports are there, until
+/// none is left.
+///
 /// # Errors
-/// A library that does not parse (a bug: the registry test composes every module).
+/// A library that does not parse, or whose imports no library defines (a bug: the registry test
+/// composes every module).
 pub fn composer() -> Result<Composer, String> {
     let mut composer = Composer::default();
-    for (file_path, source) in LIBRARIES {
-        let added = composer.add_composable_module(ComposableModuleDescriptor {
-            source,
-            file_path,
-            shader_defs: {
-                let mut defs = shader_defs(CSSM_GROUP, CssmShape::default(), 0);
-                for name in PER_MODULE_DEFS {
-                    defs.remove(name);
+    let mut waiting: Vec<Library> = libraries().collect();
+    while !waiting.is_empty() {
+        let mut deferred = Vec::new();
+        let mut last_error = None;
+        for library in waiting.iter().copied() {
+            let added = composer.add_composable_module(ComposableModuleDescriptor {
+                source: library.source,
+                file_path: library.path,
+                shader_defs: {
+                    let mut defs = shader_defs(CSSM_GROUP, CssmShape::default(), 0);
+                    for name in PER_MODULE_DEFS {
+                        defs.remove(name);
+                    }
+                    defs
+                },
+                ..Default::default()
+            });
+            match added {
+                Ok(_) => {}
+                Err(e) if matches!(e.inner, ComposerErrorInner::ImportNotFound(..)) => {
+                    last_error = Some(e.emit_to_string(&composer));
+                    deferred.push(library);
                 }
-                defs
-            },
-            ..Default::default()
-        });
-        if let Err(e) = added {
-            return Err(e.emit_to_string(&composer));
+                Err(e) => return Err(e.emit_to_string(&composer)),
+            }
         }
+        if deferred.len() == waiting.len() {
+            return Err(last_error.unwrap_or_default());
+        }
+        waiting = deferred;
     }
     Ok(composer)
 }
@@ -229,296 +197,123 @@ pub fn groups_2d((width, height): (u32, u32)) -> (u32, u32) {
     (width.div_ceil(WORKGROUP_2D), height.div_ceil(WORKGROUP_2D))
 }
 
-/// A production shader module.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shader {
-    /// `common/shadow_map.wgsl`: depth of every light's view (§4.7).
-    ShadowMap,
-    /// `common/gbuffer.wgsl` with `common/albedo.wgsl`.
-    GBuffer,
-    /// `direct/shade.wgsl` with `direct/light.wgsl` and the shadow lookup.
-    DirectScreen,
-    /// `direct/atlas.wgsl` with `direct/light.wgsl` and the shadow lookup.
-    DirectAtlas,
-    /// `radiosity/gather.wgsl` with the CSSM library and `radiosity/transfer.wgsl`.
-    RadiosityGather,
-    /// `radiosity/pull.wgsl`.
-    RadiosityPull,
-    /// `common/converge.wgsl`: the test that ends a run of bounces (`check`) and the copy that
-    /// holds its solution (`hold`).
-    Converge,
-    /// `lightmap/lookup.wgsl` with the CSSM library.
-    AtlasLookup,
-    /// `lightcuts/final_gather.wgsl` with the CSSM library and `radiosity/transfer.wgsl`.
-    FinalGather,
-    /// `common/compose.wgsl`.
-    Compose,
-    /// `common/tonemap.wgsl`.
-    Tonemap,
-    /// `common/filters.wgsl`: edge-aware blur (`blur_x`, `blur_y`) and joint bilateral
-    /// up-sampling (`upsample`), with `common/lowres.wgsl`.
-    Filters,
-    /// `visibility/query.wgsl`, the batch query kernel, with the CSSM library.
-    Query,
-    /// `visibility/gather.wgsl`, the gather benchmark kernel, with the CSSM library.
-    Gather,
-    /// `visibility/tiles.wgsl`, the benchmark kernel of a G-buffer's tiles querying senders,
-    /// one query a thread, with the CSSM library.
-    TileQueries,
-    /// `visibility/moving_query.wgsl`, the batch query between posed surface points, with the
-    /// CSSM library and `visibility/moving.wgsl` (§3.3).
-    MovingQuery,
-    /// `visibility/bvh.wgsl`, the exact ray-cast baseline, with `visibility/bvh_trace.wgsl`.
-    Bvh,
-    /// `visibility/depth_maps.wgsl`, the bake's depth cube maps by ray casting (§3.2.1), with
-    /// `visibility/bvh_trace.wgsl`.
-    DepthMaps,
-    /// `rsm/sample.wgsl`, the RSM gather with the micro linear buffer.
-    RsmSampling,
-    /// `common/resolve.wgsl`, two planes of gathered light reflected towards the eye (`rsm`,
-    /// `ssil`).
-    Resolve,
-    /// `common/pyramid.wgsl`: the G-buffer pyramid's vote (`vote`) and a signal's mean
-    /// (`mean`).
-    Pyramid,
-    /// `ssil/sender.wgsl`: the diffuse direct light leaving every pixel, and the next bounce's.
-    SsilSender,
-    /// `ssil/voxels.wgsl`: the view frustum's solid voxels by XOR (`vs_main`, `fs_main`) and
-    /// their AND down the levels (`and_down`).
-    SsilVoxels,
-    /// `ssil/gather.wgsl` with `common/bilateral.wgsl`: one level's gather and the coarser
-    /// levels up-sampled into it (`gather`), and the bounces' sum (`accumulate`).
-    SsilGather,
-    /// `ssil/temporal.wgsl`: the reprojected history blended in.
-    SsilTemporal,
-    /// `vf/proxies.wgsl`: the point proxies' voxel keys (`hash`) and each voxel's range of
-    /// the sorted proxies (`cell_ranges`).
-    VfProxies,
-    /// `vf/light.wgsl`: the direct light onto the proxies, VPLs (`vpl`), and each voxel's
-    /// order-0/1 spherical harmonics of their light (`voxel_sh_sum`).
-    VfLight,
-    /// `vf/march.wgsl`: the sparse shadow rays through the proxies' voxels.
-    VfMarch,
-    /// `vf/filter.wgsl`: the visibility filter, the union of the neighbours' voxel lists.
-    VfFilter,
-    /// `vf/gather.wgsl` with `common/bilateral.wgsl`: the weighted lists' VPLs and harmonics.
-    VfGather,
-    /// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
-    Voxelize,
-    /// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments
-    /// (`flag`, `allocate`, `next_level`).
-    Octree,
-    /// `vct/radiance.wgsl` with `vct/svo.wgsl`: light injection, leaves, MIP-mapping, bricks.
-    VoxelRadiance,
-    /// `vct/trace.wgsl` with `vct/svo.wgsl`: the cones per pixel (`main`) and the test's
-    /// probe (`probe`).
-    ConeTrace,
+/// `shader!("vf shadow rays", "vf/march.wgsl")`: the module at that path under `runtime/src/`,
+/// its pipelines labelled so. A folder declares its modules with it and lists them in its
+/// [`ShaderSet`].
+macro_rules! shader {
+    ($label:literal, $path:literal) => {
+        $crate::shaders::Shader::new(
+            $label,
+            concat!("runtime/src/", $path),
+            include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/src/", $path)),
+        )
+    };
+}
+pub(crate) use shader;
+
+/// `library!("vf/proxy.wgsl")`: the library at that path under `runtime/src/` (it defines its
+/// import path), for a folder's [`ShaderSet::libraries`].
+macro_rules! library {
+    ($path:literal) => {
+        $crate::shaders::Library {
+            path: concat!("runtime/src/", $path),
+            source: include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/src/", $path)),
+        }
+    };
+}
+pub(crate) use library;
+
+/// A WGSL library the modules import (`#import cssm::...`): it defines its import path
+/// (`#define_import_path cssm::svo`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Library {
+    /// Its path from the repository's root, for naga_oil's messages.
+    pub path: &'static str,
+    /// Its WGSL.
+    pub source: &'static str,
+}
+
+/// What one folder of the runtime brings to the registry: its modules and its libraries. Every
+/// folder with WGSL declares one as `pub const SHADERS: ShaderSet`; [`Shader::all`] collects the
+/// shared folders' and, through the method table (`method_table!` in `lib.rs`), every method's.
+#[derive(Clone, Copy, Debug)]
+pub struct ShaderSet {
+    /// The modules with entry points, one per pass or group of passes.
+    pub modules: &'static [Shader],
+    /// The libraries they import.
+    pub libraries: &'static [Library],
+}
+
+impl ShaderSet {
+    /// A folder without WGSL (a method that runs on the CPU).
+    pub const NONE: ShaderSet = ShaderSet {
+        modules: &[],
+        libraries: &[],
+    };
+}
+
+/// The folders shared by the methods, then every method's (the method table's order).
+fn sets() -> impl Iterator<Item = &'static ShaderSet> {
+    [
+        &crate::common::SHADERS,
+        &crate::visibility::SHADERS,
+        &crate::radiosity::SHADERS,
+    ]
+    .into_iter()
+    .chain(crate::METHOD_SHADERS.iter())
+}
+
+/// Every library: `cssm::types`, then each folder's.
+fn libraries() -> impl Iterator<Item = Library> {
+    std::iter::once(TYPES).chain(sets().flat_map(|set| set.libraries.iter().copied()))
+}
+
+/// A production shader module: its WGSL, where it lives, and its label. Each is a constant of
+/// the folder whose passes run it (`crate::vf::march::SHADER`), declared with `shader!`.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Shader {
+    label: &'static str,
+    path: &'static str,
+    source: &'static str,
+}
+
+/// The path, not the WGSL, in `{:?}`.
+impl std::fmt::Debug for Library {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.path)
+    }
+}
+
+/// The label and the path, not the WGSL, in `{:?}`.
+impl std::fmt::Debug for Shader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({})", self.label, self.path)
+    }
 }
 
 impl Shader {
-    /// Every module.
-    pub const ALL: [Shader; 34] = [
-        Shader::ShadowMap,
-        Shader::GBuffer,
-        Shader::DirectScreen,
-        Shader::DirectAtlas,
-        Shader::RadiosityGather,
-        Shader::RadiosityPull,
-        Shader::Converge,
-        Shader::AtlasLookup,
-        Shader::FinalGather,
-        Shader::Compose,
-        Shader::Tonemap,
-        Shader::Filters,
-        Shader::Query,
-        Shader::Gather,
-        Shader::TileQueries,
-        Shader::MovingQuery,
-        Shader::Bvh,
-        Shader::DepthMaps,
-        Shader::RsmSampling,
-        Shader::Resolve,
-        Shader::Voxelize,
-        Shader::Octree,
-        Shader::VoxelRadiance,
-        Shader::ConeTrace,
-        Shader::Pyramid,
-        Shader::SsilSender,
-        Shader::SsilVoxels,
-        Shader::SsilGather,
-        Shader::SsilTemporal,
-        Shader::VfProxies,
-        Shader::VfLight,
-        Shader::VfMarch,
-        Shader::VfFilter,
-        Shader::VfGather,
-    ];
+    /// The module `source`, read from `path` (from the repository's root), labelled `label`.
+    pub const fn new(label: &'static str, path: &'static str, source: &'static str) -> Self {
+        Self {
+            label,
+            path,
+            source,
+        }
+    }
+
+    /// Every module, folder by folder ([`ShaderSet`]).
+    pub fn all() -> impl Iterator<Item = Shader> {
+        sets().flat_map(|set| set.modules.iter().copied())
+    }
 
     /// Label of the module (and of its pipeline).
     pub fn label(self) -> &'static str {
-        match self {
-            Shader::ShadowMap => "shadow map",
-            Shader::GBuffer => "gbuffer",
-            Shader::DirectScreen => "direct screen",
-            Shader::DirectAtlas => "direct atlas",
-            Shader::RadiosityGather => "radiosity gather",
-            Shader::RadiosityPull => "radiosity pull",
-            Shader::Converge => "converge",
-            Shader::AtlasLookup => "atlas lookup",
-            Shader::FinalGather => "final gather",
-            Shader::Compose => "compose",
-            Shader::Tonemap => "tonemap",
-            Shader::Filters => "edge-aware filters",
-            Shader::Query => "visibility query",
-            Shader::Gather => "visibility gather",
-            Shader::TileQueries => "visibility tiles",
-            Shader::MovingQuery => "moving objects' query",
-            Shader::Bvh => "bvh segments",
-            Shader::DepthMaps => "depth cube maps",
-            Shader::RsmSampling => "rsm sampling",
-            Shader::Resolve => "resolve",
-            Shader::Pyramid => "pyramid",
-            Shader::SsilSender => "ssil sender",
-            Shader::SsilVoxels => "ssil voxels",
-            Shader::SsilGather => "ssil gather",
-            Shader::SsilTemporal => "ssil temporal",
-            Shader::VfProxies => "vf proxies",
-            Shader::VfLight => "vf light",
-            Shader::VfMarch => "vf shadow rays",
-            Shader::VfFilter => "vf visibility filter",
-            Shader::VfGather => "vf gather",
-            Shader::Voxelize => "voxelize",
-            Shader::Octree => "octree",
-            Shader::VoxelRadiance => "voxel radiance",
-            Shader::ConeTrace => "vct trace",
-        }
+        self.label
     }
 
     /// The module's own source and its path (its imports come from the libraries).
     pub fn source(self) -> (&'static str, &'static str) {
-        match self {
-            Shader::ShadowMap => (
-                "runtime/src/common/shadow_map.wgsl",
-                include_str!("common/shadow_map.wgsl"),
-            ),
-            Shader::GBuffer => (
-                "runtime/src/common/gbuffer.wgsl",
-                include_str!("common/gbuffer.wgsl"),
-            ),
-            Shader::DirectScreen => (
-                "runtime/src/direct/shade.wgsl",
-                include_str!("direct/shade.wgsl"),
-            ),
-            Shader::DirectAtlas => (
-                "runtime/src/direct/atlas.wgsl",
-                include_str!("direct/atlas.wgsl"),
-            ),
-            Shader::RadiosityGather => (
-                "runtime/src/radiosity/gather.wgsl",
-                include_str!("radiosity/gather.wgsl"),
-            ),
-            Shader::RadiosityPull => (
-                "runtime/src/radiosity/pull.wgsl",
-                include_str!("radiosity/pull.wgsl"),
-            ),
-            Shader::Converge => (
-                "runtime/src/common/converge.wgsl",
-                include_str!("common/converge.wgsl"),
-            ),
-            Shader::AtlasLookup => (
-                "runtime/src/lightmap/lookup.wgsl",
-                include_str!("lightmap/lookup.wgsl"),
-            ),
-            Shader::FinalGather => (
-                "runtime/src/lightcuts/final_gather.wgsl",
-                include_str!("lightcuts/final_gather.wgsl"),
-            ),
-            Shader::Compose => (
-                "runtime/src/common/compose.wgsl",
-                include_str!("common/compose.wgsl"),
-            ),
-            Shader::Tonemap => (
-                "runtime/src/common/tonemap.wgsl",
-                include_str!("common/tonemap.wgsl"),
-            ),
-            Shader::Filters => (
-                "runtime/src/common/filters.wgsl",
-                include_str!("common/filters.wgsl"),
-            ),
-            Shader::Query => (
-                "runtime/src/visibility/query.wgsl",
-                include_str!("visibility/query.wgsl"),
-            ),
-            Shader::Gather => (
-                "runtime/src/visibility/gather.wgsl",
-                include_str!("visibility/gather.wgsl"),
-            ),
-            Shader::TileQueries => (
-                "runtime/src/visibility/tiles.wgsl",
-                include_str!("visibility/tiles.wgsl"),
-            ),
-            Shader::MovingQuery => (
-                "runtime/src/visibility/moving_query.wgsl",
-                include_str!("visibility/moving_query.wgsl"),
-            ),
-            Shader::Bvh => (
-                "runtime/src/visibility/bvh.wgsl",
-                include_str!("visibility/bvh.wgsl"),
-            ),
-            Shader::DepthMaps => (
-                "runtime/src/visibility/depth_maps.wgsl",
-                include_str!("visibility/depth_maps.wgsl"),
-            ),
-            Shader::RsmSampling => (
-                "runtime/src/rsm/sample.wgsl",
-                include_str!("rsm/sample.wgsl"),
-            ),
-            Shader::Octree => (
-                "runtime/src/vct/octree.wgsl",
-                include_str!("vct/octree.wgsl"),
-            ),
-            Shader::VoxelRadiance => (
-                "runtime/src/vct/radiance.wgsl",
-                include_str!("vct/radiance.wgsl"),
-            ),
-            Shader::ConeTrace => ("runtime/src/vct/trace.wgsl", include_str!("vct/trace.wgsl")),
-            Shader::Voxelize => (
-                "runtime/src/common/voxelize.wgsl",
-                include_str!("common/voxelize.wgsl"),
-            ),
-            Shader::Resolve => (
-                "runtime/src/common/resolve.wgsl",
-                include_str!("common/resolve.wgsl"),
-            ),
-            Shader::Pyramid => (
-                "runtime/src/common/pyramid.wgsl",
-                include_str!("common/pyramid.wgsl"),
-            ),
-            Shader::SsilSender => (
-                "runtime/src/ssil/sender.wgsl",
-                include_str!("ssil/sender.wgsl"),
-            ),
-            Shader::SsilVoxels => (
-                "runtime/src/ssil/voxels.wgsl",
-                include_str!("ssil/voxels.wgsl"),
-            ),
-            Shader::SsilGather => (
-                "runtime/src/ssil/gather.wgsl",
-                include_str!("ssil/gather.wgsl"),
-            ),
-            Shader::SsilTemporal => (
-                "runtime/src/ssil/temporal.wgsl",
-                include_str!("ssil/temporal.wgsl"),
-            ),
-            Shader::VfProxies => (
-                "runtime/src/vf/proxies.wgsl",
-                include_str!("vf/proxies.wgsl"),
-            ),
-            Shader::VfLight => ("runtime/src/vf/light.wgsl", include_str!("vf/light.wgsl")),
-            Shader::VfMarch => ("runtime/src/vf/march.wgsl", include_str!("vf/march.wgsl")),
-            Shader::VfFilter => ("runtime/src/vf/filter.wgsl", include_str!("vf/filter.wgsl")),
-            Shader::VfGather => ("runtime/src/vf/gather.wgsl", include_str!("vf/gather.wgsl")),
-        }
+        (self.path, self.source)
     }
 
     /// The module composed by naga_oil from its source and the libraries it imports.
@@ -646,7 +441,7 @@ pub(crate) mod tests {
 
     #[test]
     fn every_production_module_validates() {
-        for shader in Shader::ALL {
+        for shader in Shader::all() {
             let module = module(shader);
             assert!(
                 !module.entry_points.is_empty(),
@@ -656,14 +451,52 @@ pub(crate) mod tests {
         }
     }
 
+    /// Every WGSL file under `runtime/src/` is in the registry once, as a module or a library:
+    /// a folder that forgets to list a shader in its `SHADERS` fails here, not on a GPU. Labels
+    /// name one module each (they name the pipelines in a profiler).
+    #[test]
+    fn every_wgsl_file_is_registered_once() {
+        fn wgsl_files(dir: &std::path::Path, found: &mut Vec<String>) {
+            for entry in std::fs::read_dir(dir).expect("runtime/src reads") {
+                let path = entry.expect("directory entry").path();
+                if path.is_dir() {
+                    wgsl_files(&path, found);
+                } else if path.extension().is_some_and(|e| e == "wgsl") {
+                    let from_root = path
+                        .strip_prefix(env!("CARGO_MANIFEST_DIR"))
+                        .expect("under the crate");
+                    found.push(format!("runtime/{}", from_root.display()));
+                }
+            }
+        }
+        let mut on_disk = Vec::new();
+        wgsl_files(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src"),
+            &mut on_disk,
+        );
+        on_disk.sort();
+        let mut registered: Vec<String> = Shader::all()
+            .map(|s| s.source().0)
+            .chain(libraries().map(|l| l.path))
+            .map(String::from)
+            .collect();
+        registered.sort();
+        assert_eq!(registered, on_disk);
+        let mut labels: Vec<&str> = Shader::all().map(Shader::label).collect();
+        labels.sort_unstable();
+        let count = labels.len();
+        labels.dedup();
+        assert_eq!(labels.len(), count, "a label names two modules");
+    }
+
     /// The passes that read texel geometry read the objects' motion (`posed.wgsl`, §3.3) only
     /// when composed for moving objects, and validate so composed.
     #[test]
     fn texels_read_the_motion_only_in_scenes_with_moving_objects() {
         for shader in [
-            Shader::DirectAtlas,
-            Shader::RadiosityGather,
-            Shader::FinalGather,
+            crate::direct::ATLAS_SHADER,
+            crate::radiosity::GATHER_SHADER,
+            crate::lightcuts::FINAL_GATHER_SHADER,
         ] {
             for csms in [0, 1, MOVING_MAX_CSMS_FOR_TEST] {
                 let module = shader
@@ -687,7 +520,7 @@ pub(crate) mod tests {
     /// Every kernel's workgroup size is one of the Rust constants the passes dispatch with.
     #[test]
     fn workgroup_sizes_come_from_the_shader_definitions() {
-        for shader in Shader::ALL {
+        for shader in Shader::all() {
             for entry in module(shader).entry_points {
                 if entry.stage != naga::ShaderStage::Compute {
                     continue;

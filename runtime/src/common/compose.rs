@@ -8,8 +8,12 @@ use wgpu::util::DeviceExt;
 use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `common/compose.wgsl`.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("compose", "common/compose.wgsl");
 
 /// Which light paths an image holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -111,7 +115,7 @@ impl Compose {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let c = wgpu::ShaderStages::COMPUTE;
-        let module = Shader::Compose.create(device);
+        let module = SHADER.create(device);
         let bind_layout = layout::bind_group_layout(
             device,
             "compose",
@@ -182,7 +186,7 @@ mod tests {
     #[test]
     fn compose_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(crate::shaders::Shader::Compose);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "ComposeParams",

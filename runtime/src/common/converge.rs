@@ -24,10 +24,15 @@ use wgpu::util::DeviceExt;
 use crate::{
     RuntimeError,
     common::{layout, readback, tonemap::luminance},
-    shaders::{self, Shader},
+    shaders,
 };
 
 pub use crate::method::MAX_BOUNCES;
+
+/// `common/converge.wgsl`: the test that ends a run of bounces (`check`) and the copy that holds
+/// its solution (`hold`).
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("converge", "common/converge.wgsl");
 
 /// A bounce that adds at most this share of the light computed so far is the last of a
 /// converged run.
@@ -230,7 +235,7 @@ impl ConvergeGpu {
                 layout::storage(5, false, c),
             ],
         );
-        let module = Shader::Converge.create(device);
+        let module = SHADER.create(device);
         let check =
             layout::compute_pipeline_entry(device, "converge", &module, "check", &[&bind_layout]);
         let hold = layout::compute_pipeline_entry(
@@ -420,7 +425,7 @@ mod tests {
     #[test]
     fn params_and_state_layouts_match_wgsl() {
         use std::mem::offset_of;
-        let module = crate::shaders::tests::module(Shader::Converge);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "ConvergeParams",

@@ -31,8 +31,13 @@ use crate::{
     common::{gbuffer::GBuffer, layout},
     frame::FrameEncoder,
     method::{OptionKind, OptionSpec},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `common/filters.wgsl`: edge-aware blur (`blur_x`, `blur_y`) and joint bilateral up-sampling
+/// (`upsample`), with `common/lowres.wgsl`.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("edge-aware filters", "common/filters.wgsl");
 
 /// Largest blur radius (`filters.wgsl`: `MAX_TAPS` = 2 · 16 + 1).
 pub const MAX_RADIUS: u32 = 16;
@@ -257,7 +262,7 @@ impl EdgeAwareFilter {
                 layout::storage(7, true, c),
             ],
         );
-        let module = Shader::Filters.create(device);
+        let module = SHADER.create(device);
         let pipeline = |label, entry| {
             layout::compute_pipeline_entry(device, label, &module, entry, &[&bind_layout])
         };
@@ -723,7 +728,7 @@ mod tests {
     #[test]
     fn filter_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::Filters);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "FilterParams",

@@ -4,7 +4,11 @@
 //! one-sided: only the front, which the triangle's winding normal faces, emits). Every
 //! screen-space pass of every technique reads these.
 
-use crate::{common::layout, frame::FrameEncoder, load::SceneGpu, shaders::Shader};
+use crate::{common::layout, frame::FrameEncoder, load::SceneGpu};
+
+/// `common/gbuffer.wgsl` with `common/albedo.wgsl`.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("gbuffer", "common/gbuffer.wgsl");
 
 /// Format of the position, normal and albedo targets (exact positions and normals for the
 /// queries that follow).
@@ -75,7 +79,7 @@ impl GBuffer {
         width: u32,
         height: u32,
     ) -> Self {
-        let module = Shader::GBuffer.create(device);
+        let module = SHADER.create(device);
         let fragment = wgpu::ShaderStages::FRAGMENT;
         let bind_layout = layout::bind_group_layout(
             device,

@@ -19,3 +19,26 @@ pub mod sort;
 pub mod timestamps;
 pub mod tonemap;
 pub mod voxelize;
+
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[
+        shadow_map::SHADER,
+        gbuffer::SHADER,
+        converge::SHADER,
+        compose::SHADER,
+        tonemap::SHADER,
+        filters::SHADER,
+        resolve::SHADER,
+        pyramid::SHADER,
+        voxelize::SHADER,
+    ],
+    libraries: &[
+        crate::shaders::library!("common/albedo.wgsl"),
+        crate::shaders::library!("common/shadow_lookup.wgsl"),
+        crate::shaders::library!("common/lowres.wgsl"),
+        crate::shaders::library!("common/voxel.wgsl"),
+        crate::shaders::library!("common/bilateral.wgsl"),
+        crate::shaders::library!("common/random.wgsl"),
+    ],
+};

@@ -19,8 +19,12 @@ use wgpu::util::DeviceExt;
 use crate::{
     common::{gbuffer::GBuffer, layout},
     frame::FrameEncoder,
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `common/pyramid.wgsl`: the G-buffer pyramid's vote (`vote`) and a signal's mean (`mean`).
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("pyramid", "common/pyramid.wgsl");
 
 /// Most levels above the G-buffer.
 pub const MAX_LEVELS: u32 = 12;
@@ -153,7 +157,7 @@ impl GBufferPyramid {
                 layout::storage(7, false, c),
             ],
         );
-        let module = Shader::Pyramid.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline_entry(
             device,
             "gbuffer pyramid",
@@ -250,7 +254,7 @@ impl SignalPyramid {
                 layout::storage(9, false, c),
             ],
         );
-        let module = Shader::Pyramid.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline_entry(
             device,
             "signal pyramid",
@@ -410,7 +414,7 @@ mod tests {
     #[test]
     fn level_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::Pyramid);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "LevelParams",

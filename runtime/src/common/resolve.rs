@@ -2,12 +2,11 @@
 //! (`resolve.wgsl`), shared by the techniques that gather a diffuse and a lobe-weighted
 //! irradiance per pixel (`rsm`, `ssil`): `albedo / pi * diffuse + Ks * lobe-weighted`.
 
-use crate::{
-    common::layout,
-    frame::FrameContext,
-    frame::FrameEncoder,
-    shaders::{self, Shader},
-};
+use crate::{common::layout, frame::FrameContext, frame::FrameEncoder, shaders};
+
+/// `common/resolve.wgsl`, two planes of gathered light reflected towards the eye (`rsm`, `ssil`).
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("resolve", "common/resolve.wgsl");
 
 /// The resolve pass, into its own per-pixel indirect buffer.
 pub struct PlaneResolve {
@@ -35,7 +34,7 @@ impl PlaneResolve {
             layout::storage(5, false, c),
         ];
         let bind_layout = layout::bind_group_layout(device, name, &entries);
-        let module = Shader::Resolve.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline(device, name, &module, &[&bind_layout]);
         let (indirect, bind_group) = Self::bind(ctx, name, &bind_layout, planes);
         Self {

@@ -13,6 +13,10 @@ use crate::{
     RuntimeError, common::layout, frame::FrameEncoder, gpu_types::GpuSpotLight, load::SceneGpu,
 };
 
+/// `common/shadow_map.wgsl`: depth of every light's view (§4.7).
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("shadow map", "common/shadow_map.wgsl");
+
 /// Default shadow-map resolution (texels per side).
 pub const DEFAULT_RESOLUTION: u32 = 2048;
 
@@ -336,7 +340,7 @@ impl ShadowMaps {
                 },
             ],
         });
-        let module = crate::shaders::Shader::ShadowMap.create(device);
+        let module = SHADER.create(device);
         let pipeline = raster_pipeline(device, &module, &[Some(&layout)], "vs_main", None);
         let rsm = rsm.then(|| {
             let fragment = wgpu::ShaderStages::FRAGMENT;
@@ -471,7 +475,7 @@ mod tests {
     #[test]
     fn light_transform_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(crate::shaders::Shader::ShadowMap);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "LightTransform",

@@ -4,8 +4,11 @@
 use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder},
-    shaders::Shader,
 };
+
+/// `common/tonemap.wgsl`.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("tonemap", "common/tonemap.wgsl");
 
 /// ACES filmic curve (Narkowicz 2015 fit) of one channel.
 pub fn aces(x: f32) -> f32 {
@@ -71,7 +74,7 @@ impl Tonemap {
     /// The pass from `hdr` into targets of `format`.
     pub fn new(ctx: &FrameContext, hdr: &wgpu::Texture, format: wgpu::TextureFormat) -> Self {
         let device = &ctx.device;
-        let module = Shader::Tonemap.create(device);
+        let module = SHADER.create(device);
         let stages = wgpu::ShaderStages::FRAGMENT;
         let bind_layout = layout::bind_group_layout(
             device,

@@ -22,8 +22,12 @@ use crate::{
     frame::FrameEncoder,
     gpu_types::GpuMaterial,
     load::{AlbedoTexture, SceneGpu},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `common/voxelize.wgsl`, conservative voxelisation into a voxel-fragment list.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("voxelize", "common/voxelize.wgsl");
 
 /// Largest grid resolution (10 bits per coordinate in a fragment).
 pub const MAX_RESOLUTION: u32 = 1024;
@@ -351,7 +355,7 @@ impl Voxelizer {
             layout::storage(6, false, c),
         ];
         let bind_layout = layout::bind_group_layout(device, "voxelize", &entries);
-        let module = Shader::Voxelize.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline(device, "voxelize", &module, &[&bind_layout]);
         let bind_group = layout::bind_group(
             device,
@@ -398,7 +402,7 @@ mod tests {
     #[test]
     fn voxel_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::Voxelize);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "VoxelParams",

@@ -20,15 +20,29 @@
 
 pub mod cpu;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[SCREEN_SHADER, ATLAS_SHADER],
+    libraries: &[crate::shaders::library!("direct/light.wgsl")],
+};
+
 use crate::{
     RuntimeError,
     common::{layout, shadow_map::ShadowMaps},
     frame::{FrameContext, FrameEncoder},
-    shaders::{self, Shader},
+    shaders,
     load::{CssmGpu, SceneGpu},
     method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup},
     visibility::moving::MovingGpu,
 };
+
+/// `direct/shade.wgsl` with `direct/light.wgsl` and the shadow lookup.
+pub const SCREEN_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("direct screen", "direct/shade.wgsl");
+
+/// `direct/atlas.wgsl` with `direct/light.wgsl` and the shadow lookup.
+pub const ATLAS_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("direct atlas", "direct/atlas.wgsl");
 
 /// `--method direct`: the shared passes alone (shadow maps, G-buffer, direct light); no
 /// indirect light.
@@ -101,7 +115,7 @@ impl ScreenDirect {
     /// The pass shading the context's G-buffer.
     pub fn new(ctx: &FrameContext) -> Self {
         let device = &ctx.device;
-        let module = Shader::DirectScreen.create(device);
+        let module = SCREEN_SHADER.create(device);
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
         let mut entries = light_entries().to_vec();
@@ -186,7 +200,7 @@ impl AtlasDirect {
             mapped_at_creation: false,
         });
         // Composed for the file's moving objects: a static scene's texels read no motion.
-        let module = Shader::DirectAtlas.create_for_scene(device, Default::default(), moving.csm_count);
+        let module = ATLAS_SHADER.create_for_scene(device, Default::default(), moving.csm_count);
         let c = wgpu::ShaderStages::COMPUTE;
         let mut entries = light_entries().to_vec();
         entries.extend([layout::storage(5, true, c), layout::storage(6, false, c)]);

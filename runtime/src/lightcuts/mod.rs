@@ -15,6 +15,12 @@
 
 pub mod cpu;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[FINAL_GATHER_SHADER],
+    libraries: &[],
+};
+
 use wgpu::util::DeviceExt;
 
 use crate::{
@@ -29,8 +35,12 @@ use crate::{
     method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
     common::converge::{BouncePlan, Convergence},
     radiosity::{self, AtlasGi, RadiosityOptions},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `lightcuts/final_gather.wgsl` with the CSSM library and `radiosity/transfer.wgsl`.
+pub const FINAL_GATHER_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("final gather", "lightcuts/final_gather.wgsl");
 
 /// `final_gather.wgsl`'s `GatherGrid`: the gather's resolution.
 #[repr(C)]
@@ -92,7 +102,7 @@ impl FinalGather {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = Shader::FinalGather.create_for_scene(
+        let module = FINAL_GATHER_SHADER.create_for_scene(
             device,
             cssm.query.shape(),
             cssm.moving.csm_count,
@@ -474,7 +484,7 @@ mod tests {
     #[test]
     fn gather_grid_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(crate::shaders::Shader::FinalGather);
+        let module = crate::shaders::tests::module(super::FINAL_GATHER_SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "GatherGrid",

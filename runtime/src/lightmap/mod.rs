@@ -19,8 +19,18 @@ use crate::{
     method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, Resolved},
     common::converge::{BouncePlan, Convergence},
     radiosity::{self, AtlasGi, RadiosityOptions},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[LOOKUP_SHADER],
+    libraries: &[],
+};
+
+/// `lightmap/lookup.wgsl` with the CSSM library.
+pub const LOOKUP_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("atlas lookup", "lightmap/lookup.wgsl");
 
 /// How the atlas is filtered at a pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -115,7 +125,7 @@ impl AtlasLookup {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = Shader::AtlasLookup.create_for(device, cssm.shape());
+        let module = LOOKUP_SHADER.create_for(device, cssm.shape());
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),
@@ -303,7 +313,7 @@ mod tests {
     #[test]
     fn lookup_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(crate::shaders::Shader::AtlasLookup);
+        let module = crate::shaders::tests::module(super::LOOKUP_SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "LookupParams",

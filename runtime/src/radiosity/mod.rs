@@ -23,6 +23,12 @@
 pub mod cpu;
 pub mod transfer;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[GATHER_SHADER, PULL_SHADER],
+    libraries: &[crate::shaders::library!("radiosity/transfer.wgsl")],
+};
+
 use cssm_formats::{hierarchy::Hierarchy, moving::posed_texels, texel::Texel};
 use glam::Affine3A;
 use wgpu::util::DeviceExt;
@@ -40,8 +46,16 @@ use crate::{
     frame::{FrameContext, FrameEncoder, FrameSettings, PassInfo, Slot, Stage},
     gpu_types::{GpuHierarchyNode, GpuMaterial, GpuNode, GpuTraversalParams},
     load::{CssmGpu, limit_check, storage_buffer},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `radiosity/gather.wgsl` with the CSSM library and `radiosity/transfer.wgsl`.
+pub const GATHER_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("radiosity gather", "radiosity/gather.wgsl");
+
+/// `radiosity/pull.wgsl`.
+pub const PULL_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("radiosity pull", "radiosity/pull.wgsl");
 
 /// Threshold of the oracle when none is given: refine while a sender's tone-mapped bound is
 /// above 2% of display white (the lightcuts paper's perceptual 2%, §4.4, on the oracle's scale).
@@ -285,8 +299,7 @@ impl Radiosity {
         let c = wgpu::ShaderStages::COMPUTE;
 
         // Gather: group 0 its own buffers, group 1 the CSSM, group 2 the moving objects.
-        let module =
-            Shader::RadiosityGather.create_for_scene(device, cssm.shape(), moving.csm_count);
+        let module = GATHER_SHADER.create_for_scene(device, cssm.shape(), moving.csm_count);
         let entries = [
             layout::uniform(0, c),
             layout::storage(1, true, c),
@@ -344,7 +357,7 @@ impl Radiosity {
         ];
 
         // Pull: one uniform per level.
-        let module = Shader::RadiosityPull.create(device);
+        let module = PULL_SHADER.create(device);
         let pull_layout = layout::bind_group_layout(
             device,
             "radiosity pull",
@@ -682,12 +695,12 @@ pub fn atlas_radiosity_posed(
 
 #[cfg(test)]
 mod tests {
-    use crate::shaders::{Shader, tests::check_struct};
+    use crate::shaders::tests::check_struct;
     use std::mem::{offset_of, size_of};
 
     #[test]
     fn pull_level_layout_matches_wgsl() {
-        let module = crate::shaders::tests::module(Shader::RadiosityPull);
+        let module = crate::shaders::tests::module(super::PULL_SHADER);
         check_struct(
             &module,
             "PullLevel",

@@ -37,6 +37,12 @@
 
 pub mod cpu;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[SAMPLE_SHADER],
+    libraries: &[],
+};
+
 use wgpu::util::DeviceExt;
 
 use crate::{
@@ -48,8 +54,12 @@ use crate::{
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `rsm/sample.wgsl`, the RSM gather with the micro linear buffer.
+pub const SAMPLE_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("rsm sampling", "rsm/sample.wgsl");
 
 /// Most slots of the micro linear buffer.
 pub const MAX_SLOTS: u32 = 16;
@@ -177,7 +187,7 @@ impl Sampling {
             layout::storage(9, false, c),
         ];
         let bind_layout = layout::bind_group_layout(device, "rsm sampling", &entries);
-        let module = Shader::RsmSampling.create(device);
+        let module = SAMPLE_SHADER.create(device);
         let pipeline = layout::compute_pipeline(device, "rsm sampling", &module, &[&bind_layout]);
         let bind_group = Self::bind(ctx, &bind_layout, &params, filter)?;
         Ok(Self {
@@ -381,7 +391,7 @@ mod tests {
     #[test]
     fn sampling_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::RsmSampling);
+        let module = crate::shaders::tests::module(super::SAMPLE_SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "SamplingParams",

@@ -45,6 +45,12 @@
 
 pub mod cpu;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[SENDER_SHADER, VOXELS_SHADER, GATHER_SHADER, TEMPORAL_SHADER],
+    libraries: &[],
+};
+
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
 
@@ -63,8 +69,26 @@ use crate::{
     gpu_types::GpuView,
     load::SceneGpu,
     method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `ssil/sender.wgsl`: the diffuse direct light leaving every pixel, and the next bounce's.
+pub const SENDER_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("ssil sender", "ssil/sender.wgsl");
+
+/// `ssil/voxels.wgsl`: the view frustum's solid voxels by XOR (`vs_main`, `fs_main`) and their AND
+/// down the levels (`and_down`).
+pub const VOXELS_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("ssil voxels", "ssil/voxels.wgsl");
+
+/// `ssil/gather.wgsl` with `common/bilateral.wgsl`: one level's gather and the coarser levels up-
+/// sampled into it (`gather`), and the bounces' sum (`accumulate`).
+pub const GATHER_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("ssil gather", "ssil/gather.wgsl");
+
+/// `ssil/temporal.wgsl`: the reprojected history blended in.
+pub const TEMPORAL_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("ssil temporal", "ssil/temporal.wgsl");
 
 /// Slices of view depth per voxel column (`voxels.wgsl`: `SLICES`).
 pub const SLICES: u32 = 128;
@@ -454,7 +478,7 @@ impl Pipelines {
             layout::texture(9, d2, c),
         ]);
         let sender_layout = layout::bind_group_layout(device, "ssil sender", &entries);
-        let module = Shader::SsilSender.create(device);
+        let module = SENDER_SHADER.create(device);
         let sender = layout::compute_pipeline(device, "ssil sender", &module, &[&sender_layout]);
 
         let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
@@ -464,7 +488,7 @@ impl Pipelines {
             layout::storage(2, true, wgpu::ShaderStages::VERTEX),
             layout::storage(3, false, wgpu::ShaderStages::FRAGMENT),
         ]);
-        let voxel_module = Shader::SsilVoxels.create(device);
+        let voxel_module = VOXELS_SHADER.create(device);
         let voxels = Self::voxel_raster(device, &voxel_layout, &voxel_module);
         let and_layout = layout::bind_group_layout(device, "ssil voxel levels", &[
             layout::storage(3, false, c),
@@ -490,7 +514,7 @@ impl Pipelines {
             layout::storage(8, false, c),
             layout::storage(12, true, c),
         ]);
-        let gather_module = Shader::SsilGather.create(device);
+        let gather_module = GATHER_SHADER.create(device);
         let gather = layout::compute_pipeline_entry(
             device,
             "ssil gather",
@@ -525,7 +549,7 @@ impl Pipelines {
             layout::storage(8, true, c),
             layout::storage(9, false, c),
         ]);
-        let module = Shader::SsilTemporal.create(device);
+        let module = TEMPORAL_SHADER.create(device);
         let temporal =
             layout::compute_pipeline(device, "ssil temporal", &module, &[&temporal_layout]);
         Self {
@@ -1313,7 +1337,7 @@ mod tests {
     #[test]
     fn params_layouts_match_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::SsilGather);
+        let module = crate::shaders::tests::module(super::GATHER_SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "GatherParams",
@@ -1347,7 +1371,7 @@ mod tests {
             ("z_far", offset_of!(FrameParams, z_far)),
             ("pixel_area", offset_of!(FrameParams, pixel_area)),
         ]);
-        let module = crate::shaders::tests::module(Shader::SsilVoxels);
+        let module = crate::shaders::tests::module(super::VOXELS_SHADER);
         crate::shaders::tests::check_struct(&module, "VoxelParams", size_of::<VoxelParams>(), &[
             ("z_near", offset_of!(VoxelParams, z_near)),
             ("z_far", offset_of!(VoxelParams, z_far)),
@@ -1359,7 +1383,7 @@ mod tests {
             ("fine_offset", offset_of!(AndParams, fine_offset)),
             ("coarse_offset", offset_of!(AndParams, coarse_offset)),
         ]);
-        let module = crate::shaders::tests::module(Shader::SsilTemporal);
+        let module = crate::shaders::tests::module(super::TEMPORAL_SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "TemporalParams",

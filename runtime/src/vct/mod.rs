@@ -39,6 +39,12 @@ pub mod octree;
 pub mod radiance;
 pub mod trace;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[octree::SHADER, radiance::SHADER, trace::SHADER],
+    libraries: &[crate::shaders::library!("vct/svo.wgsl")],
+};
+
 use std::collections::BTreeSet;
 
 use glam::Vec3;

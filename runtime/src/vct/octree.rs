@@ -19,8 +19,12 @@ use crate::{
     RuntimeError,
     common::{layout, voxelize::VoxelFragment, voxelize::Voxelizer},
     frame::FrameEncoder,
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `vct/octree.wgsl`, the sparse voxel octree's structure from the fragments (`flag`, `allocate`,
+/// `next_level`).
+pub const SHADER: crate::shaders::Shader = crate::shaders::shader!("octree", "vct/octree.wgsl");
 
 /// A node's word: occupied but not subdivided (a leaf at the last level).
 pub const FLAG: u32 = 0x8000_0000;
@@ -144,7 +148,7 @@ impl OctreeBuild {
             "octree dispatch",
             &[layout::storage(0, false, c), layout::storage(1, false, c)],
         );
-        let module = Shader::Octree.create(device);
+        let module = SHADER.create(device);
         let pipeline = |entry, layouts: &[&wgpu::BindGroupLayout]| {
             layout::compute_pipeline_entry(device, "octree", &module, entry, layouts)
         };
@@ -306,7 +310,7 @@ mod tests {
     #[test]
     fn octree_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::Octree);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "OctreeParams",

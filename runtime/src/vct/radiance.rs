@@ -32,10 +32,14 @@ use crate::{
         voxelize::{VoxelGrid, Voxelizer, split_groups},
     },
     frame::FrameEncoder,
-    shaders::{self, Shader},
+    shaders,
 };
 
 use super::{octree::OctreeBuild, trace::TraceParams};
+
+/// `vct/radiance.wgsl` with `vct/svo.wgsl`: light injection, leaves, MIP-mapping, bricks.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("voxel radiance", "vct/radiance.wgsl");
 
 /// Texels per side of a tile's brick: 2x2x2 nodes of 3x3x3 vertex-centred texels sharing their
 /// borders.
@@ -403,7 +407,7 @@ impl VoxelRadiance {
                 layout::storage(2, false, c),
             ],
         );
-        let module = Shader::VoxelRadiance.create(device);
+        let module = SHADER.create(device);
         let pipeline = |entry, layouts: &[&wgpu::BindGroupLayout]| {
             layout::compute_pipeline_entry(device, "svo radiance", &module, entry, layouts)
         };
@@ -665,7 +669,7 @@ mod tests {
     #[test]
     fn params_layouts_match_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::VoxelRadiance);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "RadianceParams",

@@ -10,10 +10,14 @@ use crate::{
     RuntimeError,
     common::{layout, readback::read_buffer},
     frame::{FrameContext, FrameEncoder},
-    shaders::{self, Shader},
+    shaders,
 };
 
 use super::radiance::Svo;
+
+/// `vct/trace.wgsl` with `vct/svo.wgsl`: the cones per pixel (`main`) and the test's probe
+/// (`probe`).
+pub const SHADER: crate::shaders::Shader = crate::shaders::shader!("vct trace", "vct/trace.wgsl");
 
 /// Where a cone's first sample lies, in leaf voxels along it.
 pub const START: f32 = 1.0;
@@ -92,7 +96,7 @@ impl ConeTrace {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let bind_layout = layout::bind_group_layout(device, "vct trace", &trace_entries());
-        let module = Shader::ConeTrace.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline(
             device,
             "vct trace",
@@ -175,7 +179,7 @@ impl ConeProbe {
             "vct probe",
             &[layout::storage(7, true, c), layout::storage(8, false, c)],
         );
-        let module = Shader::ConeTrace.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline_entry(
             device,
             "vct probe",
@@ -254,7 +258,7 @@ mod tests {
     #[test]
     fn trace_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::ConeTrace);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "TraceParams",

@@ -20,8 +20,12 @@ use crate::{
     RuntimeError,
     common::{filters, layout},
     frame::{FrameContext, FrameEncoder},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `vf/filter.wgsl`: the visibility filter, the union of the neighbours' voxel lists.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("vf visibility filter", "vf/filter.wgsl");
 
 /// Most voxels of a grid the filter's masks cover: 32³, 4 KiB of mask per pixel.
 pub const MAX_FILTER_VOXELS: u32 = 32 * 32 * 32;
@@ -195,7 +199,7 @@ impl VisibilityFilter {
                 lists.as_entire_binding(),
             ],
         );
-        let module = Shader::VfFilter.create(device);
+        let module = SHADER.create(device);
         let pipeline =
             layout::compute_pipeline(device, "visibility filter", &module, &[&bind_layout]);
         Ok(Self {
@@ -290,7 +294,7 @@ mod tests {
     #[test]
     fn filter_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::VfFilter);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "FilterParams",

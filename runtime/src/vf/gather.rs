@@ -24,8 +24,11 @@ use super::{filter::VisibilityFilter, light::ProxyLight, march::SparseRays, prox
 use crate::{
     common::{filters, layout},
     frame::{FrameContext, FrameEncoder},
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `vf/gather.wgsl` with `common/bilateral.wgsl`: the weighted lists' VPLs and harmonics.
+pub const SHADER: crate::shaders::Shader = crate::shaders::shader!("vf gather", "vf/gather.wgsl");
 
 /// How the pixels gather.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -145,7 +148,7 @@ impl Gathering {
                 planes.as_entire_binding(),
             ],
         );
-        let module = Shader::VfGather.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline(device, "vf gather", &module, &[&bind_layout]);
         Self {
             params,
@@ -374,7 +377,7 @@ mod tests {
     #[test]
     fn gather_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::VfGather);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "GatherParams",

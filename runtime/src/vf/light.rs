@@ -28,8 +28,12 @@ use crate::{
     frame::{FrameContext, FrameEncoder},
     gpu_types::GpuMaterial,
     load::AlbedoTexture,
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `vf/light.wgsl`: the direct light onto the proxies, VPLs (`vpl`), and each voxel's order-0/1
+/// spherical harmonics of their light (`voxel_sh_sum`).
+pub const SHADER: crate::shaders::Shader = crate::shaders::shader!("vf light", "vf/light.wgsl");
 
 /// `vec4f`s per voxel of [`ProxyLight::voxel_sh`]: four SH coefficients (rgb), the centroid.
 pub const SH_STRIDE: usize = 5;
@@ -98,7 +102,7 @@ impl ProxyLight {
             voxel_sh.as_entire_binding(),
         ]);
         let bind_group = layout::bind_group(device, "vpl light", &bind_layout, &resources);
-        let module = Shader::VfLight.create(device);
+        let module = SHADER.create(device);
         let pipeline = |label, entry| {
             layout::compute_pipeline_entry(device, label, &module, entry, &[&bind_layout])
         };

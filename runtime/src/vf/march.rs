@@ -15,9 +15,13 @@ use super::{light::ProxyLight, proxies::GridParams, proxies::ProxyGrid};
 use crate::{
     common::{filters, layout},
     frame::{FrameContext, FrameEncoder},
-    shaders::{self, Shader},
+    shaders,
     ssil::cpu::hash,
 };
+
+/// `vf/march.wgsl`: the sparse shadow rays through the proxies' voxels.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("vf shadow rays", "vf/march.wgsl");
 
 /// The key of no voxel: a ray that left the grid.
 pub const NO_VOXEL: u32 = u32::MAX;
@@ -143,7 +147,7 @@ impl SparseRays {
                 visible.as_entire_binding(),
             ],
         );
-        let module = Shader::VfMarch.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline(device, "shadow rays", &module, &[&bind_layout]);
         Self {
             params,
@@ -317,7 +321,7 @@ mod tests {
     #[test]
     fn march_params_layout_matches_wgsl() {
         use std::mem::{offset_of, size_of};
-        let module = crate::shaders::tests::module(Shader::VfMarch);
+        let module = crate::shaders::tests::module(super::SHADER);
         crate::shaders::tests::check_struct(
             &module,
             "MarchParams",

@@ -45,6 +45,12 @@ pub mod light;
 pub mod march;
 pub mod proxies;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[proxies::SHADER, light::SHADER, march::SHADER, filter::SHADER, gather::SHADER],
+    libraries: &[crate::shaders::library!("vf/proxy.wgsl")],
+};
+
 use crate::{
     RuntimeError,
     common::{

@@ -25,8 +25,12 @@ use crate::{
         sort::{KeySort, KeyValue, key_bits},
     },
     frame::FrameEncoder,
-    shaders::{self, Shader},
+    shaders,
 };
+
+/// `vf/proxies.wgsl`: the point proxies' voxel keys (`hash`) and each voxel's range of the sorted
+/// proxies (`cell_ranges`).
+pub const SHADER: crate::shaders::Shader = crate::shaders::shader!("vf proxies", "vf/proxies.wgsl");
 
 /// Most proxies.
 pub const MAX_PROXIES: u32 = 1 << 24;
@@ -306,7 +310,7 @@ impl ProxyGrid {
                 cells.as_entire_binding(),
             ],
         );
-        let module = Shader::VfProxies.create(device);
+        let module = SHADER.create(device);
         let pipeline = |label, entry| {
             layout::compute_pipeline_entry(device, label, &module, entry, &[&bind_layout])
         };

@@ -15,6 +15,10 @@ use crate::{
     common::{layout, timestamps::PassTimer},
 };
 
+/// `visibility/bvh.wgsl`, the exact ray-cast baseline, with `visibility/bvh_trace.wgsl`.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("bvh segments", "visibility/bvh.wgsl");
+
 /// Deepest BVH the kernel's traversal stack holds.
 pub const MAX_DEPTH: usize = 60;
 
@@ -88,7 +92,7 @@ impl BvhKernel {
                 vertex_buffer.as_entire_binding(),
             ],
         );
-        let module = crate::shaders::Shader::Bvh.create(device);
+        let module = SHADER.create(device);
         let pipeline =
             layout::compute_pipeline(device, "bvh segments", &module, &[&io_layout, &bvh_layout]);
         Ok(Self {

@@ -24,6 +24,11 @@ use std::mem::size_of;
 
 use crate::{Gpu, RuntimeError, common::layout};
 
+/// `visibility/depth_maps.wgsl`, the bake's depth cube maps by ray casting (§3.2.1), with
+/// `visibility/bvh_trace.wgsl`.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("depth cube maps", "visibility/depth_maps.wgsl");
+
 /// One texel's cube map as the kernel casts it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -176,7 +181,7 @@ impl DepthMapKernel {
                 normal_buffer.as_entire_binding(),
             ],
         );
-        let module = crate::shaders::Shader::DepthMaps.create(device);
+        let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline(
             device,
             "depth cube maps",
@@ -353,12 +358,12 @@ impl Reused {
 
 #[cfg(test)]
 mod tests {
-    use crate::shaders::{Shader, tests::check_struct};
+    use crate::shaders::tests::check_struct;
     use std::mem::{offset_of, size_of};
 
     #[test]
     fn layouts_match_wgsl() {
-        let module = crate::shaders::tests::module(Shader::DepthMaps);
+        let module = crate::shaders::tests::module(super::SHADER);
         check_struct(
             &module,
             "DepthMapTexel",

@@ -12,6 +12,10 @@ use crate::{
     load::CssmGpu,
 };
 
+/// `visibility/gather.wgsl`, the gather benchmark kernel, with the CSSM library.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("visibility gather", "visibility/gather.wgsl");
+
 /// A receiver and the first texel of the senders it gathers from.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -62,7 +66,7 @@ impl GatherKernel {
     /// The kernel for CSSMs bound with `cssm`'s layout.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu) -> Self {
         let device = &gpu.device;
-        let module = crate::shaders::Shader::Gather.create_for(device, cssm.shape());
+        let module = SHADER.create_for(device, cssm.shape());
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,

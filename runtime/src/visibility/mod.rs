@@ -18,6 +18,24 @@ pub mod gather;
 pub mod moving;
 pub mod tiles;
 
+/// This folder's WGSL, for the registry ([`crate::shaders`]).
+pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
+    modules: &[
+        QUERY_SHADER,
+        gather::SHADER,
+        tiles::SHADER,
+        moving::SHADER,
+        bvh::SHADER,
+        depth_maps::SHADER,
+    ],
+    libraries: &[
+        crate::shaders::library!("visibility/cssm.wgsl"),
+        crate::shaders::library!("visibility/moving.wgsl"),
+        crate::shaders::library!("visibility/posed.wgsl"),
+        crate::shaders::library!("visibility/bvh_trace.wgsl"),
+    ],
+};
+
 use bytemuck::{Pod, Zeroable};
 use cssm_formats::visibility::QueryWork;
 use glam::Vec3;
@@ -29,6 +47,10 @@ use crate::{
     gpu_types::TYPES_WGSL,
     load::CssmGpu,
 };
+
+/// `visibility/query.wgsl`, the batch query kernel, with the CSSM library.
+pub const QUERY_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("visibility query", "visibility/query.wgsl");
 
 /// The WGSL visibility library as plain WGSL, its bindings at `@group(group)`, composed for a
 /// file of shape `shape` ([`CssmGpu::shape`]; or call [`CssmGpu::library_wgsl`]), preceded by
@@ -234,7 +256,7 @@ impl QueryKernel {
             counters: counting,
             ..cssm.shape()
         };
-        let module = crate::shaders::Shader::Query.create_for(device, shape);
+        let module = QUERY_SHADER.create_for(device, shape);
         let c = wgpu::ShaderStages::COMPUTE;
         let mut entries = vec![layout::storage(0, true, c), layout::storage(1, false, c)];
         if counting {
@@ -405,12 +427,12 @@ pub(crate) fn dispatch(
 
 #[cfg(test)]
 mod tests {
-    use crate::shaders::{Shader, tests::check_struct};
+    use crate::shaders::tests::check_struct;
     use std::mem::{offset_of, size_of};
 
     #[test]
     fn query_pair_layout_matches_wgsl() {
-        let module = crate::shaders::tests::module(Shader::Query);
+        let module = crate::shaders::tests::module(super::QUERY_SHADER);
         check_struct(
             &module,
             "QueryPair",
@@ -433,7 +455,7 @@ mod tests {
     #[test]
     fn moving_layouts_match_wgsl() {
         use super::moving::{GpuCsm, GpuPlacement, MovingEnd, MovingPair};
-        let module = crate::shaders::tests::module(Shader::MovingQuery);
+        let module = crate::shaders::tests::module(crate::visibility::moving::SHADER);
         // The library's own structs, which the composed module names by their module: its
         // struct declarations alone.
         let source = include_str!("moving.wgsl");
@@ -495,7 +517,7 @@ mod tests {
     #[test]
     fn gather_layouts_match_wgsl() {
         use super::gather::{GatherParams, Receiver};
-        let module = crate::shaders::tests::module(Shader::Gather);
+        let module = crate::shaders::tests::module(crate::visibility::gather::SHADER);
         check_struct(
             &module,
             "Receiver",
@@ -521,7 +543,7 @@ mod tests {
     #[test]
     fn tile_layouts_match_wgsl() {
         use super::tiles::TilePixel;
-        let module = crate::shaders::tests::module(Shader::TileQueries);
+        let module = crate::shaders::tests::module(crate::visibility::tiles::SHADER);
         check_struct(
             &module,
             "TilePixel",
@@ -540,7 +562,11 @@ mod tests {
                 search_steps: 9,
                 ..Default::default()
             };
-            for shader in [Shader::Query, Shader::TileQueries, Shader::FinalGather] {
+            for shader in [
+                super::QUERY_SHADER,
+                crate::visibility::tiles::SHADER,
+                crate::lightcuts::FINAL_GATHER_SHADER,
+            ] {
                 let module = shader.module_for(shape).unwrap_or_else(|e| panic!("{e}"));
                 naga::valid::Validator::new(
                     naga::valid::ValidationFlags::all(),
@@ -555,7 +581,7 @@ mod tests {
     #[test]
     fn bvh_layouts_match_wgsl() {
         use super::bvh::{GpuBvhNode, Segment};
-        let module = crate::shaders::tests::module(Shader::Bvh);
+        let module = crate::shaders::tests::module(crate::visibility::bvh::SHADER);
         // Declared by the library `cssm::bvh`: naga_oil decorates its name.
         let node = naga_oil::compose::Composer::decorated_name(Some("cssm::bvh"), "BvhNode");
         check_struct(
@@ -583,9 +609,9 @@ mod tests {
     fn moving_modules_compose_for_every_csm_count() {
         use crate::visibility::moving::MOVING_MAX_CSMS;
         for shader in [
-            Shader::MovingQuery,
-            Shader::RadiosityGather,
-            Shader::FinalGather,
+            crate::visibility::moving::SHADER,
+            crate::radiosity::GATHER_SHADER,
+            crate::lightcuts::FINAL_GATHER_SHADER,
         ] {
             for csms in 0..=MOVING_MAX_CSMS as u32 {
                 let module = shader
@@ -620,13 +646,13 @@ mod tests {
     fn query_modules_compose_for_every_run_binding_count() {
         use crate::{load::MAX_RUN_BINDINGS, shaders::tests::CAPABILITIES};
         for shader in [
-            Shader::Query,
-            Shader::Gather,
-            Shader::TileQueries,
-            Shader::MovingQuery,
-            Shader::RadiosityGather,
-            Shader::AtlasLookup,
-            Shader::FinalGather,
+            super::QUERY_SHADER,
+            crate::visibility::gather::SHADER,
+            crate::visibility::tiles::SHADER,
+            crate::visibility::moving::SHADER,
+            crate::radiosity::GATHER_SHADER,
+            crate::lightmap::LOOKUP_SHADER,
+            crate::lightcuts::FINAL_GATHER_SHADER,
         ] {
             for n in 1..=MAX_RUN_BINDINGS {
                 let shape = crate::shaders::CssmShape {

@@ -18,6 +18,11 @@ use crate::{
     load::{CssmGpu, limit_check},
 };
 
+/// `visibility/moving_query.wgsl`, the batch query between posed surface points, with the CSSM
+/// library and `visibility/moving.wgsl` (§3.3).
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("moving objects' query", "visibility/moving_query.wgsl");
+
 /// Rigid objects with a coherent shadow map the GPU query tests: `moving.wgsl` loops over them
 /// where the driver allows loops, and on llvmpipe (whose loop limit a gather would reach) has
 /// one `#if MOVING_CSMS > k` step per CSM, eight of them.
@@ -330,11 +335,7 @@ impl MovingQueryKernel {
     /// Builds the kernel for `cssm`'s and `moving`'s layouts.
     pub fn new(gpu: &Gpu, cssm: &CssmGpu, moving: &MovingGpu) -> Self {
         let device = &gpu.device;
-        let module = crate::shaders::Shader::MovingQuery.create_for_scene(
-            device,
-            cssm.shape(),
-            moving.csm_count,
-        );
+        let module = SHADER.create_for_scene(device, cssm.shape(), moving.csm_count);
         let c = wgpu::ShaderStages::COMPUTE;
         let io_layout = layout::bind_group_layout(
             device,

@@ -20,8 +20,13 @@ use crate::{
     Gpu, RuntimeError,
     common::{camera::View, layout, readback, timestamps::PassTimer},
     load::CssmGpu,
-    shaders::{CssmShape, Shader, WORKGROUP_2D},
+    shaders::{CssmShape, WORKGROUP_2D},
 };
+
+/// `visibility/tiles.wgsl`, the benchmark kernel of a G-buffer's tiles querying senders, one query
+/// a thread, with the CSSM library.
+pub const SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("visibility tiles", "visibility/tiles.wgsl");
 
 /// Pixels of a tile: one workgroup of [`WORKGROUP_2D`]².
 pub const TILE_PIXELS: usize = (WORKGROUP_2D * WORKGROUP_2D) as usize;
@@ -192,7 +197,7 @@ impl TileKernel {
             counters: counting,
             ..cssm.shape()
         };
-        let module = Shader::TileQueries.create_for(device, shape);
+        let module = SHADER.create_for(device, shape);
         let c = wgpu::ShaderStages::COMPUTE;
         let mut entries = vec![
             layout::storage(0, true, c),
