@@ -167,6 +167,23 @@ pub struct Checks {
     pub emissive: Energy,
 }
 
+impl Checks {
+    /// What a method is held to unless it says otherwise (`checks: Checks { golden_flip: 0.01,
+    /// ..Checks::DEFAULT }`): the CSSM methods' tolerances, so a new kind of check has a value
+    /// for every method without editing each.
+    pub const DEFAULT: Checks = Checks {
+        energy: Energy::Within(0.04),
+        golden_flip: 0.005,
+        emissive: Energy::Within(0.04),
+    };
+}
+
+impl Default for Checks {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
 /// What the energy check in the closed sphere holds a method to ([`Checks::energy`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Energy {

@@ -111,8 +111,8 @@ pub const METHOD: MethodEntry = MethodEntry {
     backend: Backend::Cpu(render_method),
     checks: Checks {
         energy: Energy::Within(0.02),
-        golden_flip: 0.005,
         emissive: Energy::Within(0.02),
+        ..Checks::DEFAULT
     },
 };
 

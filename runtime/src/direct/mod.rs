@@ -55,8 +55,8 @@ pub const METHOD: MethodEntry = MethodEntry {
     backend: Backend::Gpu(|_: &MethodSetup| Ok(Box::new(DirectOnly))),
     checks: Checks {
         energy: Energy::NoIndirect,
-        golden_flip: 0.005,
         emissive: Energy::NoIndirect,
+        ..Checks::DEFAULT
     },
 };
 

@@ -32,7 +32,7 @@ use crate::{
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     gpu_types::GpuTraversalParams,
-    method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
     common::converge::{BouncePlan, Convergence},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders,
@@ -362,11 +362,7 @@ pub const METHOD: MethodEntry = MethodEntry {
         },
     ],
     backend: Backend::Gpu(Lightcuts::build),
-    checks: Checks {
-        energy: Energy::Within(0.04),
-        golden_flip: 0.005,
-        emissive: Energy::Within(0.04),
-    },
+    checks: Checks::DEFAULT,
 };
 
 /// The options of `lightcuts`.

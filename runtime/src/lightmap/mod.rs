@@ -16,7 +16,7 @@ use crate::{
     common::layout,
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     load::CssmGpu,
-    method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, Resolved},
+    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, Resolved},
     common::converge::{BouncePlan, Convergence},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders,
@@ -215,11 +215,7 @@ pub const HRC: MethodEntry = MethodEntry {
     options: &[method::BOUNCES, method::THRESHOLD],
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Nearest)),
-    checks: Checks {
-        energy: Energy::Within(0.04),
-        golden_flip: 0.005,
-        emissive: Energy::Within(0.04),
-    },
+    checks: Checks::DEFAULT,
 };
 
 /// `--method lightmap`: hierarchical radiosity looked up per pixel with a bicubic B-spline.
@@ -230,11 +226,7 @@ pub const LIGHTMAP: MethodEntry = MethodEntry {
     options: &[method::BOUNCES, method::THRESHOLD],
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Bicubic)),
-    checks: Checks {
-        energy: Energy::Within(0.04),
-        golden_flip: 0.005,
-        emissive: Energy::Within(0.04),
-    },
+    checks: Checks::DEFAULT,
 };
 
 /// The options of `hrc` and `lightmap`.

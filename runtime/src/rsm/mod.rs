@@ -325,9 +325,8 @@ pub const METHOD: MethodEntry = MethodEntry {
     ],
     backend: Backend::Gpu(RsmMethod::build),
     checks: Checks {
-        energy: Energy::Within(0.04),
-        golden_flip: 0.005,
         emissive: Energy::NoIndirect,
+        ..Checks::DEFAULT
     },
 };
 

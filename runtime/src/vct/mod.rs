@@ -266,8 +266,8 @@ pub const METHOD: MethodEntry = MethodEntry {
     // light is the RSM's: emitters add none.
     checks: Checks {
         energy: Energy::Within(0.3),
-        golden_flip: 0.005,
         emissive: Energy::NoIndirect,
+        ..Checks::DEFAULT
     },
 };
 

@@ -145,6 +145,9 @@ impl VfOptions {
 }
 
 /// `--method vf`.
+// Every check is set here, and `..Checks::DEFAULT` stays so that a new kind of check takes its
+// default without editing this method.
+#[allow(clippy::needless_update)]
 pub const METHOD: MethodEntry = MethodEntry {
     name: "vf",
     summary: "visibility filtering over point proxies in voxels, one bounce (Chen et al. 2014)",
@@ -326,6 +329,7 @@ pub const METHOD: MethodEntry = MethodEntry {
         energy: Energy::Within(0.75),
         golden_flip: 0.01,
         emissive: Energy::Within(0.72),
+        ..Checks::DEFAULT
     },
 };
 
