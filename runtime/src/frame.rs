@@ -24,7 +24,9 @@
 //!    `rsm`'s sampling at a reduced resolution, the shared `common::filters` (edge-aware blur,
 //!    joint bilateral up-sampling) and its resolve, or `vct`'s cones through the octree, or
 //!    `ssil`'s sent light, G-buffer pyramid, frustum voxels, gathers per level and bounce, the
-//!    shared filters, temporal filter and resolve
+//!    shared filters, temporal filter and resolve, or `vf`'s point proxies and their voxel
+//!    grid, the proxies' light as VPLs and harmonics, sparse shadow rays, visibility filter,
+//!    gathering, up-sampling and resolve
 //! 6. `common::compose` — direct + indirect, or either alone (`--component`)
 //! 7. `common::tonemap` — exposure, ACES, sRGB, into the caller's target
 //!

@@ -1,8 +1,15 @@
 //! The GPU runtime of the CSSM toolchain, on wgpu: loads `.cssm` files and scenes into GPU
 //! memory, answers visibility queries between surface points in WGSL (Ritschel et al. 2008,
 //! §3.2.2), renders direct light from spot lights with shadow maps and from emissive surfaces
-//! (one-sided, §4.7) and global illumination from it (§4: hierarchical radiosity over the atlas,
-//! final gathering, lightmap), with a CPU path tracer as ground truth.
+//! (one-sided, §4.7) and global illumination from it, beside the real-time techniques it is
+//! measured against, with a CPU path tracer as ground truth.
+//!
+//! The methods (`--method`, one line each of [`METHODS`]): `direct` (direct light only), `hrc`
+//! and `lightmap` (hierarchical radiosity over the atlas, §4.1-§4.3, looked up per pixel, §5),
+//! `lightcuts` (the final gather per pixel, §4.4, §4.5), `rsm` (reflective shadow maps with a
+//! micro linear buffer, Bang 2011), `vct` (voxel cone tracing, Crassin et al. 2011), `ssil`
+//! (screen-space indirect light, Soler et al. 2010), `vf` (visibility filtering, Chen et al.
+//! 2014) and `reference` (the CPU path tracer).
 //!
 //! - [`Gpu`]: a headless device (a real GPU, or Mesa's lavapipe on a machine without one).
 //! - [`load`]: [`load::CssmGpu`] and [`load::SceneGpu`], usable with your own device and queue.
@@ -15,6 +22,8 @@
 //!   twin and a brute-force CPU reference.
 //! - [`lightcuts`]: the final gather per pixel (§4.4, §4.5); [`lightmap`]: the atlas looked up
 //!   per pixel (§5).
+//! - [`rsm`], [`vct`], [`ssil`], [`vf`]: the dynamic techniques, a folder each with its passes,
+//!   WGSL and CPU twin.
 //! - [`reference`](mod@reference): the CPU path tracer, ground truth of the global-illumination methods.
 //! - [`Renderer`]: a scene and a method on your device, rendering frame after frame into your
 //!   target; [`frame`]: its passes in order and the [`frame::FrameContext`] they share;
@@ -92,3 +101,79 @@ method_table! {
 pub use device::{Gpu, gpu_memory_bytes, required_limits};
 pub use error::RuntimeError;
 pub use renderer::{Renderer, RendererSettings};
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    /// The text of `path` from the repository's root.
+    fn read(path: &str) -> String {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        std::fs::read_to_string(root.join(path)).unwrap_or_else(|e| panic!("{path}: {e}"))
+    }
+
+    /// The methods `text` (the prose list `place`) does not name in backticks.
+    fn missing(place: &str, text: &str, names: impl Iterator<Item = &'static str>) -> Vec<String> {
+        names
+            .filter(|name| !text.contains(&format!("`{name}`")))
+            .map(|name| format!("{place} misses `{name}`"))
+            .collect()
+    }
+
+    /// Every prose list of the methods names each one of [`crate::METHODS`]: adding a method to
+    /// the table and not to the lists that index the code fails here.
+    #[test]
+    fn prose_lists_of_methods_name_every_method() {
+        let names = || crate::METHODS.iter().map(|m| m.name);
+        let mut wrong = Vec::new();
+        let crate_doc: String = read("runtime/src/lib.rs")
+            .lines()
+            .filter(|l| l.starts_with("//!"))
+            .collect();
+        wrong.extend(missing(
+            "runtime/src/lib.rs's crate doc",
+            &crate_doc,
+            names(),
+        ));
+        let readme = read("README.md");
+        let where_is = readme
+            .split("## What is where")
+            .nth(1)
+            .and_then(|s| s.split("\n## ").next())
+            .expect("README.md has a \"What is where\" section");
+        wrong.extend(missing("README.md's \"What is where\"", where_is, names()));
+        let architecture = read("docs/architecture.md");
+        let runtime_row = architecture
+            .lines()
+            .find(|l| l.starts_with("| `cssm-runtime` |"))
+            .expect("docs/architecture.md has the cssm-runtime row");
+        wrong.extend(missing(
+            "docs/architecture.md's cssm-runtime row",
+            runtime_row,
+            names(),
+        ));
+        let frame_doc: String = read("runtime/src/frame.rs")
+            .lines()
+            .filter(|l| l.starts_with("//!"))
+            .collect();
+        let gpu_gi = crate::METHODS
+            .iter()
+            .filter(|m| m.on_gpu() && m.name != "direct")
+            .map(|m| m.name);
+        wrong.extend(missing("runtime/src/frame.rs's passes", &frame_doc, gpu_gi));
+        let manifest = read("runtime/Cargo.toml");
+        let description = manifest
+            .lines()
+            .find(|l| l.starts_with("description"))
+            .expect("runtime/Cargo.toml has a description");
+        for name in names() {
+            let word = description
+                .split(|c: char| !c.is_ascii_alphanumeric())
+                .any(|w| w == name);
+            if !word {
+                wrong.push(format!("runtime/Cargo.toml's description misses {name}"));
+            }
+        }
+        assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    }
+}
