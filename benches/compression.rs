@@ -24,7 +24,8 @@ fn main() {
         .chain(std::env::args().skip(1).filter(|a| a != "--bench"))
         .collect::<Vec<_>>()
         .join(" ");
-    match cssm::report::run(&args.report, &exe, &command) {
+    let cornell = cssm::builtin::cornell_box().expect("built-in Cornell box");
+    match cssm::report::run(&args.report, &exe, &command, &cornell) {
         Ok(report) => println!(
             "wrote {} ({} rows)",
             args.report.out.join("compression.md").display(),

@@ -34,6 +34,22 @@ fi
 
 cargo test --workspace --release "$@"
 
+# The libraries a user embeds compile no windowing, GUI or plotting crate: not cssm-bake or
+# cssm-runtime, and not the `cssm` library without its default features (`viewer`, `lab`).
+lean_check() {
+    local heavy
+    heavy="$(cargo tree --locked "$@" -e normal --prefix none |
+        grep -E '^(winit|egui|egui-winit|egui-wgpu|plotters|nv-flip|meshopt|cssm-lab) ' || true)"
+    if [[ -n "$heavy" ]]; then
+        echo "cargo tree $*: a library pulls in the viewer or the lab:" >&2
+        echo "$heavy" >&2
+        exit 1
+    fi
+}
+lean_check -p cssm-bake --features gpu
+lean_check -p cssm-runtime
+lean_check -p cssm --no-default-features
+
 # The examples are a user's own packages outside the workspace, depending on cssm-bake and
 # cssm-runtime by path: they must build and run as such (the target directory is shared, so
 # their dependencies are the workspace's builds).

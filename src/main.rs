@@ -244,7 +244,9 @@ fn run_report(args: cssm::report::CompressionArgs) -> CliResult {
         .chain(std::env::args().skip(1))
         .collect::<Vec<_>>()
         .join(" ");
-    let report = cssm::report::run(&args, &exe, &command)?;
+    let cornell = cssm::builtin::cornell_box()
+        .map_err(|e| format!("cannot prepare the built-in Cornell box: {e}"))?;
+    let report = cssm::report::run(&args, &exe, &command, &cornell)?;
     let done = report.rows.iter().filter(|r| r.outcome.is_ok()).count();
     println!(
         "wrote {} ({done} of {} rows ran)",

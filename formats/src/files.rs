@@ -179,3 +179,61 @@ fn output_walk(out: &Path, name: &str, directory: bool) -> io::Result<std::path:
     }
     Ok(path)
 }
+
+/// `name` (a scene's or a method's) as one safe file-name component: path separators, `:` and
+/// control characters become `_`, leading dots are dropped (no hidden file, no `..`), at most
+/// 200 bytes are kept, and an empty result is `scene`. Default output names are built from
+/// it, so a crafted scene name cannot write outside the directory it is meant for.
+///
+/// ```
+/// assert_eq!(cssm_formats::files::safe_file_stem("Cornell box"), "Cornell box");
+/// assert_eq!(cssm_formats::files::safe_file_stem("../../etc/passwd"), "_.._etc_passwd");
+/// assert_eq!(cssm_formats::files::safe_file_stem("/abs\u{1b}[31m"), "_abs_[31m");
+/// assert_eq!(cssm_formats::files::safe_file_stem(".."), "scene");
+/// assert_eq!(cssm_formats::files::safe_file_stem(""), "scene");
+/// ```
+pub fn safe_file_stem(name: &str) -> String {
+    let mapped: String = name
+        .chars()
+        .map(|c| match c {
+            '/' | '\\' | ':' => '_',
+            c if c.is_control() => '_',
+            c => c,
+        })
+        .collect();
+    let mut stem = mapped.trim_start_matches('.').to_string();
+    if stem.len() > 200 {
+        let mut end = 200;
+        while !stem.is_char_boundary(end) {
+            end -= 1;
+        }
+        stem.truncate(end);
+    }
+    if stem.trim().is_empty() {
+        "scene".into()
+    } else {
+        stem
+    }
+}
+
+/// `bytes` in binary units (B, KiB, MiB, GiB, TiB) with `decimals` digits after the point;
+/// whole bytes below 1 KiB.
+///
+/// ```
+/// assert_eq!(cssm_formats::files::human_bytes(512, 2), "512 B");
+/// assert_eq!(cssm_formats::files::human_bytes(3 << 20, 1), "3.0 MiB");
+/// ```
+pub fn human_bytes(bytes: u64, decimals: usize) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = bytes as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{v:.decimals$} {}", UNITS[u])
+    }
+}

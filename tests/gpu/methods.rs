@@ -241,10 +241,14 @@ fn every_method_matches_its_golden_image() {
             "{}",
             method.name
         );
-        let reference = nv_flip::FlipImageRgb8::with_data(image.width, image.height, &golden);
-        let test = nv_flip::FlipImageRgb8::with_data(image.width, image.height, &rgb);
-        let error_map = nv_flip::flip(reference, test, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
-        let mean = nv_flip::FlipPool::from_image(&error_map).mean();
+        // The lab's FLIP (`cssm report error`'s), on RGBA8.
+        let with_alpha = |rgb: &[u8]| -> Vec<u8> {
+            rgb.chunks_exact(3)
+                .flat_map(|p| [p[0], p[1], p[2], 255])
+                .collect()
+        };
+        let (golden, test) = (with_alpha(&golden), with_alpha(&rgb));
+        let mean = cssm::report::error::mean_flip(image.width, image.height, &golden, &test);
         let tolerance = method.checks.golden_flip;
         eprintln!(
             "{}: mean FLIP {mean:.4} against its golden image (tolerance {tolerance})",
@@ -255,8 +259,12 @@ fn every_method_matches_its_golden_image() {
             let actual = out.join(format!("{}-actual.png", method.name));
             let difference = out.join(format!("{}-difference.png", method.name));
             save_rgb8(&actual, image.width, image.height, rgb);
-            let colours = error_map.apply_color_lut(&nv_flip::magma_lut());
-            save_rgb8(&difference, image.width, image.height, colours.to_vec());
+            let colours = cssm::report::error::flip_map(image.width, image.height, &golden, &test);
+            let colours = colours
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect();
+            save_rgb8(&difference, image.width, image.height, colours);
             failures.push(format!(
                 "{}: mean FLIP {mean} above {tolerance}; see {} and {}",
                 method.name,

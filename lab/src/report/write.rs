@@ -31,7 +31,7 @@ pub fn write_all(report: &Report, out: &Path) -> Result<(), String> {
 }
 
 fn bytes(b: u64) -> String {
-    crate::human_bytes(b, 1)
+    cssm_formats::files::human_bytes(b, 1)
 }
 
 fn seconds(s: f64) -> String {

@@ -80,7 +80,7 @@ pub struct ErrorReport {
 /// would take a name of the report's own files (`reference`, `strip`) gets `-method` after it.
 ///
 /// ```
-/// use cssm::report::error_write::file_stem;
+/// use cssm_lab::report::error_write::file_stem;
 /// assert_eq!(file_stem("lightcuts:bounces=2,jitter=true"), "lightcuts-bounces-2-jitter-true");
 /// assert_eq!(file_stem("reference"), "reference-method");
 /// ```
@@ -94,7 +94,7 @@ pub fn file_stem(spec: &str) -> String {
         })
         .collect();
     // Control characters and leading dots as for any file name.
-    let stem = crate::safe_file_stem(&stem);
+    let stem = cssm_formats::files::safe_file_stem(&stem);
     if stem == "reference" || stem == "strip" {
         format!("{stem}-method")
     } else {
@@ -140,7 +140,7 @@ pub fn strip(width: u32, height: u32, images: &[&[u8]]) -> (u32, Vec<u8>) {
 pub struct ReferenceSettings {
     /// Version of cssm that path traced it.
     pub cssm_version: String,
-    /// The path tracer's light model ([`cssm_runtime::reference::LIGHT_MODEL`]): a sidecar
+    /// The path tracer's light model (`cssm_runtime::reference::LIGHT_MODEL`): a sidecar
     /// from before emitters were area lights has none, and its reference is rendered anew.
     pub light_model: u32,
     /// `Scene::name`.

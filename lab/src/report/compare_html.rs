@@ -15,7 +15,7 @@ use super::compare::{
 /// `text` with `& < > " '` escaped for HTML text and attribute values.
 ///
 /// ```
-/// use cssm::report::compare_html::escape;
+/// use cssm_lab::report::compare_html::escape;
 /// assert_eq!(escape("a<b & \"c\""), "a&lt;b &amp; &quot;c&quot;");
 /// ```
 pub fn escape(text: &str) -> String {
@@ -120,7 +120,7 @@ fn scale(width: u32) -> u32 {
 /// scene named `a#b` or `50%` still finds its images.
 ///
 /// ```
-/// use cssm::report::compare_html::url_path;
+/// use cssm_lab::report::compare_html::url_path;
 /// assert_eq!(url_path("images/a#b/x y.png"), "images/a%23b/x%20y.png");
 /// ```
 pub fn url_path(path: &str) -> String {

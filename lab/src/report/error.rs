@@ -261,7 +261,7 @@ impl ReferenceNoise {
 /// reference's own, on average. `None` without both.
 ///
 /// ```
-/// use cssm::report::error::without_noise;
+/// use cssm_lab::report::error::without_noise;
 /// assert_eq!(without_noise(Some(0.5), Some(0.3)), Some(0.4));
 /// assert_eq!(without_noise(Some(0.1), Some(0.3)), Some(0.0));
 /// ```
@@ -274,7 +274,7 @@ pub fn without_noise(relative_rmse: Option<f64>, floor: Option<f64>) -> Option<f
 /// for, `min(1, f^2 / e^2)`; `None` without both or when `e` is 0.
 ///
 /// ```
-/// use cssm::report::error::noise_share;
+/// use cssm_lab::report::error::noise_share;
 /// assert_eq!(noise_share(Some(0.5), Some(0.25)), Some(0.25));
 /// ```
 pub fn noise_share(relative_rmse: Option<f64>, floor: Option<f64>) -> Option<f64> {

@@ -1,4 +1,5 @@
-//! What `cssm bake`, `cssm inspect` and `cssm check` print: one struct per command, written as
+//! What a bake, a `.cssm` file and an accuracy check come to, as `cssm bake`, `cssm inspect` and
+//! `cssm check` print them: one struct per command, written as
 //! one JSON object for `--json` ([`BakeSummary::to_json`]) and formatted as text otherwise (its
 //! `Display`), so the two outputs always tell the same figures. `cssm report compression` reads
 //! its child processes' `--json` back into the same types.
@@ -8,7 +9,7 @@
 //!
 //! ```
 //! let json = r#"{"agreement":0.98,"causes_atlas":0,"causes_cube":0,"causes_filter":1,"causes_near":0,"exchanging_agreement":0.99,"exchanging_false_occluded_rate":0.01,"exchanging_false_visible_rate":0.02,"exchanging_pairs":7,"false_occluded_rate":0.01,"false_visible_rate":0.03,"occluded_occluded":4,"occluded_visible":0,"pairs":10,"seconds":0.5,"unmapped":0,"visible_occluded":1,"visible_visible":5}"#;
-//! let check: cssm::summary::CheckSummary = serde_json::from_str(json)?;
+//! let check: cssm_bake::summary::CheckSummary = serde_json::from_str(json)?;
 //! assert_eq!(check.exchanging_pairs, 7);
 //! assert_eq!(check.to_json(), json);
 //! # Ok::<(), serde_json::Error>(())
@@ -18,10 +19,9 @@ use std::{fmt, path::Path, path::PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::{
-    bake::{self, check::Agreement},
-    formats::{self, CssmFile, Scene},
-};
+use cssm_formats::{self as formats, CssmFile, Scene};
+
+use crate::{self as bake, check::Agreement};
 
 /// `value` as one line of JSON, keys in alphabetical order (serde_json's map) and `f32` fields
 /// printed as the `f64` they widen to.
@@ -41,7 +41,7 @@ fn is_zero_seconds(s: &f64) -> bool {
 }
 
 fn human_bytes(bytes: u64) -> String {
-    crate::human_bytes(bytes, 2)
+    formats::files::human_bytes(bytes, 2)
 }
 
 /// `cssm bake`: the settings, the figures of the bake and of the file written, the time each

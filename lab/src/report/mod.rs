@@ -41,7 +41,7 @@ use cssm_formats::{
     cube::{CubeFrame, PixelGrid},
 };
 
-use crate::summary::{BakeSummary, CheckSummary};
+use cssm_bake::summary::{BakeSummary, CheckSummary};
 
 /// Tables of the report.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
@@ -520,8 +520,14 @@ pub fn plan(args: &CompressionArgs) -> Vec<Plan> {
 
 /// Runs the report: plans the rows, prepares the scenes, bakes and checks each row with `exe`
 /// (the `cssm` binary), and writes the files into `args.out`. `command` is recorded in the
-/// report as the command that made it.
-pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, String> {
+/// report as the command that made it; `cornell` is the directory of the Cornell box scene
+/// (`cssm::builtin::cornell_box`).
+pub fn run(
+    args: &CompressionArgs,
+    exe: &Path,
+    command: &str,
+    cornell: &Path,
+) -> Result<Report, String> {
     if !args.out.is_dir() {
         return Err(format!(
             "--out {}: not a directory (create it first)",
@@ -534,12 +540,10 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
     for plan in &plans {
         plan.bake_options()
             .check()
-            .map_err(|e| crate::flag_error(&e))?;
+            .map_err(|e| cssm_bake::flag_error(&e))?;
     }
     let work =
         tempfile::tempdir().map_err(|e| format!("cannot create a temporary directory: {e}"))?;
-    let cornell = crate::builtin::cornell_box()
-        .map_err(|e| format!("cannot prepare the built-in Cornell box: {e}"))?;
     let mut heads_note = None;
     let mut church_note = None;
     let mut scene_dirs: Vec<(SceneId, Result<PathBuf, String>)> = Vec::new();
@@ -548,7 +552,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
             continue;
         }
         let dir = match scene {
-            SceneId::Cornell => Ok(cornell.clone()),
+            SceneId::Cornell => Ok(cornell.to_path_buf()),
             SceneId::Heads => {
                 let missing: Vec<String> = ["teapot", "bunny"]
                     .iter()
@@ -557,7 +561,7 @@ pub fn run(args: &CompressionArgs, exe: &Path, command: &str) -> Result<Report, 
                     .map(|p| p.display().to_string())
                     .collect();
                 if missing.is_empty() {
-                    heads::build(&cornell, &args.scenes, &work.path().join("cornell-heads")).map(|h| {
+                    heads::build(cornell, &args.scenes, &work.path().join("cornell-heads")).map(|h| {
                         heads_note = Some(format!(
                             "Cornell box ({} faces) + Utah teapot ({} faces, scaled 30x) + Stanford \
                              bunny simplified with meshoptimizer from {} to {} faces (scaled 1300x): \
