@@ -12,3 +12,27 @@
 //! `reports/README.md` indexes what each report answers and the command that regenerates it.
 
 pub mod report;
+
+#[cfg(test)]
+mod tests {
+    /// `reports/README.md` indexes every report: a file or folder added to `reports/` without a
+    /// line there fails here.
+    #[test]
+    fn the_reports_index_names_every_report() {
+        let reports = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../reports");
+        let index = std::fs::read_to_string(reports.join("README.md")).expect("reports/README.md");
+        let mut missing = Vec::new();
+        for entry in std::fs::read_dir(&reports).expect("reports/") {
+            let name = entry.expect("an entry").file_name();
+            let name = name.to_string_lossy();
+            if name != "README.md" && !index.contains(name.as_ref()) {
+                missing.push(name.into_owned());
+            }
+        }
+        missing.sort();
+        assert!(
+            missing.is_empty(),
+            "reports/README.md does not name {missing:?}"
+        );
+    }
+}
