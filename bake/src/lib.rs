@@ -430,16 +430,99 @@ fn bake_slice(
     progress: &mut (dyn FnMut(Progress) + Send),
 ) -> Result<(CssmFile, BakeStats), BakeError> {
     options.check()?;
-    let n = options.cube_resolution;
+    let (near, far) = depth_range(scene, options)?;
+    let mut stats = BakeStats::default();
+
+    // 1. Atlas (§3.2.3).
+    let atlas = build_atlas(scene, options, &mut stats, progress)?;
+
+    // The depth maps' renderers, in the cube frame (the BVH build counts as the maps' time).
+    let t0 = Instant::now();
+    let frame = options.cube_frame;
+    let geometry = TexelGeometry::new(scene, frame);
+    let frame_texels = texels_in_frame(&atlas.texels, frame);
+    let renderer = geometry.renderers(options.cube_renderer, options.pixel_grid);
+    let gpu_maps = match options.device {
+        BakeDevice::Cpu => None,
+        BakeDevice::Gpu => {
+            let maps = gpu::GpuMaps::new(&geometry, options.pixel_grid)?;
+            stats.gpu = Some(maps.describe());
+            Some(maps)
+        }
+    };
+    let maps = MapSource {
+        renderer: &renderer,
+        gpu: gpu_maps.as_ref(),
+        texels: &frame_texels,
+        near,
+        quantizer: DepthQuantizer::new(near, far),
+    };
+    let bvh_time = t0.elapsed();
+
+    // 2. Coherent order of the texels (§3.2.3).
+    let sequence = coherent_order(&maps, &atlas, options, &mut stats, progress);
+
+    // 3. + 4. Depth cube maps, streamed in batches into the compressor (§3.2.1, §3.1).
+    let t0 = Instant::now();
+    let runs = maps_into_runs(&maps, &sequence, chunk, options, far, &mut stats, progress)?;
+    stats.maps_time = bvh_time + t0.elapsed();
+    stats.uncompressed_bytes = runs.uncompressed_bytes();
+    stats.gpu_bytes = runs.gpu_bytes();
+    stats.runs = runs.runs.len() as u64;
+
+    // 5. The texel hierarchy over the final texel table (§4.2).
+    let t0 = Instant::now();
+    let hierarchy = Hierarchy::build(&atlas.texels);
+    stats.hierarchy_time = t0.elapsed();
+
+    // 6. A coherent shadow map per rigid object (§3.3), in its own space.
+    let csms = object_csms(scene, &mut stats, progress);
+
+    let file = CssmFile {
+        params: BakeParams {
+            atlas_resolution: atlas.resolution,
+            cube_resolution: options.cube_resolution,
+            near,
+            far,
+            traversal: options.traversal,
+        },
+        scene: SceneRef {
+            dir: scene.path.to_string_lossy().into_owned(),
+            name: scene.name.clone(),
+            content_hash: scene.content_hash,
+            triangle_count: scene.triangles.len() as u32,
+        },
+        texels: atlas.texels,
+        triangle_uvs: atlas.triangle_uvs,
+        sequence,
+        hierarchy,
+        runs,
+        csms,
+        pixel_grid: options.pixel_grid,
+        cube_frame: frame,
+    };
+    Ok((file, stats))
+}
+
+/// The depth range of the maps: from the near distance (the option, or a fraction of the
+/// scene's diameter) to the diameter.
+fn depth_range(scene: &Scene, options: &BakeOptions) -> Result<(f32, f32), BakeError> {
     let far = scene.diameter();
     if !(far.is_finite() && far > 0.0) {
         return Err(BakeError::Scene("the scene has no extent".into()));
     }
     let near = options.near.unwrap_or(DEFAULT_NEAR_FRACTION * far);
     check_near(near, Some(far))?;
-    let mut stats = BakeStats::default();
+    Ok((near, far))
+}
 
-    // 1. Atlas (§3.2.3).
+/// Step 1: the atlas (§3.2.3), refused when no texel is covered.
+fn build_atlas(
+    scene: &Scene,
+    options: &BakeOptions,
+    stats: &mut BakeStats,
+    progress: &mut (dyn FnMut(Progress) + Send),
+) -> Result<atlas::Atlas, BakeError> {
     let t0 = Instant::now();
     let atlas = atlas::build(scene, options.atlas_resolution, progress)?;
     stats.atlas_time = t0.elapsed();
@@ -450,16 +533,18 @@ fn bake_slice(
             "no atlas texel is covered by the scene".into(),
         ));
     }
+    Ok(atlas)
+}
 
-    let t0 = Instant::now();
-    let frame = options.cube_frame;
-    // The renderers work in the cube frame: the scene and the texels turned into it, so the
-    // maps are those of cube maps turned against the world; the file keeps the world's texels.
-    let geometry = TexelGeometry::new(scene, frame);
-    let frame_texels: std::borrow::Cow<[cssm_formats::Texel]> = match frame {
-        CubeFrame::World => std::borrow::Cow::Borrowed(&atlas.texels),
-        CubeFrame::Turned => atlas
-            .texels
+/// The texels as the renderers see them: turned into the cube frame, so that the maps are
+/// those of cube maps turned against the world (the file keeps the world's texels).
+fn texels_in_frame(
+    texels: &[cssm_formats::Texel],
+    frame: CubeFrame,
+) -> std::borrow::Cow<'_, [cssm_formats::Texel]> {
+    match frame {
+        CubeFrame::World => std::borrow::Cow::Borrowed(texels),
+        CubeFrame::Turned => texels
             .iter()
             .map(|t| cssm_formats::Texel {
                 position: frame.to_cube(t.pos()).to_array(),
@@ -467,21 +552,28 @@ fn bake_slice(
                 ..*t
             })
             .collect(),
-    };
-    let grid = options.pixel_grid;
-    let renderer = geometry.renderers(options.cube_renderer, grid);
-    let gpu_maps = match options.device {
-        BakeDevice::Cpu => None,
-        BakeDevice::Gpu => {
-            let maps = gpu::GpuMaps::new(&geometry, grid)?;
-            stats.gpu = Some(maps.describe());
-            Some(maps)
-        }
-    };
-    let quantizer = DepthQuantizer::new(near, far);
-    let bvh_time = t0.elapsed();
+    }
+}
 
-    // 2. Coherent order of the texels (§3.2.3).
+/// What renders the texels' depth cube maps: the CPU renderers, or the GPU's when the bake
+/// runs there, over the texels in the cube frame.
+struct MapSource<'a> {
+    renderer: &'a TexelRenderers<'a>,
+    gpu: Option<&'a gpu::GpuMaps<'a>>,
+    texels: &'a [cssm_formats::Texel],
+    near: f32,
+    quantizer: DepthQuantizer,
+}
+
+/// Step 2: the coherent order of the texels (§3.2.3), the traversal piloted by the runs a small
+/// cube resolution gives.
+fn coherent_order(
+    maps: &MapSource,
+    atlas: &atlas::Atlas,
+    options: &BakeOptions,
+    stats: &mut BakeStats,
+    progress: &mut (dyn FnMut(Progress) + Send),
+) -> Vec<u32> {
     let t0 = Instant::now();
     progress(Progress {
         stage: Stage::Order,
@@ -490,15 +582,15 @@ fn bake_slice(
     });
     let pilot = |orders: &[&[u32]]| {
         let pilot_options = BakeOptions {
-            cube_resolution: n.min(PILOT_CUBE_RESOLUTION),
+            cube_resolution: options.cube_resolution.min(PILOT_CUBE_RESOLUTION),
             ..options.clone()
         };
         fewest_runs(
-            &renderer,
-            &frame_texels,
+            maps.renderer,
+            maps.texels,
             orders,
-            near,
-            &quantizer,
+            maps.near,
+            &maps.quantizer,
             &pilot_options,
             PILOT_CACHED_MAPS,
         )
@@ -511,9 +603,22 @@ fn bake_slice(
         &pilot,
     );
     stats.traversal_time = t0.elapsed();
+    sequence
+}
 
-    // 3. + 4. Depth cube maps, streamed in batches into the compressor (§3.2.1, §3.1).
-    let t0 = Instant::now();
+/// Steps 3 and 4: the depth cube maps of `sequence` (of the chunk's slice of it), rendered in
+/// batches and streamed into the compressor (§3.2.1, §3.1).
+fn maps_into_runs(
+    maps: &MapSource,
+    sequence: &[u32],
+    chunk: Option<cssm_formats::cssm::ChunkSpec>,
+    options: &BakeOptions,
+    far: f32,
+    stats: &mut BakeStats,
+    progress: &mut (dyn FnMut(Progress) + Send),
+) -> Result<cssm_formats::RunData, BakeError> {
+    let n = options.cube_resolution;
+    let near = maps.near;
     let pixel_count = 6 * n * n;
     // A chunk bakes its slice of whole segments: the compressor starts each segment afresh, so
     // its runs are those of the same segments in the whole bake.
@@ -542,16 +647,16 @@ fn bake_slice(
             total: u64::from(map_count),
         });
     };
-    match &gpu_maps {
-        Some(maps) => {
-            stats.rays += maps.render_in_order(
-                &frame_texels,
+    match maps.gpu {
+        Some(gpu_maps) => {
+            stats.rays += gpu_maps.render_in_order(
+                maps.texels,
                 slice,
                 n,
                 near,
-                &quantizer,
+                &maps.quantizer,
                 options.second_layer,
-                maps.batch_maps(n),
+                gpu_maps.batch_maps(n),
                 &mut compressed,
             )?;
         }
@@ -567,12 +672,12 @@ fn bake_slice(
             for ids in slice.chunks(batch_maps) {
                 let slots = &mut batch[..ids.len() * pixel_count as usize];
                 stats.rays += render_maps(
-                    &renderer,
-                    &frame_texels,
+                    maps.renderer,
+                    maps.texels,
                     ids,
                     n,
                     near,
-                    &quantizer,
+                    &maps.quantizer,
                     options.second_layer,
                     slots,
                 );
@@ -581,18 +686,15 @@ fn bake_slice(
             }
         }
     }
-    let runs = compressor.finish();
-    stats.maps_time = bvh_time + t0.elapsed();
-    stats.uncompressed_bytes = runs.uncompressed_bytes();
-    stats.gpu_bytes = runs.gpu_bytes();
-    stats.runs = runs.runs.len() as u64;
+    Ok(compressor.finish())
+}
 
-    // 5. The texel hierarchy over the final texel table (§4.2).
-    let t0 = Instant::now();
-    let hierarchy = Hierarchy::build(&atlas.texels);
-    stats.hierarchy_time = t0.elapsed();
-
-    // 6. A coherent shadow map per rigid object (§3.3), in its own space.
+/// Step 6: a coherent shadow map per rigid object (§3.3), in its own space.
+fn object_csms(
+    scene: &Scene,
+    stats: &mut BakeStats,
+    progress: &mut (dyn FnMut(Progress) + Send),
+) -> Vec<cssm_formats::csm::CsmData> {
     let t0 = Instant::now();
     let csms = csm::bake_objects(scene, csm::CsmOptions::default(), &mut |done, total| {
         progress(Progress {
@@ -601,38 +703,13 @@ fn bake_slice(
             total,
         })
     });
-
     if !csms.is_empty() {
         stats.csm_time = t0.elapsed();
     }
     stats.csms = csms.len() as u64;
     stats.csm_uncompressed_bytes = csms.iter().map(|c| c.runs.uncompressed_bytes()).sum();
     stats.csm_gpu_bytes = csms.iter().map(|c| c.runs.gpu_bytes()).sum();
-
-    let file = CssmFile {
-        params: BakeParams {
-            atlas_resolution: atlas.resolution,
-            cube_resolution: n,
-            near,
-            far,
-            traversal: options.traversal,
-        },
-        scene: SceneRef {
-            dir: scene.path.to_string_lossy().into_owned(),
-            name: scene.name.clone(),
-            content_hash: scene.content_hash,
-            triangle_count: scene.triangles.len() as u32,
-        },
-        texels: atlas.texels,
-        triangle_uvs: atlas.triangle_uvs,
-        sequence,
-        hierarchy,
-        runs,
-        csms,
-        pixel_grid: grid,
-        cube_frame: frame,
-    };
-    Ok((file, stats))
+    csms
 }
 
 /// The geometry each texel's depth cube map sees (§3.3): in a scene without rigid objects, the
