@@ -8,9 +8,14 @@
 //!   ([`report::error`]: relative RMSE and FLIP, the one place the project computes them, shared
 //!   with the golden-image tests; [`report::error_write`]: `cssm report error`'s files); and the
 //!   comparison page of `cssm compare` ([`report::compare`], [`report::compare_html`]).
+//! - [`diagnose`]: the research diagnostics of `cssm diagnose` behind the query's and the
+//!   radiosity's defaults, each on a `.cssm` file: which end of a pair to trust
+//!   ([`diagnose::ends`]), what the sender filters cost ([`diagnose::filters`]), where the
+//!   radiosity's indirect light loses against the path tracer's ([`diagnose::radiosity_bias`]).
 //!
 //! `reports/README.md` indexes what each report answers and the command that regenerates it.
 
+pub mod diagnose;
 pub mod report;
 
 #[cfg(test)]

@@ -81,7 +81,7 @@ pub struct EndAnswer {
 }
 
 /// How much more the end nearer the occluder counts in [`combine_ends`]: its weight is
-/// `exp(NEARER_END_WEIGHT * nearness)`. Measured with `examples/endsdiag.rs` over the pairs
+/// `exp(NEARER_END_WEIGHT * nearness)`. Measured with `cssm diagnose ends` over the pairs
 /// that exchange light (reports/visibility.md, "Which end to trust"): 1, 2 and 4 all gain on
 /// the church and the Cornell box; 2 gains most on both.
 pub const NEARER_END_WEIGHT: f32 = 2.0;

@@ -1,21 +1,19 @@
-//! Where the radiosity's indirect light loses against the path tracer's (reports/final-gather.md,
-//! "The nave's bias"). Run
-//! `cargo build --release --example radiositybias && ./target/release/examples/radiositybias
-//! FILE.cssm [RECEIVERS] [RAYS]`.
+//! `cssm diagnose radiosity-bias`: where the radiosity's indirect light loses against the path
+//! tracer's (reports/final-gather.md, "The clusters' transfer: the nave's missing light").
 //!
-//! Over `RECEIVERS` texels drawn at random (seed 1; default 1,500), one bounce of the spot
+//! Over `--receivers` texels drawn at random (seed 1; default 1,500), one bounce of the spot
 //! lights' light, as irradiance at each texel's centre, by four computations that differ in one
 //! thing each:
 //!
-//! - *path traced*: `RAYS` cosine-distributed rays from the texel's centre (default 1,024), each
-//!   bringing back the exact direct light reflected (Kd + Ks, as the atlas reflects it) where
-//!   it first hits: what the reference path tracer computes there, without its noise;
+//! - *path traced*: `--rays` cosine-distributed rays from the texel's centre (default 1,024),
+//!   each bringing back the exact direct light reflected (Kd + Ks, as the atlas reflects it)
+//!   where it first hits: what the reference path tracer computes there, without its noise;
 //! - *texels, exact*: every texel a sender, its exact direct light, the radiosity's transfer
 //!   (`irradiance_from_texel`) and an exact ray cast between the centres: the atlas'
 //!   discretisation and the transfer;
 //! - *texels, CSSM*: the same with the CSSM query (both ends) for the ray cast;
 //! - *hierarchy*: the CPU twin of the GPU radiosity at the default threshold (CSSM, clusters;
-//!   `THRESHOLD=` sets another);
+//!   `--threshold` sets another);
 //! - and the hierarchy's gather again with the clusters' transfer four ways: *today* as it was
 //!   before the normals' moment (each cluster's net projected area, `A dot(n_s, w)`, and its
 //!   representative's visibility), *moment* (`transfer::irradiance_from_cluster`), *moment and
@@ -24,54 +22,87 @@
 //!   the links each gathers per receiver.
 //!
 //! It prints each one's area-weighted sum against the path traced one, by receivers' material.
-//! With `LEAK=1` it prints instead where the light the CSSM query lets through and an exact ray
+//! With `--leak` it prints instead where the light the CSSM query lets through and an exact ray
 //! cast stops is stopped: the receiver's, the sender's and the blocker's materials, and where
 //! along the segment the blocker lies.
-use cssm::{
-    formats::{
-        self, Texel,
-        visibility::{QueryOptions, VisibilityQuery},
-    },
-    raycast::{SceneBvh, SplitMix64},
-    runtime::{
-        self,
-        direct::cpu::{facing_normal, render_atlas},
-        radiosity::{self, cpu, transfer::irradiance_from_texel},
-    },
+use std::{f32::consts::PI, io::Write, path::PathBuf};
+
+use cssm_formats::{
+    CssmFile, Scene, Texel,
+    visibility::{QueryOptions, VisibilityQuery},
+};
+use cssm_raycast::{SceneBvh, SplitMix64};
+use cssm_runtime::{
+    direct::cpu::{facing_normal, render_atlas},
+    radiosity::{self, cpu, transfer::irradiance_from_texel},
 };
 use glam::Vec3;
 use rayon::prelude::*;
-use std::f32::consts::PI;
 
-fn arg<T: std::str::FromStr>(k: usize, default: T) -> T {
-    std::env::args().nth(k).map_or(default, |s| {
-        s.parse().unwrap_or_else(|_| {
-            eprintln!("radiositybias: argument {k} '{s}' is not a number");
-            std::process::exit(2)
-        })
-    })
+/// `cssm diagnose radiosity-bias`'s arguments.
+#[derive(clap::Args, Clone, Debug)]
+pub struct RadiosityBiasArgs {
+    /// The .cssm file to diagnose. The scene it was baked from (the directory its header
+    /// records) must still be there, unchanged; its lights and materials are the ones used.
+    #[arg(value_name = "FILE.cssm")]
+    pub file: PathBuf,
+    /// Receiving texels to draw at random (seed 1; fewer when the atlas has fewer texels).
+    #[arg(long, default_value_t = 1500, value_name = "N")]
+    pub receivers: usize,
+    /// Cosine-distributed rays per receiver for the path traced irradiance, the reference the
+    /// others are measured against.
+    #[arg(long, default_value_t = 1024, value_name = "N")]
+    pub rays: u32,
+    /// The hierarchy's oracle threshold: a cluster is refined while the tone-mapped upper
+    /// bound of what it sends is above this; smaller is slower and closer (the default is the
+    /// radiosity's).
+    #[arg(
+        long,
+        default_value_t = radiosity::DEFAULT_THRESHOLD,
+        allow_negative_numbers = true,
+        value_name = "T"
+    )]
+    pub threshold: f32,
+    /// Print instead where the light the CSSM query lets through and an exact ray between the
+    /// texel centres stops is stopped: by receiver, sender and blocker materials, and by where
+    /// along the segment the blocker lies (sixths, from the receiver). The path tracing runs
+    /// first all the same: a few --rays save its time.
+    #[arg(long)]
+    pub leak: bool,
 }
 
-fn main() {
-    let Some(path) = std::env::args().nth(1) else {
-        eprintln!("usage: radiositybias FILE.cssm [RECEIVERS] [RAYS]");
-        std::process::exit(2);
-    };
-    let (receivers, rays): (usize, u32) = (arg(2, 1500), arg(3, 1024));
-    let file = formats::cssm::read(std::path::Path::new(&path)).unwrap_or_else(|e| {
-        eprintln!("radiositybias: {path}: {e}");
-        std::process::exit(2)
-    });
-    let scene = formats::Scene::load(std::path::Path::new(&file.scene.dir)).unwrap_or_else(|e| {
-        eprintln!("radiositybias: the scene of {path}: {e}");
-        std::process::exit(2)
-    });
+/// Runs `cssm diagnose radiosity-bias` with `args`, printing its figures on standard output
+/// (and its progress on standard error).
+///
+/// # Errors
+/// A message naming the file and the problem: `args.file` unreadable or not a `.cssm` file,
+/// the scene its header records (or its textures) not loading or changed since the bake,
+/// `--receivers 0`, `--rays 0`, a threshold that is not a finite number.
+pub fn run(args: &RadiosityBiasArgs) -> Result<(), String> {
+    diagnose(args, &mut std::io::stdout().lock())
+}
+
+/// [`run`], printing to `out`.
+pub(super) fn diagnose(args: &RadiosityBiasArgs, out: &mut dyn Write) -> Result<(), String> {
+    if args.receivers == 0 {
+        return Err("--receivers 0: draw at least one receiving texel (default 1500)".to_string());
+    }
+    if args.rays == 0 {
+        return Err("--rays 0: trace at least one ray per receiver (default 1024)".to_string());
+    }
+    if !args.threshold.is_finite() {
+        return Err(format!(
+            "--threshold {}: not a finite number (default {})",
+            args.threshold,
+            radiosity::DEFAULT_THRESHOLD
+        ));
+    }
+    let (receivers, rays, threshold) = (args.receivers, args.rays, args.threshold);
+    let (file, scene) = super::load(&args.file)?;
+    let path = args.file.display();
     let bvh = SceneBvh::new(&scene);
-    let materials = runtime::load::cpu_materials(&scene)
-        .unwrap_or_else(|e| {
-            eprintln!("radiositybias: the scene's textures: {e}");
-            std::process::exit(2)
-        })
+    let materials = cssm_runtime::load::cpu_materials(&scene)
+        .map_err(|e| format!("{path}: the textures of the scene it was baked from: {e}"))?
         .0;
     let direct = render_atlas(&scene, &materials, &file.texels, &bvh);
     let albedo: Vec<Vec3> = radiosity::texel_albedo(&materials, &file)
@@ -126,8 +157,9 @@ fn main() {
             sum * (PI / rays as f32)
         })
         .collect();
-    if std::env::var_os("LEAK").is_some() {
-        return print_leaks(&scene, &file, &bvh, &query, &direct, &chosen, eps);
+    if args.leak {
+        return print_leaks(&scene, &file, &bvh, &query, &direct, &chosen, eps, out)
+            .map_err(super::output_error);
     }
     eprintln!("texel senders, exact and CSSM");
     let (exact, cssm): (Vec<Vec3>, Vec<Vec3>) = chosen
@@ -162,7 +194,7 @@ fn main() {
         &direct,
         &albedo,
         &cpu::Traversal {
-            threshold: threshold(),
+            threshold,
             exposure: 1.0,
         },
         1,
@@ -170,7 +202,7 @@ fn main() {
     .texel_irradiance;
     // The hierarchy's one bounce for the chosen receivers with the clusters' transfer the
     // ways `MODES` lists.
-    let variants = cluster_variants(&query, &direct, &albedo, &chosen);
+    let variants = cluster_variants(&query, &direct, &albedo, &chosen, threshold);
     let lum = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
     let mut by_material: std::collections::BTreeMap<u32, [f64; 9]> = Default::default();
     for (k, &r) in chosen.iter().enumerate() {
@@ -187,11 +219,14 @@ fn main() {
         }
     }
     let mut all = [0f64; 9];
-    println!(
+    writeln!(
+        out,
         "{path}: one bounce, irradiance at {} texel centres ({rays} rays each), area-weighted",
         chosen.len()
-    );
-    println!(
+    )
+    .map_err(super::output_error)?;
+    writeln!(
+        out,
         "{:>24} {:>10} {:>10} {:>10} {:>10} {:>12} {:>12} {:>12} {:>12}",
         "material",
         "area",
@@ -202,27 +237,32 @@ fn main() {
         MODES[1].0,
         MODES[2].0,
         MODES[3].0
-    );
+    )
+    .map_err(super::output_error)?;
     for (m, row) in &by_material {
         for (a, b) in all.iter_mut().zip(row) {
             *a += b;
         }
-        print_row(&scene.materials[*m as usize].name, row);
+        print_row(out, &scene.materials[*m as usize].name, row).map_err(super::output_error)?;
     }
-    print_row("all", &all);
+    print_row(out, "all", &all).map_err(super::output_error)?;
     for (k, (name, _)) in MODES.iter().enumerate() {
         let links: u64 = variants.iter().map(|v| u64::from(v[k].1)).sum();
-        println!(
+        writeln!(
+            out,
             "{name}: {:.1} links per receiver",
             links as f64 / variants.len() as f64
-        );
+        )
+        .map_err(super::output_error)?;
     }
-    println!("(each against the path traced irradiance)");
+    writeln!(out, "(each against the path traced irradiance)").map_err(super::output_error)
 }
 
-fn print_row(name: &str, row: &[f64; 9]) {
+/// One row of the table: `row`'s area, then each computation against the path traced one.
+fn print_row(out: &mut dyn Write, name: &str, row: &[f64; 9]) -> std::io::Result<()> {
     let r = |k: usize| row[k] / row[0];
-    println!(
+    writeln!(
+        out,
         "{name:>24} {:>10.2} {:>10.4} {:>10.4} {:>10.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4}",
         row[4],
         r(1),
@@ -232,7 +272,7 @@ fn print_row(name: &str, row: &[f64; 9]) {
         r(6),
         r(7),
         r(8)
-    );
+    )
 }
 
 /// How a variant of the gather treats a cluster.
@@ -291,8 +331,9 @@ fn cluster_variants(
     direct: &[Vec3],
     albedo: &[Vec3],
     chosen: &[u32],
+    threshold: f32,
 ) -> Vec<[(Vec3, u32); 4]> {
-    use runtime::radiosity::transfer::{
+    use cssm_runtime::radiosity::transfer::{
         irradiance_bound, irradiance_from, irradiance_from_cluster, tone_mapped, visibility_sender,
     };
     let twin = cpu::TwinScene::baked(query);
@@ -326,7 +367,7 @@ fn cluster_variants(
             let y = &texels[node.representative as usize];
             let back = (p - y.pos()).dot(y.nrm()) <= 0.0;
             if node.count > 1
-                && (tone_mapped(irradiance_bound(p, n, node, l) * (rho / PI), 1.0) > threshold()
+                && (tone_mapped(irradiance_bound(p, n, node, l) * (rho / PI), 1.0) > threshold
                     || (mode.refine_back && back))
             {
                 s += 1;
@@ -372,25 +413,21 @@ fn cluster_variants(
         .collect()
 }
 
-fn threshold() -> f32 {
-    std::env::var("THRESHOLD")
-        .ok()
-        .and_then(|t| t.parse().ok())
-        .unwrap_or(radiosity::DEFAULT_THRESHOLD)
-}
-
-/// `LEAK=1`: the light that the CSSM query lets through (visible fraction > 0) where the exact
+/// `--leak`: the light that the CSSM query lets through (visible fraction > 0) where the exact
 /// ray between the texel centres is blocked, by (receiver, sender, blocker) materials, and by
-/// where along the segment the blocker lies (sixths, from the receiver).
+/// where along the segment the blocker lies (sixths, from the receiver). It takes what `diagnose`
+/// has computed by then.
+#[allow(clippy::too_many_arguments)]
 fn print_leaks(
-    scene: &formats::Scene,
-    file: &formats::CssmFile,
+    scene: &Scene,
+    file: &CssmFile,
     bvh: &SceneBvh,
     query: &VisibilityQuery,
     direct: &[Vec3],
     chosen: &[u32],
     eps: f32,
-) {
+    out: &mut dyn Write,
+) -> std::io::Result<()> {
     let name = |m: u32| scene.materials[m as usize].name.clone();
     let lum = |c: Vec3| f64::from(c.dot(Vec3::new(0.2126, 0.7152, 0.0722)));
     let mut combos: std::collections::BTreeMap<(String, String, String), (f64, u32)> =
@@ -434,16 +471,24 @@ fn print_leaks(
     let total: f64 = along.iter().sum();
     let mut rows: Vec<_> = combos.into_iter().collect();
     rows.sort_by(|a, b| b.1.0.total_cmp(&a.1.0));
-    println!("light let through where an exact ray is blocked: {total:.4} in all");
+    writeln!(
+        out,
+        "light let through where an exact ray is blocked: {total:.4} in all"
+    )?;
     for ((receiver, sender, blocker), (w, pairs)) in rows.iter().take(15) {
-        println!("{receiver:>20} <- {sender:>20} through {blocker:>20}: {w:.4} ({pairs} pairs)");
+        writeln!(
+            out,
+            "{receiver:>20} <- {sender:>20} through {blocker:>20}: {w:.4} ({pairs} pairs)"
+        )?;
     }
     let shares: Vec<String> = along
         .iter()
         .map(|w| format!("{:.0}%", 100.0 * w / total))
         .collect();
-    println!(
+    writeln!(
+        out,
         "where the blocker lies, sixths of the segment from the receiver: {}",
         shares.join(" ")
-    );
+    )?;
+    Ok(())
 }

@@ -1,20 +1,45 @@
-//! Diagnostic of the "filters" class of `cssm check` (reports/visibility.md, "The filters").
-//! Run
-//! `cargo build --release --example filterdiag && ./target/release/examples/filterdiag FILE.cssm [-v]`
-//! (the pairs of `cssm check`, seed 1, 100,000; only the exchanging pairs with texels at both ends).
-use cssm::{
-    bake::check::{exact_visible, exchanges_light},
-    formats::{
-        self,
-        visibility::{QueryOptions, VisibilityQuery},
-    },
-    raycast::{SceneBvh, SplitMix64, SurfacePoint, SurfaceSampler},
+//! `cssm diagnose filters`: what the "filters" class of `cssm check` is (reports/visibility.md,
+//! "The filters"). Over the pairs of `cssm check` (seed 1, `--pairs`, 100,000 by default; only
+//! the exchanging pairs with texels at both ends): each sender filter variant's agreement, both
+//! ends and one, other thresholds and wider tents; then, for each wrong answer whose sender
+//! texel is right by the cube class's test, which single change would have made it right, the
+//! other end's own texel classified as `check` classifies the sender's (`-v` prints each case).
+use std::{io::Write, path::PathBuf};
+
+use cssm_bake::check::{exact_visible, exchanges_light};
+use cssm_formats::{
+    CssmFile,
+    visibility::{QueryOptions, VisibilityQuery},
 };
+use cssm_raycast::{SceneBvh, SurfacePoint};
 use glam::{Vec2, Vec3};
+
+/// Why a counted pair's texels are there: the loop keeps only pairs with texels at both ends.
+const KEPT: &str = "a counted pair has texels at both ends";
+
+/// `cssm diagnose filters`'s arguments.
+#[derive(clap::Args, Clone, Debug)]
+pub struct FiltersArgs {
+    /// The .cssm file to diagnose. The scene it was baked from (the directory its header
+    /// records) must still be there, unchanged.
+    #[arg(value_name = "FILE.cssm")]
+    pub file: PathBuf,
+    /// Random surface point pairs to draw, as `cssm check` draws them (seed 1); only those
+    /// that exchange light with texels at both ends count. The reports' figures are over
+    /// 100000.
+    #[arg(long, default_value_t = 100_000, value_name = "N")]
+    pub pairs: u32,
+    /// Print every wrong answer the breakdown counts: which change would have made it right,
+    /// the truth, both ends' answers, and each sender texel of both ends (weight, normal's dot,
+    /// offset from the point's plane and distance in texel sizes, its cube map's answer, an
+    /// exact ray's).
+    #[arg(short, long)]
+    pub verbose: bool,
+}
 
 struct Ctx<'a> {
     q: VisibilityQuery<'a>,
-    file: &'a formats::CssmFile,
+    file: &'a CssmFile,
     bvh: &'a SceneBvh,
     eps: f32,
 }
@@ -141,10 +166,19 @@ impl<'a> Ctx<'a> {
     }
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let file = formats::cssm::read(std::path::Path::new(&args[0])).unwrap();
-    let scene = formats::Scene::load(std::path::Path::new(&file.scene.dir)).unwrap();
+/// Runs `cssm diagnose filters` with `args`, printing its figures on standard output.
+///
+/// # Errors
+/// A message naming the file and the problem: `args.file` unreadable or not a `.cssm` file,
+/// the scene its header records not loading or changed since the bake, `--pairs 0`.
+pub fn run(args: &FiltersArgs) -> Result<(), String> {
+    diagnose(args, &mut std::io::stdout().lock())
+}
+
+/// [`run`], printing to `out`.
+pub(super) fn diagnose(args: &FiltersArgs, out: &mut dyn Write) -> Result<(), String> {
+    super::check_pairs(args.pairs)?;
+    let (file, scene) = super::load(&args.file)?;
     let bvh = SceneBvh::new(&scene);
     let eps = 1e-4 * scene.diameter();
     let ctx = Ctx {
@@ -153,17 +187,8 @@ fn main() {
         bvh: &bvh,
         eps,
     };
-    let sampler = SurfaceSampler::new(&scene);
-    let mut rng = SplitMix64(1);
-    let pairs: Vec<(SurfacePoint, SurfacePoint)> = (0..100_000)
-        .map(|_| {
-            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-            let a = sampler.point(r());
-            let b = sampler.point(r());
-            (a, b)
-        })
-        .collect();
-    let verbose = args.get(1).map(|s| s == "-v").unwrap_or(false);
+    let pairs = super::draw_pairs(&scene, args.pairs);
+    let verbose = args.verbose;
     // rules
     let rules: Vec<(&str, Option<Filt>)> = vec![
         ("base", None),
@@ -331,8 +356,8 @@ fn main() {
             continue;
         }
         // sender's own cube right. own values:
-        let tj = ctx.q.texel_at(pj.triangle, pj.bary).unwrap();
-        let ti = ctx.q.texel_at(pi.triangle, pi.bary).unwrap();
+        let tj = ctx.q.texel_at(pj.triangle, pj.bary).expect(KEPT);
+        let ti = ctx.q.texel_at(pi.triangle, pi.bary).expect(KEPT);
         let f0 = ctx.q.visibility_oriented(tj, pi.position, Some(pi.normal));
         let b0 = ctx.q.visibility_oriented(ti, pj.position, Some(pj.normal));
         let ci = ctx.class(pi, pj, truth);
@@ -407,30 +432,38 @@ fn main() {
                     .collect::<Vec<_>>()
                     .join(" ")
             };
-            println!(
-                "{which} truth{t} f{f:.2} f0{f0:.2} b{b:.2} b0{b0:.2} ci{ci} dist{:.1}\n  S {}\n  R {}",
+            writeln!(
+                out,
+                "{which} truth{t} f{f:.2} f0{f0:.2} b{b:.2} b0{b0:.2} ci{ci} \
+                 dist{:.1}\n  S {}\n  R {}",
                 (pi.position - pj.position).length(),
                 desc(&sj, pj, pi),
                 desc(&si, pi, pj)
-            );
+            )
+            .map_err(super::output_error)?;
         }
     }
-    println!("exchanging pairs with texels at both ends: {n}");
+    writeln!(out, "exchanging pairs with texels at both ends: {n}").map_err(super::output_error)?;
     for (k, (name, _)) in rules.iter().enumerate() {
-        println!(
+        writeln!(
+            out,
             "{name:>14}: both {:.3}%  one {:.3}%",
             100.0 * agree[k] as f64 / n as f64,
             100.0 * agree_one[k] as f64 / n as f64
-        );
+        )
+        .map_err(super::output_error)?;
     }
-    println!(
+    writeln!(
+        out,
         "both ends, threshold 0.45/0.55/0.6, mean of smoothsteps: {:?}",
         thr[..4]
             .iter()
             .map(|&a| format!("{:.3}", 100.0 * a as f64 / n as f64))
             .collect::<Vec<_>>()
-    );
-    println!(
+    )
+    .map_err(super::output_error)?;
+    writeln!(
+        out,
         "tent radius 1/1.5/2/2.5/2x2-flat1.5/2x2-flat2: both ends {:?}, one end {:?}",
         wide[..6]
             .iter()
@@ -440,8 +473,10 @@ fn main() {
             .iter()
             .map(|&a| format!("{:.3}", 100.0 * a as f64 / n as f64))
             .collect::<Vec<_>>()
-    );
+    )
+    .map_err(super::output_error)?;
     for (k, v) in &fclass {
-        println!("{k}: {v}");
+        writeln!(out, "{k}: {v}").map_err(super::output_error)?;
     }
+    Ok(())
 }

@@ -1,31 +1,104 @@
-//! Diagnostic of how the two ends' answers are combined (reports/visibility.md, "Which end to
-//! trust"). Run
-//! `cargo build --release --example endsdiag && ./target/release/examples/endsdiag FILE.cssm`
-//! (the pairs of `cssm check`, seed 1, 100,000; only the exchanging pairs with texels at both
-//! ends). Each end is asked as the query asks it (sender filter, 2x2 PCF, receiver-plane depth)
-//! and, besides, with what the rules below need: where its blocking pixels' stored depths put
-//! the occluder, wider pixel filters, a parallax-corrected second look and probes of the
-//! segment near the sender ("What else was tried on the turned church"; `PROBES=0.5,1,2` sets
-//! the probes' distances in texel sizes). With `ENDS_CSV=FILE` it also writes one line per pair:
-//! truth, both ends' answers, blocked weights, occluder ratios, nearness, pixel angles, the
-//! segment's length and where along it the exact ray is blocked (-1 when it is not).
+//! `cssm diagnose ends`: how the two ends' answers are combined (reports/visibility.md,
+//! "Which end to trust"). Over the pairs of `cssm check` (seed 1, `--pairs`, 100,000 by
+//! default; only the exchanging pairs with texels at both ends), each end is asked as the query
+//! asks it (sender filter, 2x2 PCF, receiver-plane depth) and, besides, with what the rules
+//! below need: where its blocking pixels' stored depths put the occluder, wider pixel filters,
+//! a parallax-corrected second look and probes of the segment near the sender ("What else was
+//! tried on the turned church"; `--probes 0.5,1,2` sets the probes' distances in texel sizes).
+//! With `--csv FILE` it also writes one line per pair: truth, both ends' answers, blocked
+//! weights, occluder ratios, nearness, pixel angles, the segment's length and where along it
+//! the exact ray is blocked (-1 when it is not).
 //!
-//! With `MIX=FINE.cssm` (the same scene and atlas baked at twice the cube resolution) it
+//! With `--mix FINE.cssm` (the same scene and atlas baked at twice the cube resolution) it
 //! measures instead what a per-texel cube resolution could buy: the query with the texels that
 //! see the most depth edges answered from FINE, for several fractions of the texels, and the
-//! runs those texels' maps would add; with `COVERAGE=1` as well, an upper bound of a per-pixel
+//! runs those texels' maps would add; with `--coverage` as well, an upper bound of a per-pixel
 //! coverage hint: each of the coarse file's 2x2 taps soft, the fraction of its four sub-pixels
 //! in FINE that see past the receiver ("Per-texel cube resolution and coverage hints").
-use cssm::{
-    bake::check::{exact_visible, exchanges_light},
-    formats::{
-        self,
-        cube::{self, DepthQuantizer},
-        visibility::{EndAnswer, QueryOptions, VisibilityQuery, combine_ends},
-    },
-    raycast::{SceneBvh, SplitMix64, SurfacePoint, SurfaceSampler},
+use std::{
+    io::Write,
+    path::{Path, PathBuf},
 };
+
+use cssm_bake::check::{exact_visible, exchanges_light};
+use cssm_formats::{
+    CssmFile,
+    cube::{self, DepthQuantizer},
+    visibility::{EndAnswer, QueryOptions, VisibilityQuery, combine_ends},
+};
+use cssm_raycast::SceneBvh;
 use glam::Vec3;
+
+mod mix;
+
+/// `cssm diagnose ends`'s arguments.
+#[derive(clap::Args, Clone, Debug)]
+pub struct EndsArgs {
+    /// The .cssm file to diagnose. The scene it was baked from (the directory its header
+    /// records) must still be there, unchanged.
+    #[arg(value_name = "FILE.cssm")]
+    pub file: PathBuf,
+    /// Random surface point pairs to draw, as `cssm check` draws them (seed 1); only those
+    /// that exchange light with texels at both ends count. The reports' figures are over
+    /// 100000.
+    #[arg(long, default_value_t = 100_000, value_name = "N")]
+    pub pairs: u32,
+    /// Where the probes rule tests the segment near the sender point against each texel's
+    /// depths: distances from the sender point in texel sizes, positive and increasing (the
+    /// probing of a pair stops at the first beyond half its segment).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1,2,4",
+        allow_negative_numbers = true,
+        value_name = "SIZES",
+        conflicts_with = "mix"
+    )]
+    pub probes: Vec<f32>,
+    /// Also write one line per counted pair to FILE (comma-separated, no header): the truth (1
+    /// visible, 0 blocked); then, the first point's end before the other's, the two ends'
+    /// visible fractions, blocked tap weights, occluder ratios (stored over receiver depth),
+    /// nearness, pixel angles (radians); the segment's length and where along it the exact ray
+    /// is blocked (a fraction, -1 when it is not).
+    #[arg(long, value_name = "FILE", conflicts_with = "mix")]
+    pub csv: Option<PathBuf>,
+    /// Measure instead what a per-texel cube resolution could buy: FINE.cssm is the same scene
+    /// and atlas baked at twice the cube resolution (`cssm bake` with the same atlas and twice
+    /// --cube); the texels whose maps see the most depth edges answer from it, for several
+    /// fractions of the texels, with the runs their maps would add.
+    #[arg(long, value_name = "FINE.cssm")]
+    pub mix: Option<PathBuf>,
+    /// With --mix: measure instead the upper bound of a per-pixel coverage hint, each 2x2 tap
+    /// of FILE.cssm made soft by the fraction of its four sub-pixels in FINE.cssm that see past
+    /// the receiver.
+    #[arg(long, requires = "mix")]
+    pub coverage: bool,
+}
+
+/// `--probes`: positive, finite and increasing (the probing stops at the first distance
+/// beyond half the segment, so later ones must be farther).
+fn check_probes(probes: &[f32]) -> Result<(), String> {
+    let list = || {
+        probes
+            .iter()
+            .map(f32::to_string)
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    if let Some(bad) = probes.iter().find(|&&k| !(k.is_finite() && k > 0.0)) {
+        return Err(format!(
+            "--probes {}: {bad} is not a positive number of texel sizes (e.g. 0.5,1,2)",
+            list()
+        ));
+    }
+    if probes.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(format!(
+            "--probes {}: the distances must increase (e.g. 0.5,1,2)",
+            list()
+        ));
+    }
+    Ok(())
+}
 
 /// One end's answer for the other end's point.
 #[derive(Default, Clone, Copy)]
@@ -76,8 +149,10 @@ fn bilinear_taps(d: Vec3, n: u32, offset: glam::Vec2) -> [(u32, f32); 4] {
 
 struct Ends<'a> {
     q: VisibilityQuery<'a>,
-    file: &'a formats::CssmFile,
+    file: &'a CssmFile,
     quantizer: DepthQuantizer,
+    /// The probes' distances from the sender point, in texel sizes, increasing (`--probes`).
+    probes: &'a [f32],
 }
 
 impl Ends<'_> {
@@ -182,7 +257,7 @@ impl Ends<'_> {
             let length = segment.length();
             let size = t.area.sqrt();
             let mut probe_v = v0;
-            for k in probes() {
+            for &k in self.probes {
                 let s = k * size;
                 if s > 0.5 * length {
                     break;
@@ -297,22 +372,6 @@ fn by_footprint(a: &End, b: &End, angle_power: f32, distance_power: f32) -> f32 
 /// The parallax look's nearest occluder, as a fraction of the way to the other point.
 const PARALLAX_MIN_R: f32 = 0.05;
 
-/// The probes' distances from the sender point, in texel sizes (`PROBES`, default 1, 2, 4).
-fn probes() -> Vec<f32> {
-    std::env::var("PROBES").map_or(vec![1.0, 2.0, 4.0], |v| {
-        v.split(',')
-            .map(|x| {
-                x.trim().parse().unwrap_or_else(|_| {
-                    eprintln!(
-                        "endsdiag: PROBES: '{x}' is not a number (texel sizes, e.g. 0.5,1,2)"
-                    );
-                    std::process::exit(2)
-                })
-            })
-            .collect()
-    })
-}
-
 const RULES: [Rule; 21] = [
     ("the mean (today)", |a, b| 0.5 * (a.v + b.v)),
     ("an end blocked in its own half decides", |a, b| {
@@ -396,31 +455,43 @@ const RULES: [Rule; 21] = [
     }),
 ];
 
-fn main() {
-    let Some(path) = std::env::args().nth(1) else {
-        eprintln!("usage: endsdiag FILE.cssm");
-        std::process::exit(2);
-    };
-    let file = formats::cssm::read(std::path::Path::new(&path)).unwrap();
-    if let Some(fine) = std::env::var_os("MIX") {
-        return mix(&file, std::path::Path::new(&fine));
+/// Runs `cssm diagnose ends` with `args`, printing its figures on standard output.
+///
+/// # Errors
+/// A message naming the file and the problem: `args.file` or `--mix` unreadable or not a
+/// `.cssm` file, the scene its header records not loading or changed since the bake, `--mix`
+/// not the same scene and atlas at twice the cube resolution, `--pairs 0`, `--probes` not
+/// positive and increasing, the CSV not writable.
+pub fn run(args: &EndsArgs) -> Result<(), String> {
+    diagnose(args, &mut std::io::stdout().lock())
+}
+
+/// [`run`], printing to `out`.
+pub(super) fn diagnose(args: &EndsArgs, out: &mut dyn Write) -> Result<(), String> {
+    super::check_pairs(args.pairs)?;
+    check_probes(&args.probes)?;
+    if args.coverage && args.mix.is_none() {
+        return Err("--coverage measures against the finer file of --mix FINE.cssm".to_string());
     }
-    let scene = formats::Scene::load(std::path::Path::new(&file.scene.dir)).unwrap();
+    let path = args.file.display();
+    if let Some(fine) = &args.mix {
+        if args.csv.is_some() {
+            return Err(
+                "--csv writes the pairs of the rules; with --mix there are none".to_string(),
+            );
+        }
+        return mix::mix(&args.file, fine, args, out);
+    }
+    let (file, scene) = super::load(&args.file)?;
     let bvh = SceneBvh::new(&scene);
     let eps = 1e-4 * scene.diameter();
     let ends = Ends {
         q: VisibilityQuery::new(&file, QueryOptions::default()),
         file: &file,
         quantizer: DepthQuantizer::new(file.params.near, file.params.far),
+        probes: &args.probes,
     };
-    let sampler = SurfaceSampler::new(&scene);
-    let mut rng = SplitMix64(1);
-    let pairs: Vec<(SurfacePoint, SurfacePoint)> = (0..100_000)
-        .map(|_| {
-            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-            (sampler.point(r()), sampler.point(r()))
-        })
-        .collect();
+    let pairs = super::draw_pairs(&scene, args.pairs);
     let (mut count, mut query, mut either, mut both, mut split) = (0u32, 0u32, 0u32, 0u32, 0u32);
     let mut split_blocked_right = 0u32;
     let mut agree = [0u32; RULES.len()];
@@ -428,16 +499,17 @@ fn main() {
     // and their squared error against the 0/1 truth.
     let (mut bias, mut squared) = ([0f64; RULES.len()], [0f64; RULES.len()]);
     let mut visible = 0u32;
-    let mut csv = std::env::var_os("ENDS_CSV").map(|p| {
-        let file = std::fs::File::create(&p).unwrap_or_else(|e| {
-            eprintln!(
-                "endsdiag: cannot create ENDS_CSV {}: {e}",
-                std::path::Path::new(&p).display()
-            );
-            std::process::exit(2)
-        });
-        std::io::BufWriter::new(file)
-    });
+    let csv_error = |csv: &Path, e: std::io::Error| format!("--csv {}: {e}", csv.display());
+    let mut csv = match &args.csv {
+        Some(p) => Some((
+            p,
+            std::io::BufWriter::new(
+                std::fs::File::create(p)
+                    .map_err(|e| format!("--csv {}: cannot create the file: {e}", p.display()))?,
+            ),
+        )),
+        None => None,
+    };
     for (pj, pi) in &pairs {
         if !exchanges_light(pj, pi, eps) {
             continue;
@@ -458,8 +530,7 @@ fn main() {
             .unwrap_or(f32::NAN);
         query += u32::from((library >= 0.5) == truth);
         let (a_right, b_right) = ((a.v >= 0.5) == truth, (b.v >= 0.5) == truth);
-        if let Some(out) = csv.as_mut() {
-            use std::io::Write;
+        if let Some((csv_path, csv)) = csv.as_mut() {
             let from = pj.position + pj.normal * eps;
             let seg = pi.position - from;
             let length = seg.length();
@@ -467,7 +538,7 @@ fn main() {
                 .closest_hit(from, seg / length, 0.0, length)
                 .map_or(-1.0, |(t, _)| t / length);
             writeln!(
-                out,
+                csv,
                 "{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 u8::from(truth),
                 a.v,
@@ -483,7 +554,7 @@ fn main() {
                 length,
                 r_true
             )
-            .unwrap();
+            .map_err(|e| csv_error(csv_path, e))?;
         }
         either += u32::from(a_right || b_right);
         both += u32::from(a_right && b_right);
@@ -499,283 +570,38 @@ fn main() {
             squared[k] += error * error;
         }
     }
+    if let Some((csv_path, mut csv)) = csv {
+        csv.flush().map_err(|e| csv_error(csv_path, e))?;
+    }
     let pc = |x: u32| 100.0 * x as f64 / count.max(1) as f64;
-    println!("{path}: {count} pairs that exchange light with texels at both ends");
-    println!("  the library's query           {:.3}%", pc(query));
-    println!("  both ends right               {:.3}%", pc(both));
-    println!("  either end right (an oracle)  {:.3}%", pc(either));
-    println!(
-        "  ends split: {split} pairs, the blocked end right in {split_blocked_right} ({:.1}%)",
-        100.0 * split_blocked_right as f64 / split.max(1) as f64
-    );
-    println!("  agreement, pairs gained, visible fraction's bias (of the visible pairs) and RMSE:");
-    for (k, (name, _)) in RULES.iter().enumerate() {
-        println!(
-            "  {:>8.3}%  {:+6} pairs  bias {:+.4}  RMSE {:.4}  {name}",
-            pc(agree[k]),
-            agree[k] as i64 - agree[0] as i64,
-            bias[k] / f64::from(visible.max(1)),
-            (squared[k] / f64::from(count.max(1))).sqrt(),
-        );
-    }
-}
-
-/// One end's visible fraction and nearness as `Ends::answer` computes them from the coarse
-/// file's 2x2 taps, but each tap soft: the fraction of its four sub-pixels in the fine file
-/// (twice the resolution) that see past the receiver. An upper bound of what a per-pixel
-/// coverage hint could give.
-fn answer_coverage(ec: &Ends, ef: &Ends, senders: &[(u32, f32)], p_i: Vec3, n_i: Vec3) -> End {
-    let n = ec.file.params.cube_resolution;
-    let nf = ef.file.params.cube_resolution;
-    assert_eq!(nf, 2 * n);
-    let near = ec.file.params.near;
-    let frame = ec.file.cube_frame;
-    let mut e = End::default();
-    for &(texel, ws) in senders {
-        let t = &ec.file.texels[texel as usize];
-        let normal = t.nrm();
-        if (p_i - t.pos()).dot(normal) < -near {
-            continue;
+    let mut print = || -> std::io::Result<()> {
+        writeln!(
+            out,
+            "{path}: {count} pairs that exchange light with texels at both ends"
+        )?;
+        writeln!(out, "  the library's query           {:.3}%", pc(query))?;
+        writeln!(out, "  both ends right               {:.3}%", pc(both))?;
+        writeln!(out, "  either end right (an oracle)  {:.3}%", pc(either))?;
+        writeln!(
+            out,
+            "  ends split: {split} pairs, the blocked end right in {split_blocked_right} ({:.1}%)",
+            100.0 * split_blocked_right as f64 / split.max(1) as f64
+        )?;
+        writeln!(
+            out,
+            "  agreement, pairs gained, visible fraction's bias (of the visible pairs) and RMSE:"
+        )?;
+        for (k, (name, _)) in RULES.iter().enumerate() {
+            writeln!(
+                out,
+                "  {:>8.3}%  {:+6} pairs  bias {:+.4}  RMSE {:.4}  {name}",
+                pc(agree[k]),
+                agree[k] as i64 - agree[0] as i64,
+                bias[k] / f64::from(visible.max(1)),
+                (squared[k] / f64::from(count.max(1))).sqrt(),
+            )?;
         }
-        let centre = ec.q.cube_centre(texel);
-        let offset = ec.file.pixel_grid.offset(t.x, t.y);
-        let (cube_normal, cube_n_i) = (frame.to_cube(normal), frame.to_cube(n_i));
-        let mut d = p_i - centre;
-        let below = d.dot(normal);
-        if below < 0.0 {
-            d -= normal * below;
-        }
-        if d.length_squared() < near * near * 1e-6 {
-            e.v += ws;
-            continue;
-        }
-        let depth = cube::project(frame.to_cube(d)).3;
-        let receiver_depth = |pixel: u32| -> f32 {
-            let (ray, scale) = cube::cast_direction_at(nf, pixel, cube_normal, offset);
-            let denom = ray.dot(cube_n_i);
-            if denom.abs() < 1e-4 {
-                return depth;
-            }
-            let along = (p_i - centre).dot(n_i) / denom * scale;
-            if along.is_finite() && along > 0.0 {
-                along.clamp(0.5 * depth, 1.5 * depth)
-            } else {
-                depth
-            }
-        };
-        for (pixel, wp) in bilinear_taps(frame.to_cube(d), n, offset) {
-            let w = ws * wp;
-            let (face, rest) = (pixel / (n * n), pixel % (n * n));
-            let (x, y) = (rest % n, rest / n);
-            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                let fine = face * nf * nf + (2 * y + dy) * nf + 2 * x + dx;
-                let wq = 0.25 * w;
-                if cube::pixel_is_dont_care_at(nf, fine, cube_normal, offset) {
-                    continue;
-                }
-                let stored = ef.quantizer.depth(ef.q.depth_code(texel, fine));
-                let receiver = receiver_depth(fine);
-                if stored >= receiver {
-                    e.v += wq;
-                } else {
-                    e.nearness += wq * (1.0 - stored / receiver).max(0.0);
-                }
-            }
-        }
-    }
-    e
-}
-
-/// Per-texel score of how much sub-pixel edge a texel's cube map holds: its pixels with a
-/// 4-neighbour (same face) whose depth differs by more than a quarter.
-fn edge_score(q: &VisibilityQuery, quantizer: &DepthQuantizer, texel: u32, n: u32) -> u32 {
-    let mut depth = vec![0f32; (6 * n * n) as usize];
-    for (p, d) in depth.iter_mut().enumerate() {
-        *d = quantizer.depth(q.depth_code(texel, p as u32));
-    }
-    let mut score = 0;
-    for face in 0..6 {
-        for y in 0..n {
-            for x in 0..n {
-                let i = (face * n * n + y * n + x) as usize;
-                let differs = |j: usize| {
-                    let (a, b) = (depth[i], depth[j]);
-                    a.max(b) > 1.25 * a.min(b)
-                };
-                if (x + 1 < n && differs(i + 1)) || (y + 1 < n && differs(i + n as usize)) {
-                    score += 1;
-                }
-            }
-        }
-    }
-    score
-}
-
-/// Code changes along the sequence restricted to the texels `keep` says (a run count's
-/// estimate for a file holding only those texels' maps).
-fn changes(file: &formats::CssmFile, keep: &dyn Fn(u32) -> bool) -> u64 {
-    let n = file.params.cube_resolution;
-    let pixels = (6 * n * n) as usize;
-    let mut last: Vec<Option<u16>> = vec![None; pixels];
-    let mut count = 0u64;
-    for (k, &texel) in file.sequence.iter().enumerate() {
-        if !keep(texel) {
-            continue;
-        }
-        for (p, slot) in last.iter_mut().enumerate() {
-            let code = file.runs.lookup(k as u32, p as u32);
-            if *slot != Some(code) {
-                count += 1;
-                *slot = Some(code);
-            }
-        }
-    }
-    count
-}
-
-/// `MIX=FINE.cssm`: the query with the texels of highest `edge_score` (in the coarse file)
-/// answered from FINE's cube maps instead (the same scene and atlas at a finer cube
-/// resolution), for several fractions of the texels; what a per-texel cube resolution could
-/// buy and what its runs would cost.
-fn mix(coarse: &formats::CssmFile, fine_path: &std::path::Path) {
-    let fine = formats::cssm::read(fine_path).unwrap_or_else(|e| {
-        eprintln!("endsdiag: MIX {}: {e}", fine_path.display());
-        std::process::exit(2)
-    });
-    if fine.texels != coarse.texels
-        || fine.params.cube_resolution != 2 * coarse.params.cube_resolution
-    {
-        eprintln!(
-            "endsdiag: MIX {} must be the same scene and atlas at twice the cube resolution",
-            fine_path.display()
-        );
-        std::process::exit(2);
-    }
-    let scene = formats::Scene::load(std::path::Path::new(&coarse.scene.dir)).unwrap();
-    let bvh = SceneBvh::new(&scene);
-    let eps = 1e-4 * scene.diameter();
-    fn make(f: &formats::CssmFile) -> Ends<'_> {
-        Ends {
-            q: VisibilityQuery::new(f, QueryOptions::default()),
-            file: f,
-            quantizer: DepthQuantizer::new(f.params.near, f.params.far),
-        }
-    }
-    let (ec, ef) = (make(coarse), make(&fine));
-    let texels = coarse.texels.len();
-    let n = coarse.params.cube_resolution;
-    let scores: Vec<u32> = (0..texels as u32)
-        .map(|t| edge_score(&ec.q, &ec.quantizer, t, n))
-        .collect();
-    let mut order: Vec<u32> = (0..texels as u32).collect();
-    order.sort_by_key(|&t| std::cmp::Reverse((scores[t as usize], t)));
-    let mut rank = vec![0usize; texels];
-    for (r, &t) in order.iter().enumerate() {
-        rank[t as usize] = r;
-    }
-    let sampler = SurfaceSampler::new(&scene);
-    let mut rng = SplitMix64(1);
-    let pairs: Vec<(SurfacePoint, SurfacePoint)> = (0..100_000)
-        .map(|_| {
-            let mut r = || [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-            (sampler.point(r()), sampler.point(r()))
-        })
-        .collect();
-    if std::env::var_os("COVERAGE").is_some() {
-        let (mut count, mut right) = (0u32, 0u32);
-        for (pj, pi) in &pairs {
-            if !exchanges_light(pj, pi, eps) {
-                continue;
-            }
-            let sj = ec.q.sender_texels(pj.triangle, pj.bary);
-            let si = ec.q.sender_texels(pi.triangle, pi.bary);
-            if sj.is_empty() || si.is_empty() {
-                continue;
-            }
-            count += 1;
-            let truth = exact_visible(&bvh, pj, pi, eps);
-            let a = answer_coverage(&ec, &ef, &sj, pi.position, pi.normal);
-            let b = answer_coverage(&ec, &ef, &si, pj.position, pj.normal);
-            right += u32::from((as_the_query(a.v, &a, b.v, &b) >= 0.5) == truth);
-        }
-        println!(
-            "{count} pairs; coarse taps covered by the fine file's sub-pixels: {:.3}%",
-            100.0 * right as f64 / count as f64
-        );
-        return;
-    }
-    // Per exchanging pair: the truth and each end's per-texel answers from both files.
-    type PerTexel = Vec<(u32, End, End)>;
-    let mut cases: Vec<(bool, PerTexel, PerTexel)> = Vec::new();
-    for (pj, pi) in &pairs {
-        if !exchanges_light(pj, pi, eps) {
-            continue;
-        }
-        let sj = ec.q.sender_texels(pj.triangle, pj.bary);
-        let si = ec.q.sender_texels(pi.triangle, pi.bary);
-        if sj.is_empty() || si.is_empty() {
-            continue;
-        }
-        let truth = exact_visible(&bvh, pj, pi, eps);
-        let per = |senders: &[(u32, f32)], p_j: Vec3, p_i: Vec3, n_i: Vec3| -> PerTexel {
-            senders
-                .iter()
-                .map(|&s| {
-                    (
-                        s.0,
-                        ec.answer(&[s], p_j, p_i, n_i),
-                        ef.answer(&[s], p_j, p_i, n_i),
-                    )
-                })
-                .collect()
-        };
-        cases.push((
-            truth,
-            per(&sj, pj.position, pi.position, pi.normal),
-            per(&si, pi.position, pj.position, pj.normal),
-        ));
-    }
-    let (runs_coarse, runs_fine) = (coarse.runs.runs.len(), fine.runs.runs.len());
-    println!(
-        "{} pairs; coarse {} runs, fine {} runs; texels {texels}",
-        cases.len(),
-        runs_coarse,
-        runs_fine
-    );
-    for fraction in [0.0, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0] {
-        let cut = (fraction * texels as f64).round() as usize;
-        let refined = |t: u32| rank[t as usize] < cut;
-        let sum = |per: &PerTexel| {
-            let mut e = End::default();
-            for (t, c, f) in per {
-                let x = if refined(*t) { f } else { c };
-                e.v += x.v;
-                e.nearness += x.nearness;
-            }
-            e
-        };
-        let right = cases
-            .iter()
-            .filter(|(truth, a, b)| {
-                let (a, b) = (sum(a), sum(b));
-                (as_the_query(a.v, &a, b.v, &b) >= 0.5) == *truth
-            })
-            .count();
-        let extra = if cut == 0 {
-            0
-        } else {
-            changes(&fine, &refined)
-        };
-        println!(
-            "refine {:5.1}% of texels (score >= {:4}): agreement {:.3}%, runs {} + {} = {:.2}x",
-            100.0 * fraction,
-            order
-                .get(cut.saturating_sub(1))
-                .map_or(0, |&t| scores[t as usize]),
-            100.0 * right as f64 / cases.len() as f64,
-            runs_coarse,
-            extra,
-            (runs_coarse as f64 + extra as f64) / runs_coarse as f64
-        );
-    }
+        Ok(())
+    };
+    print().map_err(super::output_error)
 }
