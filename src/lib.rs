@@ -33,9 +33,10 @@ pub use cssm_formats as formats;
 pub use cssm_raycast as raycast;
 pub use cssm_runtime as runtime;
 
-/// The lab (`cssm-lab`): the reports, the image metrics and the comparison page (feature `lab`).
+/// The lab (`cssm-lab`): the reports, the image metrics, the comparison page and the
+/// diagnostics (feature `lab`).
 #[cfg(feature = "lab")]
-pub use cssm_lab::report;
+pub use cssm_lab::{diagnose, report};
 
 pub use cssm_bake::{flag_error, summary};
 pub use cssm_formats::files::{human_bytes, safe_file_stem};

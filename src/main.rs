@@ -66,6 +66,10 @@ fn main() -> ExitCode {
         Command::Report(ReportCommand::Church(args)) => run_church(args),
         Command::Report(ReportCommand::Error(args)) => args.config().and_then(error_cmd::run_error),
         Command::Compare(args) => args.config().and_then(compare_cmd::run_compare),
+        Command::Diagnose(command) => {
+            let scenes = LOAD_OPTIONS.get().copied().unwrap_or_default();
+            cssm::diagnose::run(&command, scenes).map(|()| ExitCode::SUCCESS)
+        }
     };
     match result {
         Ok(code) => code,

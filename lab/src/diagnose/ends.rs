@@ -462,12 +462,16 @@ const RULES: [Rule; 21] = [
 /// `.cssm` file, the scene its header records not loading or changed since the bake, `--mix`
 /// not the same scene and atlas at twice the cube resolution, `--pairs 0`, `--probes` not
 /// positive and increasing, the CSV not writable.
-pub fn run(args: &EndsArgs) -> Result<(), String> {
-    diagnose(args, &mut std::io::stdout().lock())
+pub fn run(args: &EndsArgs, scenes: cssm_formats::LoadOptions) -> Result<(), String> {
+    diagnose(args, scenes, &mut std::io::stdout().lock())
 }
 
 /// [`run`], printing to `out`.
-pub(super) fn diagnose(args: &EndsArgs, out: &mut dyn Write) -> Result<(), String> {
+pub(super) fn diagnose(
+    args: &EndsArgs,
+    scenes: cssm_formats::LoadOptions,
+    out: &mut dyn Write,
+) -> Result<(), String> {
     super::check_pairs(args.pairs)?;
     check_probes(&args.probes)?;
     if args.coverage && args.mix.is_none() {
@@ -480,9 +484,9 @@ pub(super) fn diagnose(args: &EndsArgs, out: &mut dyn Write) -> Result<(), Strin
                 "--csv writes the pairs of the rules; with --mix there are none".to_string(),
             );
         }
-        return mix::mix(&args.file, fine, args, out);
+        return mix::mix(&args.file, fine, args, scenes, out);
     }
-    let (file, scene) = super::load(&args.file)?;
+    let (file, scene) = super::load(&args.file, scenes)?;
     let bvh = SceneBvh::new(&scene);
     let eps = 1e-4 * scene.diameter();
     let ends = Ends {

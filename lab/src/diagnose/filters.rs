@@ -171,14 +171,18 @@ impl<'a> Ctx<'a> {
 /// # Errors
 /// A message naming the file and the problem: `args.file` unreadable or not a `.cssm` file,
 /// the scene its header records not loading or changed since the bake, `--pairs 0`.
-pub fn run(args: &FiltersArgs) -> Result<(), String> {
-    diagnose(args, &mut std::io::stdout().lock())
+pub fn run(args: &FiltersArgs, scenes: cssm_formats::LoadOptions) -> Result<(), String> {
+    diagnose(args, scenes, &mut std::io::stdout().lock())
 }
 
 /// [`run`], printing to `out`.
-pub(super) fn diagnose(args: &FiltersArgs, out: &mut dyn Write) -> Result<(), String> {
+pub(super) fn diagnose(
+    args: &FiltersArgs,
+    scenes: cssm_formats::LoadOptions,
+    out: &mut dyn Write,
+) -> Result<(), String> {
     super::check_pairs(args.pairs)?;
-    let (file, scene) = super::load(&args.file)?;
+    let (file, scene) = super::load(&args.file, scenes)?;
     let bvh = SceneBvh::new(&scene);
     let eps = 1e-4 * scene.diameter();
     let ctx = Ctx {

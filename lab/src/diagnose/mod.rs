@@ -25,7 +25,7 @@
 
 use std::path::Path;
 
-use cssm_formats::{CssmFile, Scene};
+use cssm_formats::{CssmFile, LoadOptions, Scene};
 use cssm_raycast::{SplitMix64, SurfacePoint, SurfaceSampler};
 
 pub mod ends;
@@ -70,25 +70,26 @@ pub enum DiagnoseCommand {
 }
 
 /// Runs the diagnostic `command` names, printing its figures on standard output (and its
-/// progress on standard error).
+/// progress on standard error); `scenes` is what the scene a file was baked from may read
+/// (`cssm --allow-outside-files`).
 ///
 /// # Errors
 /// A message naming the file and the problem: a `.cssm` file that cannot be read, the scene it
 /// was baked from that cannot be loaded or has changed, an argument out of range, an output
 /// that cannot be written.
-pub fn run(command: &DiagnoseCommand) -> Result<(), String> {
+pub fn run(command: &DiagnoseCommand, scenes: LoadOptions) -> Result<(), String> {
     match command {
-        DiagnoseCommand::Ends(args) => ends::run(args),
-        DiagnoseCommand::Filters(args) => filters::run(args),
-        DiagnoseCommand::RadiosityBias(args) => radiosity_bias::run(args),
+        DiagnoseCommand::Ends(args) => ends::run(args, scenes),
+        DiagnoseCommand::Filters(args) => filters::run(args, scenes),
+        DiagnoseCommand::RadiosityBias(args) => radiosity_bias::run(args, scenes),
     }
 }
 
 /// Reads the `.cssm` file at `path` and loads the scene its header records, checked to be the
 /// scene it was baked from: the diagnostics index that scene's triangles by the file's.
-fn load(path: &Path) -> Result<(CssmFile, Scene), String> {
+fn load(path: &Path, scenes: LoadOptions) -> Result<(CssmFile, Scene), String> {
     let file = cssm_formats::cssm::read(path).map_err(|e| e.to_string())?;
-    let scene = Scene::load(Path::new(&file.scene.dir))
+    let scene = Scene::load_with(Path::new(&file.scene.dir), scenes)
         .map_err(|e| format!("{}: the scene it was baked from: {e}", path.display()))?;
     cssm_runtime::load::check_scene(path, &file, &scene).map_err(|e| e.to_string())?;
     Ok((file, scene))
@@ -192,9 +193,11 @@ mod tests {
     fn output(args: &[&str]) -> String {
         let mut out = Vec::new();
         let result = match command(args) {
-            DiagnoseCommand::Ends(a) => ends::diagnose(&a, &mut out),
-            DiagnoseCommand::Filters(a) => filters::diagnose(&a, &mut out),
-            DiagnoseCommand::RadiosityBias(a) => radiosity_bias::diagnose(&a, &mut out),
+            DiagnoseCommand::Ends(a) => ends::diagnose(&a, LoadOptions::default(), &mut out),
+            DiagnoseCommand::Filters(a) => filters::diagnose(&a, LoadOptions::default(), &mut out),
+            DiagnoseCommand::RadiosityBias(a) => {
+                radiosity_bias::diagnose(&a, LoadOptions::default(), &mut out)
+            }
         };
         result.unwrap_or_else(|e| panic!("{args:?}: {e}"));
         String::from_utf8(out).expect("the figures are text")
@@ -202,7 +205,7 @@ mod tests {
 
     /// The error `run` gives for `args`.
     fn error(args: &[&str]) -> String {
-        match run(&command(args)) {
+        match run(&command(args), LoadOptions::default()) {
             Ok(()) => panic!("{args:?} ran"),
             Err(e) => e,
         }
@@ -379,11 +382,17 @@ mod tests {
             e.starts_with(&format!("--csv {uncreatable}: cannot create")),
             "{e}"
         );
-        if Path::new("/dev/full").exists() {
-            // Opens, and fails on the first write that reaches it.
-            let e = error(&["ends", &file, "--pairs", "200", "--csv", "/dev/full"]);
-            assert!(e.starts_with("--csv /dev/full: "), "{e}");
-        }
+        // A device of our own with the full device's numbers (1, 7), inside the temporary
+        // directory: it opens, and fails on the first write that reaches it.
+        let full = dir.path().join("full");
+        let made = std::process::Command::new("mknod")
+            .args([utf8(&full).as_str(), "c", "1", "7"])
+            .status()
+            .expect("mknod");
+        assert!(made.success(), "mknod needs root (the tests run as root)");
+        let full = utf8(&full);
+        let e = error(&["ends", &file, "--pairs", "200", "--csv", &full]);
+        assert!(e.starts_with(&format!("--csv {full}: ")), "{e}");
     }
 
     #[test]

@@ -78,12 +78,16 @@ pub struct RadiosityBiasArgs {
 /// A message naming the file and the problem: `args.file` unreadable or not a `.cssm` file,
 /// the scene its header records (or its textures) not loading or changed since the bake,
 /// `--receivers 0`, `--rays 0`, a threshold that is not a finite number.
-pub fn run(args: &RadiosityBiasArgs) -> Result<(), String> {
-    diagnose(args, &mut std::io::stdout().lock())
+pub fn run(args: &RadiosityBiasArgs, scenes: cssm_formats::LoadOptions) -> Result<(), String> {
+    diagnose(args, scenes, &mut std::io::stdout().lock())
 }
 
 /// [`run`], printing to `out`.
-pub(super) fn diagnose(args: &RadiosityBiasArgs, out: &mut dyn Write) -> Result<(), String> {
+pub(super) fn diagnose(
+    args: &RadiosityBiasArgs,
+    scenes: cssm_formats::LoadOptions,
+    out: &mut dyn Write,
+) -> Result<(), String> {
     if args.receivers == 0 {
         return Err("--receivers 0: draw at least one receiving texel (default 1500)".to_string());
     }
@@ -98,7 +102,7 @@ pub(super) fn diagnose(args: &RadiosityBiasArgs, out: &mut dyn Write) -> Result<
         ));
     }
     let (receivers, rays, threshold) = (args.receivers, args.rays, args.threshold);
-    let (file, scene) = super::load(&args.file)?;
+    let (file, scene) = super::load(&args.file, scenes)?;
     let path = args.file.display();
     let bvh = SceneBvh::new(&scene);
     let materials = cssm_runtime::load::cpu_materials(&scene)

@@ -16,7 +16,7 @@
 //! each pull on the root, the area-weighted mean of every texel ([`crate::common::converge`]).
 //!
 //! CPU references: [`cpu::radiosity`] runs the same iteration with the CPU query (its twin,
-//! held to it by `runtime/tests/gpu.rs::radiosity_matches_cpu_twin`) and [`cpu::brute_force`]
+//! held to it by `tests/gpu/radiosity.rs::radiosity_matches_cpu_twin`) and [`cpu::brute_force`]
 //! gathers from every texel with exact ray casts and no hierarchy (the ground truth of
 //! `radiosity_matches_brute_force`).
 

@@ -140,9 +140,10 @@ pub(super) fn mix(
     coarse_path: &Path,
     fine_path: &Path,
     args: &EndsArgs,
+    scenes: cssm_formats::LoadOptions,
     out: &mut dyn Write,
 ) -> Result<(), String> {
-    let (coarse, scene) = crate::diagnose::load(coarse_path)?;
+    let (coarse, scene) = crate::diagnose::load(coarse_path, scenes)?;
     let coarse = &coarse;
     let fine = cssm_formats::cssm::read(fine_path).map_err(|e| format!("--mix {e}"))?;
     let (n, nf) = (coarse.params.cube_resolution, fine.params.cube_resolution);
