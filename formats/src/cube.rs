@@ -379,9 +379,9 @@ pub fn dont_care_reach(n: u32, face: u32, normal: Vec3) -> f32 {
 }
 
 /// `x.ceil().clamp(0.0, DEPTH_MAX as f32) as u16` (NaN gives 0), without `ceilf`: on x86-64's
-/// baseline (no SSE4.1 `roundss`) that is a libm call per depth, 8.5% of a Cornell bake's CPU
-/// time (reports/bake.md). Once clamped, truncation is the floor, and the ceiling the floor plus
-/// one below `x`.
+/// baseline (no SSE4.1 `roundss`) that is a libm call per depth, a measurable share of a bake's
+/// CPU time (reports/bake.md). Once clamped, truncation is the floor, and the ceiling the floor
+/// plus one below `x`.
 #[inline]
 fn ceil_code(x: f32) -> u16 {
     let clamped = x.clamp(0.0, DEPTH_MAX as f32);
