@@ -10,6 +10,8 @@ use std::{
 
 mod common;
 
+use common::{assert_refused as assert_fails, stderr};
+
 /// Runs `cssm`; a `render` at the fixed exposure 0 unless the test gives one: the frames are
 /// compared with stills, and each still would otherwise meter its own automatic exposure. A
 /// `render` that names no method draws the direct light ([`common::direct_unless_named`]).
@@ -22,20 +24,6 @@ fn cssm(args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("run cssm")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn assert_fails(o: &Output, needle: &str) {
-    assert_eq!(o.status.code(), Some(2), "stderr: {}", stderr(o));
-    assert!(
-        stderr(o).contains(needle),
-        "expected '{needle}' in: {}",
-        stderr(o)
-    );
-    assert!(!stderr(o).contains("panicked"), "{}", stderr(o));
 }
 
 /// The Cornell box with a white block (120 units a side) as the rigid object `block`, placed at

@@ -10,6 +10,8 @@ use std::{
 #[path = "cli/bake.rs"]
 mod bake;
 mod common;
+
+use common::{cornell, stderr};
 #[path = "cli/compare.rs"]
 mod compare;
 #[path = "cli/render.rs"]
@@ -27,14 +29,6 @@ fn cssm(args: &[&str]) -> Output {
         .expect("run cssm")
 }
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn cornell() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box")
-}
-
 fn bake_small(scene: &Path, out: &Path) -> Output {
     cssm(&[
         "bake",
@@ -49,15 +43,9 @@ fn bake_small(scene: &Path, out: &Path) -> Output {
     ])
 }
 
-/// Asserts a failed run: exit status 2, a message containing `needle`, and no output file.
+/// Asserts a failed run: a clear refusal ([`common::assert_refused`]) and no output file.
 fn assert_fails(o: &Output, needle: &str, out: &Path) {
-    assert_eq!(o.status.code(), Some(2), "stderr: {}", stderr(o));
-    assert!(
-        stderr(o).contains(needle),
-        "expected '{needle}' in: {}",
-        stderr(o)
-    );
-    assert!(!stderr(o).contains("panicked"), "{}", stderr(o));
+    common::assert_refused(o, needle);
     assert!(!out.exists(), "a failed bake left {}", out.display());
 }
 

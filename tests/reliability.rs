@@ -12,6 +12,8 @@ use std::{
 };
 
 mod common;
+
+use common::{assert_refused, cornell, stderr};
 #[path = "reliability/geometry.rs"]
 mod geometry;
 #[path = "reliability/inputs.rs"]
@@ -87,25 +89,6 @@ fn run_with(
 
 fn run(cwd: &Path, args: &[&str]) -> Output {
     run_in(cwd, args, &[], Duration::from_secs(120))
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// A clear refusal: exit status 2, `needle` in the message, no panic.
-fn assert_refused(o: &Output, needle: &str) {
-    assert_eq!(o.status.code(), Some(2), "stderr: {}", stderr(o));
-    assert!(
-        stderr(o).contains(needle),
-        "expected '{needle}' in: {}",
-        stderr(o)
-    );
-    assert!(!stderr(o).contains("panicked"), "{}", stderr(o));
-}
-
-fn cornell() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box")
 }
 
 /// A small bake of `scene` into `out` (atlas 32, cube 8).

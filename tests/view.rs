@@ -7,6 +7,9 @@
 //! The window tests need `xvfb-run` (`apt-get install xvfb xauth`; `.ci/run` installs them)
 //! and fail without it rather than pass without testing anything.
 
+mod common;
+
+use common::{cornell, stderr};
 use std::{
     path::{Path, PathBuf},
     process::{Command, Output},
@@ -38,14 +41,6 @@ fn run(mut command: Command) -> Output {
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
     child.wait_with_output().expect("wait for cssm")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn cornell() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box")
 }
 
 /// `xvfb-run` on PATH, or a failure that says how to install it.
