@@ -53,6 +53,21 @@ pub struct Overlay {
     pub wants_frame: bool,
     /// The last [`Overlay::run`]'s output, drawn by [`Overlay::draw`].
     pending: Option<egui::FullOutput>,
+    /// The texture updates (the font atlas) of every run since the last draw: a run whose
+    /// output is never drawn (hidden, or run twice between draws) must not lose them, or the
+    /// painter would never get the atlas.
+    deltas: egui::TexturesDelta,
+}
+
+/// Updates never applied are dropped on purpose with the painter they were for (egui asserts
+/// in debug builds that a delta is applied or cleared).
+impl Drop for Overlay {
+    fn drop(&mut self) {
+        self.deltas.clear();
+        if let Some(output) = self.pending.as_mut() {
+            output.textures_delta.clear();
+        }
+    }
 }
 
 impl Overlay {
@@ -75,6 +90,7 @@ impl Overlay {
             visible: true,
             wants_frame: true,
             pending: None,
+            deltas: Default::default(),
         }
     }
 
@@ -117,6 +133,8 @@ impl Overlay {
             let mut output = output;
             self.state
                 .handle_platform_output(window, std::mem::take(&mut output.platform_output));
+            self.deltas
+                .append(std::mem::take(&mut output.textures_delta));
             output
         };
         // egui asks for an immediate repaint while something animates (a menu opening).
@@ -146,7 +164,8 @@ impl Overlay {
             pixels_per_point: output.pixels_per_point,
         };
         let jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
-        for (id, deltas) in &output.textures_delta.set {
+        let textures = std::mem::take(&mut self.deltas);
+        for (id, deltas) in &textures.set {
             for delta in deltas {
                 self.renderer.update_texture(device, queue, *id, delta);
             }
@@ -177,9 +196,12 @@ impl Overlay {
             self.renderer
                 .render(&mut pass.forget_lifetime(), &jobs, &screen);
         }
-        for id in &output.textures_delta.free {
+        for id in &textures.free {
             self.renderer.free_texture(id);
         }
+        // Applied: what egui's drop check asks of a delta handled.
+        let mut textures = textures;
+        textures.clear();
     }
 }
 
