@@ -181,8 +181,10 @@ pub struct ConvergeInputs<'a> {
     /// keeps each bounce's light apart), rather than the light so far.
     pub additive: bool,
     /// A bounce's main dispatch arguments as the method computes them: a buffer of `u32`
-    /// words (`STORAGE`) and the index of the first of the three.
-    pub work_args: (&'a wgpu::Buffer, u32),
+    /// words (`STORAGE`) and the index of the first of the three. `None` for a method whose
+    /// kernels read [`ConvergeGpu::state`] and do nothing once converged (its dispatches are
+    /// direct, so the arguments the test copies go unused).
+    pub work_args: Option<(&'a wgpu::Buffer, u32)>,
 }
 
 /// The GPU side of a [`BouncePlan`]: see the module docs.
@@ -245,7 +247,18 @@ impl ConvergeGpu {
             "hold",
             &[&hold_layout],
         );
-        let (work_args, work_index) = inputs.work_args;
+        let none;
+        let (work_args, work_index) = match inputs.work_args {
+            Some(given) => given,
+            None => {
+                none = crate::load::storage_buffer(
+                    device,
+                    "converge arguments (none)",
+                    bytemuck::cast_slice(&[0u32; 3]),
+                );
+                (&none, 0)
+            }
+        };
         let mut groups = Vec::new();
         let mut hold_groups = Vec::new();
         for k in 0..=plan.max {

@@ -413,7 +413,7 @@ impl Radiosity {
                 // The root: the area-weighted mean of every texel.
                 mean: (0, 1),
                 additive: false,
-                work_args: (&gather_args, 0),
+                work_args: Some((&gather_args, 0)),
             },
         );
         Ok(Self {

@@ -173,13 +173,6 @@ impl ScreenSpaceGi {
         // After the first light pyramid: the light so far; after each later one, the light the
         // bounce before reflects, from the pyramid's top level (every pixel's, box-filtered).
         let top = levels.pyramid.size(levels.last);
-        // ssil's gathers are dispatched directly: they read the state and gather nothing once
-        // converged, so the arguments the test copies go unused.
-        let unused_args = crate::load::storage_buffer(
-            device,
-            "ssil converge arguments",
-            bytemuck::cast_slice(&[1u32, 1, 1]),
-        );
         let converge = ConvergeGpu::new(
             device,
             options.plan(),
@@ -188,7 +181,8 @@ impl ScreenSpaceGi {
                 held: None,
                 mean: (levels.pyramid.offset(levels.last), top.0 * top.1),
                 additive: true,
-                work_args: (&unused_args, 0),
+                // The gathers read the state and gather nothing once converged.
+                work_args: None,
             },
         );
         let gathers = passes.gather.bind(ctx, options, &levels, &GatherInputs {

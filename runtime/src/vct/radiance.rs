@@ -546,7 +546,7 @@ impl VoxelRadiance {
                 held: None,
                 mean: (8 * faces, 8 * faces),
                 additive: false,
-                work_args: (&args, 4 * max_level),
+                work_args: Some((&args, 4 * max_level)),
             },
         );
         Ok(Self {
