@@ -153,6 +153,10 @@ const PER_MODULE_DEFS: [&str; 5] = [
 /// composes every module).
 pub fn composer() -> Result<Composer, String> {
     let mut composer = Composer::default();
+    let mut defs = shader_defs(CSSM_GROUP, CssmShape::default(), 0);
+    for name in PER_MODULE_DEFS {
+        defs.remove(name);
+    }
     let mut waiting: Vec<Library> = libraries().collect();
     while !waiting.is_empty() {
         let mut deferred = Vec::new();
@@ -161,13 +165,7 @@ pub fn composer() -> Result<Composer, String> {
             let added = composer.add_composable_module(ComposableModuleDescriptor {
                 source: library.source,
                 file_path: library.path,
-                shader_defs: {
-                    let mut defs = shader_defs(CSSM_GROUP, CssmShape::default(), 0);
-                    for name in PER_MODULE_DEFS {
-                        defs.remove(name);
-                    }
-                    defs
-                },
+                shader_defs: defs.clone(),
                 ..Default::default()
             });
             match added {
@@ -371,7 +369,7 @@ impl Shader {
     }
 
     /// The module on `device` for a CSSM of shape `shape`: what the modules that import
-    /// `cssm::visibility` are built with (`Shader::Query.create_for(device, cssm.shape())`).
+    /// `cssm::visibility` are built with (`visibility::QUERY_SHADER.create_for(device, cssm.shape())`).
     pub fn create_for(self, device: &wgpu::Device, shape: CssmShape) -> wgpu::ShaderModule {
         self.create_for_scene(device, shape, 0)
     }

@@ -164,7 +164,7 @@ impl Overlay {
             pixels_per_point: output.pixels_per_point,
         };
         let jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
-        let textures = std::mem::take(&mut self.deltas);
+        let mut textures = std::mem::take(&mut self.deltas);
         for (id, deltas) in &textures.set {
             for delta in deltas {
                 self.renderer.update_texture(device, queue, *id, delta);
@@ -200,7 +200,6 @@ impl Overlay {
             self.renderer.free_texture(id);
         }
         // Applied: what egui's drop check asks of a delta handled.
-        let mut textures = textures;
         textures.clear();
     }
 }
