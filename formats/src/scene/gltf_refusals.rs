@@ -1,6 +1,6 @@
 //! What a careless or hostile glTF file gets (issue 53, classes 2 to 5 and 8): refused in words
 //! naming the file, the part and the fault, with no panic, or loaded correctly. Kept apart from
-//! `gltf.rs`'s own tests, which show what a good file gives.
+//! `gltf/tests.rs`, which show what a good file gives.
 
 use std::path::Path;
 

@@ -1,5 +1,5 @@
 //! Loading a scene: the [`Builder`] that merges its mesh files (OBJ in `obj.rs`, glTF in
-//! `gltf.rs`) into one mesh with its materials and objects, and [`Scene::load`], which finds
+//! `gltf/`) into one mesh with its materials and objects, and [`Scene::load`], which finds
 //! the files, reads `scene.toml` and chooses what no file gives.
 
 use super::*;

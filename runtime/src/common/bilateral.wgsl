@@ -3,7 +3,7 @@
 // The range weight of the edge-aware filters (common/filters.wgsl) and of every other joint
 // bilateral step (the SSIL levels, ssil/gather.wgsl): a guide per pixel, and the depth and
 // normal weight of a tap against a centre whose distance is the reference, so that the depth
-// tolerance means the same near and far from the eye. Twin: filters.rs::range_weight.
+// tolerance means the same near and far from the eye. Twin: filters/cpu.rs::range_weight.
 
 // A pixel's guide: covered, distance from the eye, normal.
 struct Guide {
@@ -27,7 +27,7 @@ fn bilateral_weight(centre: Guide, tap: Guide, depth_sigma: f32, normal_power: f
 // (taps in the order (0,0), (1,0), (0,1), (1,1); `t` the pixel's fractional position between
 // them): bilinear weights times bilateral_weight against the pixel's own guide, normalised;
 // when every tap is rejected, weight 1 on the covered tap nearest in distance; all 0 when none
-// is covered. Twin: filters.rs::upsample_weights.
+// is covered. Twin: filters/cpu.rs::upsample_weights.
 fn upsample_weights(pixel: Guide, taps: array<Guide, 4>, t: vec2f, depth_sigma: f32, normal_power: f32) -> vec4f {
     var weights = vec4f(0.0);
     var total = 0.0;

@@ -7,7 +7,7 @@
 // low-res pixel's representative pixel (`blur_x`, then `blur_y`), and joint bilateral
 // up-sampling to full resolution guided by the full-res G-buffer (`upsample`, Kopf et al.
 // 2007). Signals are `layers` planes of vec4f, index (layer * height + y) * width + x.
-// CPU twins: common/filters.rs::{blur, upsample}; test tests/gpu/filters.rs.
+// CPU twins: common/filters/cpu.rs::{blur, upsample}; test tests/gpu/filters.rs.
 
 struct FilterParams {
     full_size: vec2u,
