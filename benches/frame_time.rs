@@ -9,6 +9,8 @@
 //!     [--methods direct,lightmap,lightcuts] [--atlas 64] [--cube 32] [--out FILE.md]
 //! ```
 //!
+//! `--methods all` names every GPU method of the method table.
+//!
 //! Wall-clock milliseconds per frame from submit to the GPU's idle (median), and GPU
 //! milliseconds per pass from timestamp queries where the adapter has them. On lavapipe the
 //! ratio says what the persistent renderer saves on the CPU side; absolute GPU times count only
@@ -40,6 +42,15 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(32);
     let methods = arg(&args, "--methods").unwrap_or_else(|| "direct,lightmap,lightcuts".into());
+    let methods: Vec<&str> = if methods == "all" {
+        runtime::METHODS
+            .iter()
+            .filter(|m| m.on_gpu())
+            .map(|m| m.name)
+            .collect()
+    } else {
+        methods.split(',').map(str::trim).collect()
+    };
     let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
 
     let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
@@ -70,8 +81,8 @@ fn main() {
          | --- | --- | --- | --- | --- |\n",
         gpu.describe()
     );
-    for name in methods.split(',') {
-        let entry = method::find(name.trim()).unwrap_or_else(|e| panic!("{e}"));
+    for name in methods {
+        let entry = method::find(name).unwrap_or_else(|e| panic!("{e}"));
         let cssm = entry.needs_cssm.then_some(&file);
         let build = || {
             Renderer::new(

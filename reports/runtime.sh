@@ -30,7 +30,7 @@ cd "$(dirname "$0")/.."
 carry=${CSSM_CARRY:-.carry}
 small=0
 [ "${2:-}" = "--small" ] && small=1
-benches="gpu_queries moving_queries frame_time rsm_time vct_time ssil_time vf_time"
+benches="gpu_queries moving_queries frame_time method_time vct_pools"
 gpu_limit=../shared/tools/gpu-limit
 shared_scenes=../shared/scenes
 
@@ -52,8 +52,10 @@ if [ $small = 1 ]; then
     view_sizes="32x24 48x32"
     wide=32x24
     shadow="--shadow-resolution 256"
-    vct_cornell=32,64
-    vct_sibenik=32
+    # --sweep per method and scene (bash names: sweep_METHOD_SCENE), the rows' one varied
+    # option; a method without one runs its rows as its table entry names them.
+    sweep_vct_cornell="resolution=32,64"
+    sweep_vct_sibenik="resolution=32"
     compare="--size 32x24 --samples 2"
     gi_size=32x24
 else
@@ -76,8 +78,8 @@ else
     view_sizes="640x480 1280x720"
     wide=1280x720
     shadow=""
-    vct_cornell=64,128,256
-    vct_sibenik=128,256,512
+    sweep_vct_cornell="resolution=64,128,256"
+    sweep_vct_sibenik="resolution=128,256,512"
     # GPU ms per pass of every method at 640x480; the error figures of reports/compare.md come
     # from 1024 paths per pixel, these references only need to exist.
     compare="--size 640x480 --samples 64"
@@ -266,7 +268,7 @@ measure() {
     # Every method of the table in one persistent renderer at 1280x720: the frame time a window
     # of that size shows (issue 26), without the presentation.
     run frame-time-all "$c/frame_time" --size $wide --frames $frames --one-shots 1 \
-        --methods direct,hrc,lightmap,lightcuts,rsm,vct,ssil,vf --out "$out/runtime-frame-time-all.md"
+        --methods all --out "$out/runtime-frame-time-all.md"
     for size in $view_sizes; do
         run "direct-$size" "$c/cssm" render --method direct --size "$size" --timings \
             --out "$out/direct-$size.png"
@@ -290,45 +292,37 @@ measure() {
     gi bunny "$c/scenes/cornell-bunny" "$c/bunny.cssm"
     gi heads "$c/scenes/heads" "$c/heads.cssm"
     gi church "$c/scenes/church" "$c/church.cssm"
-    # RSM with and without the micro linear buffer (issue 17; target: 1 ms at 1280x720 with
-    # visibility), static and moving light, GPU ms per pass.
-    # shellcheck disable=SC2086
-    run rsm-cornell "$c/rsm_time" --size $wide --frames $frames $shadow \
-        --out "$out/runtime-rsm-cornell.md"
+    # Every method of the table with timing rows (`MethodEntry::timing`: its paper's settings,
+    # beside the methods it is compared with), static and moving light where its rows say, GPU
+    # ms per pass: rsm with and without the micro linear buffer (issue 17; target: 1 ms at
+    # 1280x720 with visibility), vct per voxel resolution (issue 18; target: 2 ms on the
+    # Cornell box), ssil at Fig. 9's settings (issue 19; targets: 0.5 ms without, 1.5 ms with
+    # visibility), vf at Table 1's marching sizes (issue 20; target: 2 ms on the Cornell box).
+    local timed
+    timed=$("$c/method_time" --list) || { failures+=("method_time --list"); timed=""; }
+    for method in $timed; do
+        for scene in cornell sibenik; do
+            local scene_args=()
+            if [ $scene = sibenik ]; then
+                [ -d "$sibenik" ] || continue
+                scene_args=(--scene "$sibenik")
+            fi
+            local sweep_name="sweep_${method}_${scene}" sweep_args=()
+            if [ -n "${!sweep_name:-}" ]; then
+                sweep_args=(--sweep "${!sweep_name}")
+            fi
+            # shellcheck disable=SC2086
+            run "$method-$scene" "$c/method_time" --method "$method" "${scene_args[@]}" \
+                "${sweep_args[@]}" --size $wide --frames $frames $shadow \
+                --out "$out/runtime-$method-$scene.md"
+        done
+    done
+    # vct's pools against a dense grid (Crassin et al. 2011 §10), per voxel resolution.
+    run vct-pools-cornell "$c/vct_pools" --resolutions "${sweep_vct_cornell#resolution=}" \
+        --out "$out/runtime-vct-pools-cornell.md"
     if [ -d "$sibenik" ]; then
-        # shellcheck disable=SC2086
-        run rsm-sibenik "$c/rsm_time" --scene "$sibenik" --size $wide --frames $frames $shadow \
-            --out "$out/runtime-rsm-sibenik.md"
-    fi
-    # VCT per voxel resolution (issue 18; target: 2 ms at 1280x720 on the Cornell box), static
-    # and moving light, GPU ms per pass, and the pools' memory against a dense grid.
-    # shellcheck disable=SC2086
-    run vct-cornell "$c/vct_time" --size $wide --frames $frames --resolutions $vct_cornell $shadow \
-        --out "$out/runtime-vct-cornell.md"
-    if [ -d "$sibenik" ]; then
-        # shellcheck disable=SC2086
-        run vct-sibenik "$c/vct_time" --scene "$sibenik" --size $wide --frames $frames \
-            --resolutions $vct_sibenik $shadow --out "$out/runtime-vct-sibenik.md"
-    fi
-    # SSIL at Fig. 9's settings with and without visibility (issue 19; targets at 1280x720:
-    # 0.5 ms without, 1.5 ms with visibility), GPU ms per pass.
-    # shellcheck disable=SC2086
-    run ssil-cornell "$c/ssil_time" --size $wide --frames $frames $shadow \
-        --out "$out/runtime-ssil-cornell.md"
-    if [ -d "$sibenik" ]; then
-        # shellcheck disable=SC2086
-        run ssil-sibenik "$c/ssil_time" --scene "$sibenik" --size $wide --frames $frames $shadow \
-            --out "$out/runtime-ssil-sibenik.md"
-    fi
-    # VF at Table 1's marching sizes with and without the filter (issue 20; target: 2 ms at
-    # 1280x720 on the Cornell box), GPU ms per pass.
-    # shellcheck disable=SC2086
-    run vf-cornell "$c/vf_time" --size $wide --frames $frames $shadow \
-        --out "$out/runtime-vf-cornell.md"
-    if [ -d "$sibenik" ]; then
-        # shellcheck disable=SC2086
-        run vf-sibenik "$c/vf_time" --scene "$sibenik" --size $wide --frames $frames $shadow \
-            --out "$out/runtime-vf-sibenik.md"
+        run vct-pools-sibenik "$c/vct_pools" --scene "$sibenik" \
+            --resolutions "${sweep_vct_sibenik#resolution=}" --out "$out/runtime-vct-pools-sibenik.md"
     fi
     if [ -d "$c/scenes/sibenik" ]; then
         # shellcheck disable=SC2086

@@ -1,5 +1,5 @@
-//! What the renderer benchmarks share (`frame_time.rs`, `rsm_time.rs`, `vct_time.rs`,
-//! `ssil_time.rs`, `ssil_screen.rs`): their flags and the device, scene and target they start
+//! What the renderer benchmarks share (`frame_time.rs`, `method_time.rs`, `vct_pools.rs`,
+//! `ssil_screen.rs`): their flags and the device, scene and target they start
 //! from, the median, one frame, a persistent renderer's timed frames and how a table cell lists
 //! its passes, the report written.
 

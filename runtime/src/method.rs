@@ -8,10 +8,12 @@
 //!    and section, its options with defaults, when it fails), one file per pass with its WGSL
 //!    beside it, and `cpu.rs`, the CPU reference of the same computation.
 //! 2. In `mod.rs`, a type implementing [`GiMethod`] and a `pub const METHOD: MethodEntry` naming
-//!    it, its options and whether it needs a `.cssm`; and `pub const SHADERS: ShaderSet`, its
-//!    WGSL: each pass file declares its module (`pub const SHADER: Shader = shader!("label",
-//!    "<name>/pass.wgsl")`) and `SHADERS` lists them with the folder's libraries
-//!    ([`crate::shaders`] collects them; its test fails on a WGSL file no folder lists).
+//!    it, its options, whether it needs a `.cssm`, the tolerances of the tests every method gets
+//!    ([`Checks`]) and the settings it is timed at ([`Timing`]); and `pub const SHADERS:
+//!    ShaderSet`, its WGSL: each pass file declares its module (`pub const SHADER: Shader =
+//!    shader!("label", "<name>/pass.wgsl")`) and `SHADERS` lists them with the folder's
+//!    libraries ([`crate::shaders`] collects them; its test fails on a WGSL file no folder
+//!    lists).
 //! 3. One line in the table in `runtime/src/lib.rs` (`method_table!`), which declares the
 //!    folder's module and lists its entries in [`METHODS`].
 //!
@@ -145,6 +147,65 @@ pub struct MethodEntry {
     pub backend: Backend,
     /// What the tests every method gets from this table hold it to.
     pub checks: Checks,
+    /// The settings its timing benchmark runs it at (`benches/method_time.rs`, which
+    /// `reports/runtime.sh` runs for every method that has rows).
+    pub timing: Timing,
+}
+
+/// A method's timing benchmark: the settings its paper reports frame times at, each row timed
+/// in one run beside the methods it is compared with (`benches/method_time.rs`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Timing {
+    /// What the rows are, citing the paper's table or figure; for a method without rows, why
+    /// not and where it is timed instead.
+    pub about: &'static str,
+    /// Methods timed first in the same run, light still, at their defaults: each row's frame
+    /// time is given as a ratio to theirs.
+    pub compare_with: &'static [&'static str],
+    /// The rows, in order.
+    pub rows: &'static [TimingRow],
+}
+
+/// One row of a [`Timing`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimingRow {
+    /// What the row is (the paper's setting it reproduces).
+    pub label: &'static str,
+    /// Its options as `OPTION=VALUE,OPTION=VALUE` (the syntax of `--method NAME:...`); the
+    /// others take their defaults. Empty for the defaults.
+    pub options: &'static str,
+    /// Whether the light moves every frame, so that the prepare passes run every frame too.
+    pub moving_light: bool,
+}
+
+impl Timing {
+    /// A method that needs the scene's `.cssm`: timed on each baked scene by `cssm render
+    /// --timings` (`reports/runtime.sh`'s gi step), not by the method benchmark, which bakes
+    /// nothing.
+    pub const PER_BAKE: Timing = Timing {
+        about: "timed per baked scene by `cssm render --timings` (reports/runtime.sh's gi step)",
+        compare_with: &[],
+        rows: &[],
+    };
+
+    /// A method at its defaults, the light still and then moving every frame, beside `direct`:
+    /// what a method gets unless it names its paper's settings.
+    pub const DEFAULT: Timing = Timing {
+        about: "the method's defaults",
+        compare_with: &["direct"],
+        rows: &[
+            TimingRow {
+                label: "defaults",
+                options: "",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "defaults",
+                options: "",
+                moving_light: true,
+            },
+        ],
+    };
 }
 
 /// The tolerances a method declares for the tests every method gets from [`METHODS`]
@@ -226,15 +287,10 @@ impl MethodEntry {
         let mut resolved = BTreeMap::new();
         for (name, &value) in &values.0 {
             let spec = self.option(name).ok_or_else(|| {
-                let known: Vec<&str> = self.options.iter().map(|o| o.name).collect();
                 RuntimeError::Unsupported(format!(
                     "method '{}' has no option '{name}' (its options: {})",
                     self.name,
-                    if known.is_empty() {
-                        "none".to_string()
-                    } else {
-                        known.join(", ")
-                    }
+                    self.option_names()
                 ))
             })?;
             spec.check(value)
@@ -248,6 +304,47 @@ impl MethodEntry {
             method: self.name,
             values: resolved,
         })
+    }
+
+    /// The values of `text`, `OPTION=VALUE,OPTION=VALUE` (what follows `NAME:` in `--method
+    /// NAME:...`; empty for none: an empty part between commas is an error), parsed by each
+    /// option's kind but not range-checked ([`Self::resolve`] checks).
+    ///
+    /// # Errors
+    /// A message naming the part that is not `OPTION=VALUE`, an option the method lacks (with
+    /// the ones it has), one given twice, or a value of the wrong kind.
+    pub fn parse_options(&self, text: &str) -> Result<OptionValues, String> {
+        let mut values = OptionValues::default();
+        if text.trim().is_empty() {
+            return Ok(values);
+        }
+        for part in text.split(',') {
+            let (key, value) = part
+                .split_once('=')
+                .ok_or_else(|| format!("'{}' is not OPTION=VALUE", part.trim()))?;
+            let (key, value) = (key.trim(), value.trim());
+            let spec = self.option(key).ok_or_else(|| {
+                format!(
+                    "method {} has no option '{key}' (its options: {})",
+                    self.name,
+                    self.option_names()
+                )
+            })?;
+            if values.get(spec.name).is_some() {
+                return Err(format!("option '{key}' is given twice"));
+            }
+            values.set(spec.name, spec.parse(value)?);
+        }
+        Ok(values)
+    }
+
+    /// Its options' names for a message, or "none".
+    fn option_names(&self) -> String {
+        if self.options.is_empty() {
+            return "none".into();
+        }
+        let names: Vec<&str> = self.options.iter().map(|o| o.name).collect();
+        names.join(", ")
     }
 
     /// The option called `name`.
@@ -611,6 +708,47 @@ mod tests {
             err.contains("unknown method") && err.contains("lightcuts"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn every_timing_row_is_a_valid_setting_beside_known_methods() {
+        for m in METHODS {
+            for row in m.timing.rows {
+                let values = m
+                    .parse_options(row.options)
+                    .unwrap_or_else(|e| panic!("{} timing row '{}': {e}", m.name, row.label));
+                m.resolve(&values)
+                    .unwrap_or_else(|e| panic!("{} timing row '{}': {e}", m.name, row.label));
+            }
+            assert!(
+                !m.timing.rows.is_empty() || !m.timing.about.is_empty(),
+                "{}: a method without timing rows says where it is timed",
+                m.name
+            );
+            for other in m.timing.compare_with {
+                let other = find(other).unwrap();
+                assert!(other.on_gpu() && !other.needs_cssm, "{}: {other}", m.name);
+            }
+        }
+    }
+
+    #[test]
+    fn option_text_parses_by_kind_and_names_what_is_wrong() {
+        let rsm = find("rsm").unwrap();
+        let values = rsm.parse_options("visibility=none, paths=4").unwrap();
+        assert_eq!(values.get("visibility"), Some(OptionValue::Choice("none")));
+        assert_eq!(values.get("paths"), Some(OptionValue::Count(4)));
+        assert_eq!(rsm.parse_options("").unwrap(), OptionValues::default());
+        for (text, says) in [
+            ("paths", "is not OPTION=VALUE"),
+            ("bounce=2", "has no option 'bounce'"),
+            ("paths=2,paths=3", "given twice"),
+            ("paths=many", "whole number"),
+            ("paths=2,", "'' is not OPTION=VALUE"),
+        ] {
+            let err = rsm.parse_options(text).unwrap_err();
+            assert!(err.contains(says), "{text}: {err}");
+        }
     }
 
     #[test]

@@ -30,9 +30,9 @@ use crate::{
     RuntimeError,
     common::{layout, shadow_map::ShadowMaps},
     frame::{FrameContext, FrameEncoder},
-    shaders,
     load::{CssmGpu, SceneGpu},
-    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup},
+    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, Timing},
+    shaders,
     visibility::moving::MovingGpu,
 };
 
@@ -57,6 +57,11 @@ pub const METHOD: MethodEntry = MethodEntry {
         energy: Energy::NoIndirect,
         emissive: Energy::NoIndirect,
         ..Checks::DEFAULT
+    },
+    timing: Timing {
+        about: "the baseline the other methods' rows are timed beside",
+        compare_with: &[],
+        rows: &[],
     },
 };
 

@@ -57,8 +57,9 @@ pub fn receivers(
             let n = cpu::shading_normal(scene, material, &textures, triangle, p, n);
             let bary = cpu::barycentric(p, a, b, c);
             let uv = file.triangle_uvs[triangle as usize];
-            let atlas =
-                Vec2::from(uv[0]) * bary[0] + Vec2::from(uv[1]) * bary[1] + Vec2::from(uv[2]) * bary[2];
+            let atlas = Vec2::from(uv[0]) * bary[0]
+                + Vec2::from(uv[1]) * bary[1]
+                + Vec2::from(uv[2]) * bary[2];
             let m = &scene.materials[scene.triangle_materials[triangle as usize] as usize];
             Some((
                 Receiver {
@@ -100,7 +101,8 @@ pub fn gather_pixel(
     material: &GpuMaterial,
 ) -> (Vec3, u32) {
     let g = gather_planes(scene, radiance, threshold, exposure, jitter, r, material);
-    let out = r.albedo / std::f32::consts::PI * g.irradiance + Vec3::from(material.ks) * g.lobe_weighted;
+    let out =
+        r.albedo / std::f32::consts::PI * g.irradiance + Vec3::from(material.ks) * g.lobe_weighted;
     (out, g.cut)
 }
 

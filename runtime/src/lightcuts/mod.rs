@@ -8,7 +8,7 @@
 //! Phong lobe, which the shared resolve (`common/resolve.rs`) reflects with the pixel's albedo
 //! and Ks. With `downsample=N` it gathers at one pixel in N x N (the G-buffer at each block's
 //! representative pixel, `common/lowres.wgsl`) and the shared edge-aware filters
-//! (`common/filters.rs`) bring the planes back to full resolution, as `rsm` does (§4.5 of
+//! (`common/filters/`) bring the planes back to full resolution, as `rsm` does (§4.5 of
 //! Bang's thesis): N² times fewer gathers, the cost of the method's frame.
 //!
 //! CPU twin: [`cpu::gather_pixel`] (test `final_gather_matches_cpu_twin`).
@@ -25,6 +25,7 @@ use wgpu::util::DeviceExt;
 
 use crate::{
     RuntimeError,
+    common::converge::{BouncePlan, Convergence},
     common::{
         filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
         layout,
@@ -32,8 +33,10 @@ use crate::{
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     gpu_types::GpuTraversalParams,
-    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
-    common::converge::{BouncePlan, Convergence},
+    method::{
+        self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec,
+        Resolved, Timing,
+    },
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders,
 };
@@ -102,11 +105,8 @@ impl FinalGather {
         });
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let module = FINAL_GATHER_SHADER.create_for_scene(
-            device,
-            cssm.query.shape(),
-            cssm.moving.csm_count,
-        );
+        let module =
+            FINAL_GATHER_SHADER.create_for_scene(device, cssm.query.shape(), cssm.moving.csm_count);
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),
@@ -151,7 +151,8 @@ impl FinalGather {
             factor: self.factor,
             _pad: 0,
         };
-        ctx.queue.write_buffer(&self.grid, 0, bytemuck::bytes_of(&grid));
+        ctx.queue
+            .write_buffer(&self.grid, 0, bytemuck::bytes_of(&grid));
     }
 
     /// The bind group reading the context's G-buffer and writing `planes`.
@@ -357,12 +358,19 @@ pub const METHOD: MethodEntry = MethodEntry {
         PassInfo {
             name: "lightcuts resolve",
             stage: Stage::Frame,
-            reads: &[Slot::Reduced, Slot::Upsampled, Slot::GBuffer, Slot::Scene, Slot::View],
+            reads: &[
+                Slot::Reduced,
+                Slot::Upsampled,
+                Slot::GBuffer,
+                Slot::Scene,
+                Slot::View,
+            ],
             writes: &[Slot::Indirect],
         },
     ],
     backend: Backend::Gpu(Lightcuts::build),
     checks: Checks::DEFAULT,
+    timing: Timing::PER_BAKE,
 };
 
 /// The options of `lightcuts`.

@@ -13,11 +13,11 @@ use wgpu::util::DeviceExt;
 
 use crate::{
     RuntimeError,
+    common::converge::{BouncePlan, Convergence},
     common::layout,
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     load::CssmGpu,
-    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, Resolved},
-    common::converge::{BouncePlan, Convergence},
+    method::{self, Backend, Checks, GiMethod, MethodEntry, MethodSetup, Resolved, Timing},
     radiosity::{self, AtlasGi, RadiosityOptions},
     shaders,
 };
@@ -216,6 +216,7 @@ pub const HRC: MethodEntry = MethodEntry {
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Nearest)),
     checks: Checks::DEFAULT,
+    timing: Timing::PER_BAKE,
 };
 
 /// `--method lightmap`: hierarchical radiosity looked up per pixel with a bicubic B-spline.
@@ -227,6 +228,7 @@ pub const LIGHTMAP: MethodEntry = MethodEntry {
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Bicubic)),
     checks: Checks::DEFAULT,
+    timing: Timing::PER_BAKE,
 };
 
 /// The options of `hrc` and `lightmap`.

@@ -151,16 +151,17 @@ pub fn gather(
                 let cos_light = (n_p.dot(-to_sender) / light_d2.sqrt()).abs().max(0.05);
                 let area = light.texel_solid_angle * cos_axis.powi(3) * light_d2 / cos_light;
                 let phi = rsm.flux[index].truncate();
-                let irradiance = phi / std::f32::consts::PI * cos_product / (d2 + area / std::f32::consts::PI);
-                let weight = 2.0 * sector * radius * radius * u * u * u / samples as f32
-                    * n_side
-                    * n_side;
+                let irradiance =
+                    phi / std::f32::consts::PI * cos_product / (d2 + area / std::f32::consts::PI);
+                let weight =
+                    2.0 * sector * radius * radius * u * u * u / samples as f32 * n_side * n_side;
                 let e = (visible * weight) * irradiance;
                 diffuse += e;
                 let l = d / d2.sqrt();
                 let mirrored = -l - 2.0 * (-l).dot(r.normal) * r.normal;
                 let ns = r.material.ns;
-                let lobe = (ns + 2.0) / std::f32::consts::TAU * mirrored.dot(view).max(0.0).powf(ns);
+                let lobe =
+                    (ns + 2.0) / std::f32::consts::TAU * mirrored.dot(view).max(0.0).powf(ns);
                 glossy += e * lobe;
             }
         }

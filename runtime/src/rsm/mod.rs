@@ -53,7 +53,10 @@ use crate::{
         resolve::PlaneResolve,
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
-    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    method::{
+        Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec,
+        Resolved, Timing, TimingRow,
+    },
     shaders,
 };
 
@@ -94,7 +97,11 @@ pub struct RsmOptions {
 
 impl Default for RsmOptions {
     fn default() -> Self {
-        Self::from_resolved(&METHOD.resolve(&Default::default()).expect("defaults are valid"))
+        Self::from_resolved(
+            &METHOD
+                .resolve(&Default::default())
+                .expect("defaults are valid"),
+        )
     }
 }
 
@@ -153,7 +160,11 @@ struct Sampling {
 }
 
 impl Sampling {
-    fn new(ctx: &FrameContext, options: &RsmOptions, filter: &EdgeAwareFilter) -> Result<Self, RuntimeError> {
+    fn new(
+        ctx: &FrameContext,
+        options: &RsmOptions,
+        filter: &EdgeAwareFilter,
+    ) -> Result<Self, RuntimeError> {
         let device = &ctx.device;
         let (low_width, low_height) = filter.low_size();
         let base = GpuSamplingParams {
@@ -311,7 +322,13 @@ pub const METHOD: MethodEntry = MethodEntry {
         PassInfo {
             name: "rsm sampling",
             stage: Stage::Frame,
-            reads: &[Slot::Rsm, Slot::Lights, Slot::GBuffer, Slot::Scene, Slot::View],
+            reads: &[
+                Slot::Rsm,
+                Slot::Lights,
+                Slot::GBuffer,
+                Slot::Scene,
+                Slot::View,
+            ],
             writes: &[Slot::Reduced],
         },
         filters::PASSES[0],
@@ -327,6 +344,34 @@ pub const METHOD: MethodEntry = MethodEntry {
     checks: Checks {
         emissive: Energy::NoIndirect,
         ..Checks::DEFAULT
+    },
+    timing: Timing {
+        about: "Bang 2011, Tables 5.1-5.3: with and without the micro linear buffer, the light \
+                still (the RSM rendered once) and moving every frame (the thesis' setting: the \
+                RSM rendered every frame)",
+        compare_with: &["direct"],
+        rows: &[
+            TimingRow {
+                label: "micro-buffer",
+                options: "visibility=micro-buffer",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "micro-buffer",
+                options: "visibility=micro-buffer",
+                moving_light: true,
+            },
+            TimingRow {
+                label: "no visibility",
+                options: "visibility=none",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "no visibility",
+                options: "visibility=none",
+                moving_light: true,
+            },
+        ],
     },
 };
 

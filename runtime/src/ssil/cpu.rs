@@ -115,7 +115,14 @@ impl GatherInputs<'_> {
     }
 
     /// `gather.wgsl`: `sent`, the irradiance and direction of the sample at level pixel `q`.
-    fn sent(&self, x: Vec3, n: Vec3, q: (i32, i32), dp: f32, params: &GatherParams) -> Option<(Vec3, Vec3)> {
+    fn sent(
+        &self,
+        x: Vec3,
+        n: Vec3,
+        q: (i32, i32),
+        dp: f32,
+        params: &GatherParams,
+    ) -> Option<(Vec3, Vec3)> {
         if q.0 < 0 || q.1 < 0 || q.0 >= params.size[0] as i32 || q.1 >= params.size[1] as i32 {
             return None;
         }
@@ -179,7 +186,11 @@ fn sample_pixel(centre: (f32, f32), rho: f32, theta: f32) -> (i32, i32) {
 
 /// `gather.wgsl`: `gather` at `pixel` of the level of `params`: the diffuse and the
 /// lobe-weighted irradiance, the coarser level's up-sampled result included.
-pub fn gather_pixel(inputs: &GatherInputs, params: &GatherParams, (px, py): (u32, u32)) -> [Vec3; 2] {
+pub fn gather_pixel(
+    inputs: &GatherInputs,
+    params: &GatherParams,
+    (px, py): (u32, u32),
+) -> [Vec3; 2] {
     let i = (params.offset + py * params.size[0] + px) as usize;
     let x4 = inputs.position[i];
     if x4.w <= 0.0 {
@@ -192,7 +203,11 @@ pub fn gather_pixel(inputs: &GatherInputs, params: &GatherParams, (px, py): (u32
     let key = hash(px ^ hash(py ^ hash(params.level ^ hash(inputs.frame.seed))));
     let rotation = unit(key);
     let jitter = unit(hash(key));
-    let r1 = if params.disc == 1 { 0.0 } else { 0.5 * params.radius };
+    let r1 = if params.disc == 1 {
+        0.0
+    } else {
+        0.5 * params.radius
+    };
     let r2 = params.radius;
     let ring = PI * (r2 * r2 - r1 * r1);
     let count = params.samples as f32;
@@ -265,7 +280,12 @@ pub fn gather_pixel(inputs: &GatherInputs, params: &GatherParams, (px, py): (u32
             let c = (params.coarse_offset + sy as u32 * params.coarse_size[0] + sx as u32) as usize;
             indices[t] = c;
             let p = inputs.position[c];
-            (p.w > 0.0).then(|| (inputs.eye.distance(p.truncate()), inputs.normal[c].truncate()))
+            (p.w > 0.0).then(|| {
+                (
+                    inputs.eye.distance(p.truncate()),
+                    inputs.normal[c].truncate(),
+                )
+            })
         });
         let weights = upsample_weights(
             (inputs.eye.distance(x), n),
@@ -552,7 +572,9 @@ mod tests {
         assert_eq!(mask_from(40, 1), !0xff);
         assert_eq!(mask_from(127, 3), 1 << 31);
         // Two crossings leave the slices between them set: a closed object's inside.
-        let inside: Vec<u32> = (0..4).map(|w| mask_from(10, w) ^ mask_from(70, w)).collect();
+        let inside: Vec<u32> = (0..4)
+            .map(|w| mask_from(10, w) ^ mask_from(70, w))
+            .collect();
         assert_eq!(inside, vec![!0x3ff, u32::MAX, 0x3f, 0]);
     }
 
@@ -561,19 +583,34 @@ mod tests {
     #[test]
     fn a_closed_box_is_solid_between_its_faces() {
         let corners: Vec<Vec3> = (0..8)
-            .map(|c| Vec3::new(
-                if c & 1 == 0 { -0.5 } else { 0.5 },
-                if c & 2 == 0 { -0.5 } else { 0.5 },
-                if c & 4 == 0 { -3.0 } else { -2.0 },
-            ))
+            .map(|c| {
+                Vec3::new(
+                    if c & 1 == 0 { -0.5 } else { 0.5 },
+                    if c & 2 == 0 { -0.5 } else { 0.5 },
+                    if c & 4 == 0 { -3.0 } else { -2.0 },
+                )
+            })
             .collect();
-        let quads = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]];
+        let quads = [
+            [0, 1, 3, 2],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 3, 7, 6],
+            [0, 2, 6, 4],
+            [1, 3, 7, 5],
+        ];
         let triangles: Vec<[Vec3; 3]> = quads
             .iter()
-            .flat_map(|q| [[corners[q[0]], corners[q[1]], corners[q[2]]], [corners[q[0]], corners[q[2]], corners[q[3]]]])
+            .flat_map(|q| {
+                [
+                    [corners[q[0]], corners[q[1]], corners[q[2]]],
+                    [corners[q[0]], corners[q[2]], corners[q[3]]],
+                ]
+            })
             .collect();
         let proj = glam::camera::rh::proj::directx::perspective(60f32.to_radians(), 1.0, 0.1, 10.0);
-        let view_proj = proj * glam::camera::rh::view::look_at_mat4(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y);
+        let view_proj =
+            proj * glam::camera::rh::view::look_at_mat4(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y);
         let range = (1.0, 5.0);
         let grid = voxelize(&triangles, view_proj, (16, 16), 1, range);
         // The centre column (4, 4) of 8x8: solid from depth 2 to 3, slices 32 to 63.
@@ -588,7 +625,10 @@ mod tests {
         let word = |x: usize, y: usize| grid[4 * (y * 8 + x) + 1];
         let shared = word(4, 4) & word(5, 4) & word(4, 5) & word(5, 5);
         assert!(shared != 0 && shared != u32::MAX, "{shared:x}");
-        assert_eq!(&coarse[4 * (2 * 4 + 2)..4 * (2 * 4 + 2) + 4], &[0, shared, 0, 0]);
+        assert_eq!(
+            &coarse[4 * (2 * 4 + 2)..4 * (2 * 4 + 2) + 4],
+            &[0, shared, 0, 0]
+        );
         assert_eq!(&coarse[0..4], &[0; 4]);
     }
 

@@ -119,7 +119,6 @@ pub fn pixel_area(view_proj: &Mat4, (width, height): (u32, u32)) -> f32 {
     4.0 / (sx * sy * width as f32 * height as f32)
 }
 
-
 /// The gather and the accumulation, created once.
 pub(super) struct GatherPass {
     gather_layout: wgpu::BindGroupLayout,
@@ -157,18 +156,22 @@ pub(super) struct GatherGroups {
 impl GatherPass {
     pub(super) fn new(device: &wgpu::Device) -> Self {
         let c = wgpu::ShaderStages::COMPUTE;
-        let gather_layout = layout::bind_group_layout(device, "ssil gather", &[
-            layout::uniform(0, c),
-            layout::uniform(1, c),
-            layout::uniform(2, c),
-            layout::storage(3, true, c),
-            layout::storage(4, true, c),
-            layout::storage(5, true, c),
-            layout::storage(6, true, c),
-            layout::storage(7, true, c),
-            layout::storage(8, false, c),
-            layout::storage(12, true, c),
-        ]);
+        let gather_layout = layout::bind_group_layout(
+            device,
+            "ssil gather",
+            &[
+                layout::uniform(0, c),
+                layout::uniform(1, c),
+                layout::uniform(2, c),
+                layout::storage(3, true, c),
+                layout::storage(4, true, c),
+                layout::storage(5, true, c),
+                layout::storage(6, true, c),
+                layout::storage(7, true, c),
+                layout::storage(8, false, c),
+                layout::storage(12, true, c),
+            ],
+        );
         let module = SHADER.create(device);
         let gather = layout::compute_pipeline_entry(
             device,
@@ -177,13 +180,17 @@ impl GatherPass {
             "gather",
             &[&gather_layout],
         );
-        let accumulate_layout = layout::bind_group_layout(device, "ssil accumulate", &[
-            layout::uniform(0, c),
-            layout::storage(8, false, c),
-            layout::storage(9, false, c),
-            layout::storage(10, false, c),
-            layout::storage(11, true, c),
-        ]);
+        let accumulate_layout = layout::bind_group_layout(
+            device,
+            "ssil accumulate",
+            &[
+                layout::uniform(0, c),
+                layout::storage(8, false, c),
+                layout::storage(9, false, c),
+                layout::storage(10, false, c),
+                layout::storage(11, true, c),
+            ],
+        );
         let accumulate = layout::compute_pipeline_entry(
             device,
             "ssil accumulate",
@@ -214,18 +221,23 @@ impl GatherPass {
                     .map(|level| {
                         let p = levels.gather_params(level, bounce, options);
                         let params = uniform_buffer(device, "ssil gather level", &p);
-                        layout::bind_group_at(device, "ssil gather", &self.gather_layout, &[
-                            (0, params.as_entire_binding()),
-                            (1, ctx.view.as_entire_binding()),
-                            (2, inputs.frame_params.as_entire_binding()),
-                            (3, ctx.scene.materials.as_entire_binding()),
-                            (4, inputs.pyramid.position.as_entire_binding()),
-                            (5, inputs.pyramid.normal.as_entire_binding()),
-                            (6, inputs.light.signal.as_entire_binding()),
-                            (7, inputs.grid.as_entire_binding()),
-                            (8, inputs.acc.as_entire_binding()),
-                            (12, inputs.converge.state().as_entire_binding()),
-                        ])
+                        layout::bind_group_at(
+                            device,
+                            "ssil gather",
+                            &self.gather_layout,
+                            &[
+                                (0, params.as_entire_binding()),
+                                (1, ctx.view.as_entire_binding()),
+                                (2, inputs.frame_params.as_entire_binding()),
+                                (3, ctx.scene.materials.as_entire_binding()),
+                                (4, inputs.pyramid.position.as_entire_binding()),
+                                (5, inputs.pyramid.normal.as_entire_binding()),
+                                (6, inputs.light.signal.as_entire_binding()),
+                                (7, inputs.grid.as_entire_binding()),
+                                (8, inputs.acc.as_entire_binding()),
+                                (12, inputs.converge.state().as_entire_binding()),
+                            ],
+                        )
                     })
                     .collect()
             })
@@ -234,13 +246,18 @@ impl GatherPass {
             .map(|bounce| {
                 let p = levels.gather_params(levels.start, bounce, options);
                 let params = uniform_buffer(device, "ssil accumulate", &p);
-                layout::bind_group_at(device, "ssil accumulate", &self.accumulate_layout, &[
-                    (0, params.as_entire_binding()),
-                    (8, inputs.acc.as_entire_binding()),
-                    (9, inputs.summed.as_entire_binding()),
-                    (10, inputs.light.signal.as_entire_binding()),
-                    (11, inputs.pyramid.albedo.as_entire_binding()),
-                ])
+                layout::bind_group_at(
+                    device,
+                    "ssil accumulate",
+                    &self.accumulate_layout,
+                    &[
+                        (0, params.as_entire_binding()),
+                        (8, inputs.acc.as_entire_binding()),
+                        (9, inputs.summed.as_entire_binding()),
+                        (10, inputs.light.signal.as_entire_binding()),
+                        (11, inputs.pyramid.albedo.as_entire_binding()),
+                    ],
+                )
             })
             .collect();
         GatherGroups { gather, accumulate }
@@ -304,26 +321,31 @@ mod tests {
                 ("sample_disc", offset_of!(GatherParams, sample_disc)),
             ],
         );
-        crate::shaders::tests::check_struct(&module, "FrameParams", size_of::<FrameParams>(), &[
-            ("seed", offset_of!(FrameParams, seed)),
-            ("z_near", offset_of!(FrameParams, z_near)),
-            ("z_far", offset_of!(FrameParams, z_far)),
-            ("pixel_area", offset_of!(FrameParams, pixel_area)),
-        ]);
+        crate::shaders::tests::check_struct(
+            &module,
+            "FrameParams",
+            size_of::<FrameParams>(),
+            &[
+                ("seed", offset_of!(FrameParams, seed)),
+                ("z_near", offset_of!(FrameParams, z_near)),
+                ("z_far", offset_of!(FrameParams, z_far)),
+                ("pixel_area", offset_of!(FrameParams, pixel_area)),
+            ],
+        );
     }
 
     #[test]
     fn pixel_area_is_the_frustum_over_the_pixels() {
-        let proj = glam::camera::rh::proj::directx::perspective(
-            60f32.to_radians(),
-            4.0 / 3.0,
-            0.1,
-            10.0,
-        );
-        let view = glam::camera::rh::view::look_at_mat4(Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO, Vec3::Y);
+        let proj =
+            glam::camera::rh::proj::directx::perspective(60f32.to_radians(), 4.0 / 3.0, 0.1, 10.0);
+        let view =
+            glam::camera::rh::view::look_at_mat4(Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO, Vec3::Y);
         let tan = (30f32).to_radians().tan();
         let expected = 4.0 * tan * (tan * 4.0 / 3.0) / (640.0 * 480.0);
         let area = pixel_area(&(proj * view), (640, 480));
-        assert!((area - expected).abs() < 1e-6 * expected, "{area} {expected}");
+        assert!(
+            (area - expected).abs() < 1e-6 * expected,
+            "{area} {expected}"
+        );
     }
 }

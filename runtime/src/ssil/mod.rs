@@ -66,13 +66,18 @@ use crate::{
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     method::{
         Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec,
-        Resolved,
+        Resolved, Timing, TimingRow,
     },
 };
 
 /// This folder's WGSL, for the registry ([`crate::shaders`]).
 pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
-    modules: &[sender::SHADER, voxels::SHADER, gather::SHADER, temporal::SHADER],
+    modules: &[
+        sender::SHADER,
+        voxels::SHADER,
+        gather::SHADER,
+        temporal::SHADER,
+    ],
     libraries: &[],
 };
 
@@ -140,7 +145,11 @@ pub struct SsilOptions {
 
 impl Default for SsilOptions {
     fn default() -> Self {
-        Self::from_resolved(&METHOD.resolve(&Default::default()).expect("defaults are valid"))
+        Self::from_resolved(
+            &METHOD
+                .resolve(&Default::default())
+                .expect("defaults are valid"),
+        )
     }
 }
 
@@ -282,7 +291,6 @@ impl Levels {
     }
 }
 
-
 /// A uniform buffer holding `value`, rewritten every frame.
 fn uniform_buffer<T: bytemuck::Pod>(device: &wgpu::Device, label: &str, value: &T) -> wgpu::Buffer {
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -303,7 +311,6 @@ fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffe
         mapped_at_creation: false,
     })
 }
-
 
 /// `--method ssil`.
 // Every check is set here, and `..Checks::DEFAULT` stays so that a new kind of check takes its
@@ -471,6 +478,59 @@ pub const METHOD: MethodEntry = MethodEntry {
         emissive: Energy::OnScreenOnly,
         ..Checks::DEFAULT
     },
+    timing: Timing {
+        about: "Soler et al. 2010, Fig. 9: its four settings (quarter or half resolution, levels, \
+                samples per level, the radius of 40 pixels), each without and with the voxel \
+                visibility, then the defaults; camera and light at rest",
+        compare_with: &["direct"],
+        rows: &[
+            TimingRow {
+                label: "quarter, 4 levels, 64 samples, 1 bounce, visibility none",
+                options: "start-level=2,levels=4,level-samples=64,radius=40,visibility=none,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "quarter, 4 levels, 64 samples, 1 bounce, visibility voxels",
+                options: "start-level=2,levels=4,level-samples=64,radius=40,visibility=voxels,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "quarter, 4 levels, 256 samples, 1 bounce, visibility none",
+                options: "start-level=2,levels=4,level-samples=256,radius=40,visibility=none,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "quarter, 4 levels, 256 samples, 1 bounce, visibility voxels",
+                options: "start-level=2,levels=4,level-samples=256,radius=40,visibility=voxels,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "half, 4 levels, 64 samples, 1 bounce, visibility none",
+                options: "start-level=1,levels=4,level-samples=64,radius=40,visibility=none,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "half, 4 levels, 64 samples, 1 bounce, visibility voxels",
+                options: "start-level=1,levels=4,level-samples=64,radius=40,visibility=voxels,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "half, 5 levels, 64 samples, 1 bounce, visibility none",
+                options: "start-level=1,levels=5,level-samples=64,radius=40,visibility=none,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "half, 5 levels, 64 samples, 1 bounce, visibility voxels",
+                options: "start-level=1,levels=5,level-samples=64,radius=40,visibility=voxels,bounces=1",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "defaults",
+                options: "",
+                moving_light: false,
+            },
+        ],
+    },
 };
 
 /// The `ssil` method.
@@ -525,10 +585,16 @@ mod tests {
         assert_eq!(levels.grid_offset(3), 160 * 120);
         assert_eq!(levels.columns(), 160 * 120 + 80 * 60 + 40 * 30);
         let first = levels.gather_params(2, 0, &options);
-        assert_eq!((first.disc, first.has_coarse, first.coarse_size), (1, 1, [80, 60]));
+        assert_eq!(
+            (first.disc, first.has_coarse, first.coarse_size),
+            (1, 1, [80, 60])
+        );
         let last = levels.gather_params(4, 1, &options);
         assert_eq!((last.disc, last.has_coarse, last.next_bounce), (0, 0, 0));
-        assert_eq!(last.visibility, 0, "later bounces skip visibility by default");
+        assert_eq!(
+            last.visibility, 0,
+            "later bounces skip visibility by default"
+        );
         assert_eq!(levels.gather_params(4, 0, &options).visibility, 1);
     }
 

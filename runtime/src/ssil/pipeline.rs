@@ -102,18 +102,26 @@ impl ScreenSpaceGi {
         )?;
         let uniforms = Uniforms {
             frame: uniform_buffer(device, "ssil frame", &FrameParams::default()),
-            voxels: uniform_buffer(device, "ssil voxels", &VoxelParams {
-                z_near: 0.0,
-                z_far: 1.0,
-                columns: [0; 2],
-            }),
-            temporal: uniform_buffer(device, "ssil temporal", &TemporalParams {
-                previous_view_proj: [[0.0; 4]; 4],
-                previous_eye: [0.0; 3],
-                blend: options.temporal,
-                history: 0,
-                padding: [0; 3],
-            }),
+            voxels: uniform_buffer(
+                device,
+                "ssil voxels",
+                &VoxelParams {
+                    z_near: 0.0,
+                    z_far: 1.0,
+                    columns: [0; 2],
+                },
+            ),
+            temporal: uniform_buffer(
+                device,
+                "ssil temporal",
+                &TemporalParams {
+                    previous_view_proj: [[0.0; 4]; 4],
+                    previous_eye: [0.0; 3],
+                    blend: options.temporal,
+                    history: 0,
+                    padding: [0; 3],
+                },
+            ),
         };
         let frame_history = FrameHistory::new(device, ctx.size());
         let sized = Self::bind(
@@ -185,22 +193,30 @@ impl ScreenSpaceGi {
                 work_args: None,
             },
         );
-        let gathers = passes.gather.bind(ctx, options, &levels, &GatherInputs {
-            frame_params: &uniforms.frame,
-            pyramid,
-            light,
-            grid: &voxels.grid,
-            acc: &acc,
-            summed: filter.input(),
-            converge: &converge,
-        });
-        let temporal_group = passes.temporal.bind(ctx, &TemporalInputs {
-            params: &uniforms.temporal,
-            frames,
-            filtered: filter.output(),
-            history: &history,
-            blended: &blended,
-        });
+        let gathers = passes.gather.bind(
+            ctx,
+            options,
+            &levels,
+            &GatherInputs {
+                frame_params: &uniforms.frame,
+                pyramid,
+                light,
+                grid: &voxels.grid,
+                acc: &acc,
+                summed: filter.input(),
+                converge: &converge,
+            },
+        );
+        let temporal_group = passes.temporal.bind(
+            ctx,
+            &TemporalInputs {
+                params: &uniforms.temporal,
+                frames,
+                filtered: filter.output(),
+                history: &history,
+                blended: &blended,
+            },
+        );
         Sized {
             levels,
             sender,
@@ -383,13 +399,14 @@ impl ScreenSpaceGi {
             }
         }
         self.filter.run(frame);
-        passes.temporal.run(frame, &sized.temporal_group, ctx.size());
+        passes
+            .temporal
+            .run(frame, &sized.temporal_group, ctx.size());
         self.resolve.run(frame);
         // The history of the next frame.
         frame
             .encoder
             .copy_buffer_to_buffer(&sized.blended, 0, &sized.history, 0, None);
-        self.frame_history
-            .record(frame.encoder, &ctx.gbuffer, view);
+        self.frame_history.record(frame.encoder, &ctx.gbuffer, view);
     }
 }

@@ -39,8 +39,12 @@ impl SenderPass {
 
     /// The bind group writing the light sent into `sender` (one element per pixel).
     pub(super) fn bind(&self, ctx: &FrameContext, sender: &wgpu::Buffer) -> wgpu::BindGroup {
-        let gbuffer = [&ctx.gbuffer.position, &ctx.gbuffer.normal, &ctx.gbuffer.albedo]
-            .map(|t| t.create_view(&Default::default()));
+        let gbuffer = [
+            &ctx.gbuffer.position,
+            &ctx.gbuffer.normal,
+            &ctx.gbuffer.albedo,
+        ]
+        .map(|t| t.create_view(&Default::default()));
         let mut resources = light_resources(&ctx.view, &ctx.scene, &ctx.shadows).to_vec();
         resources.extend(gbuffer.iter().map(wgpu::BindingResource::TextureView));
         resources.push(sender.as_entire_binding());

@@ -23,7 +23,6 @@ pub(super) struct TemporalParams {
     pub(super) padding: [u32; 3],
 }
 
-
 /// The pass's pipeline, created once; its bind group follows the image size ([`Self::bind`]).
 pub(super) struct TemporalPass {
     layout: wgpu::BindGroupLayout,
@@ -48,18 +47,22 @@ impl TemporalPass {
     pub(super) fn new(device: &wgpu::Device) -> Self {
         let c = wgpu::ShaderStages::COMPUTE;
         let d2 = wgpu::TextureViewDimension::D2;
-        let layout = layout::bind_group_layout(device, "ssil temporal", &[
-            layout::uniform(0, c),
-            layout::uniform(1, c),
-            layout::storage(2, true, c),
-            layout::texture(3, d2, c),
-            layout::texture(4, d2, c),
-            layout::texture(5, d2, c),
-            layout::texture(6, d2, c),
-            layout::storage(7, true, c),
-            layout::storage(8, true, c),
-            layout::storage(9, false, c),
-        ]);
+        let layout = layout::bind_group_layout(
+            device,
+            "ssil temporal",
+            &[
+                layout::uniform(0, c),
+                layout::uniform(1, c),
+                layout::storage(2, true, c),
+                layout::texture(3, d2, c),
+                layout::texture(4, d2, c),
+                layout::texture(5, d2, c),
+                layout::texture(6, d2, c),
+                layout::storage(7, true, c),
+                layout::storage(8, true, c),
+                layout::storage(9, false, c),
+            ],
+        );
         let module = SHADER.create(device);
         let pipeline = layout::compute_pipeline(device, "ssil temporal", &module, &[&layout]);
         Self { layout, pipeline }

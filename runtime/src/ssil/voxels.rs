@@ -39,7 +39,6 @@ struct AndParams {
     padding: [u32; 2],
 }
 
-
 /// Format of the voxel raster's depth target, which only gives the pass its size (no test, no
 /// write).
 const VOXEL_TARGET: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -65,18 +64,23 @@ impl VoxelPass {
     pub(super) fn new(device: &wgpu::Device) -> Self {
         let c = wgpu::ShaderStages::COMPUTE;
         let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
-        let voxel_layout = layout::bind_group_layout(device, "ssil voxels", &[
-            layout::uniform(0, vf),
-            layout::uniform(1, wgpu::ShaderStages::FRAGMENT),
-            layout::storage(2, true, wgpu::ShaderStages::VERTEX),
-            layout::storage(3, false, wgpu::ShaderStages::FRAGMENT),
-        ]);
+        let voxel_layout = layout::bind_group_layout(
+            device,
+            "ssil voxels",
+            &[
+                layout::uniform(0, vf),
+                layout::uniform(1, wgpu::ShaderStages::FRAGMENT),
+                layout::storage(2, true, wgpu::ShaderStages::VERTEX),
+                layout::storage(3, false, wgpu::ShaderStages::FRAGMENT),
+            ],
+        );
         let module = SHADER.create(device);
         let voxels = Self::voxel_raster(device, &voxel_layout, &module);
-        let and_layout = layout::bind_group_layout(device, "ssil voxel levels", &[
-            layout::storage(3, false, c),
-            layout::uniform(4, c),
-        ]);
+        let and_layout = layout::bind_group_layout(
+            device,
+            "ssil voxel levels",
+            &[layout::storage(3, false, c), layout::uniform(4, c)],
+        );
         let and_down = layout::compute_pipeline_entry(
             device,
             "ssil voxel levels",
@@ -152,27 +156,41 @@ impl VoxelPass {
             VOXEL_TARGET,
             wgpu::TextureUsages::RENDER_ATTACHMENT,
         );
-        let voxel_group = layout::bind_group(device, "ssil voxels", &self.voxel_layout, &[
-            ctx.view.as_entire_binding(),
-            params.as_entire_binding(),
-            ctx.scene.motion.as_entire_binding(),
-            grid.as_entire_binding(),
-        ]);
+        let voxel_group = layout::bind_group(
+            device,
+            "ssil voxels",
+            &self.voxel_layout,
+            &[
+                ctx.view.as_entire_binding(),
+                params.as_entire_binding(),
+                ctx.scene.motion.as_entire_binding(),
+                grid.as_entire_binding(),
+            ],
+        );
         let and_groups = (levels.start + 1..=levels.last)
             .map(|level| {
                 let (fw, fh) = levels.pyramid.size(level - 1);
                 let (cw, ch) = levels.pyramid.size(level);
-                let params = uniform_buffer(device, "ssil voxel level", &AndParams {
-                    fine_size: [fw, fh],
-                    coarse_size: [cw, ch],
-                    fine_offset: levels.grid_offset(level - 1),
-                    coarse_offset: levels.grid_offset(level),
-                    padding: [0; 2],
-                });
-                layout::bind_group_at(device, "ssil voxel levels", &self.and_layout, &[
-                    (3, grid.as_entire_binding()),
-                    (4, params.as_entire_binding()),
-                ])
+                let params = uniform_buffer(
+                    device,
+                    "ssil voxel level",
+                    &AndParams {
+                        fine_size: [fw, fh],
+                        coarse_size: [cw, ch],
+                        fine_offset: levels.grid_offset(level - 1),
+                        coarse_offset: levels.grid_offset(level),
+                        padding: [0; 2],
+                    },
+                );
+                layout::bind_group_at(
+                    device,
+                    "ssil voxel levels",
+                    &self.and_layout,
+                    &[
+                        (3, grid.as_entire_binding()),
+                        (4, params.as_entire_binding()),
+                    ],
+                )
             })
             .collect();
         VoxelGrid {
@@ -239,16 +257,26 @@ mod tests {
     fn params_layouts_match_wgsl() {
         use std::mem::{offset_of, size_of};
         let module = crate::shaders::tests::module(SHADER);
-        crate::shaders::tests::check_struct(&module, "VoxelParams", size_of::<VoxelParams>(), &[
-            ("z_near", offset_of!(VoxelParams, z_near)),
-            ("z_far", offset_of!(VoxelParams, z_far)),
-            ("columns", offset_of!(VoxelParams, columns)),
-        ]);
-        crate::shaders::tests::check_struct(&module, "AndParams", size_of::<AndParams>(), &[
-            ("fine_size", offset_of!(AndParams, fine_size)),
-            ("coarse_size", offset_of!(AndParams, coarse_size)),
-            ("fine_offset", offset_of!(AndParams, fine_offset)),
-            ("coarse_offset", offset_of!(AndParams, coarse_offset)),
-        ]);
+        crate::shaders::tests::check_struct(
+            &module,
+            "VoxelParams",
+            size_of::<VoxelParams>(),
+            &[
+                ("z_near", offset_of!(VoxelParams, z_near)),
+                ("z_far", offset_of!(VoxelParams, z_far)),
+                ("columns", offset_of!(VoxelParams, columns)),
+            ],
+        );
+        crate::shaders::tests::check_struct(
+            &module,
+            "AndParams",
+            size_of::<AndParams>(),
+            &[
+                ("fine_size", offset_of!(AndParams, fine_size)),
+                ("coarse_size", offset_of!(AndParams, coarse_size)),
+                ("fine_offset", offset_of!(AndParams, fine_offset)),
+                ("coarse_offset", offset_of!(AndParams, coarse_offset)),
+            ],
+        );
     }
 }

@@ -267,7 +267,9 @@ impl Pyramid {
         }
         let w = dir * dir;
         let face = |axis: u32, c: f32| 2 * axis + u32::from(c < 0.0);
-        w.x * trilinear(face(0, dir.x)) + w.y * trilinear(face(1, dir.y)) + w.z * trilinear(face(2, dir.z))
+        w.x * trilinear(face(0, dir.x))
+            + w.y * trilinear(face(1, dir.y))
+            + w.z * trilinear(face(2, dir.z))
     }
 
     /// The quadrilinear sample: `floor(level)` and the next finer level, interpolated
@@ -296,7 +298,13 @@ pub fn trace_cone(
     correct_opacity: bool,
 ) -> Vec4 {
     let end = (1u32 << pyramid.max_level) as f32 * 1.732_050_8;
-    trace_cone_to(pyramid, origin, dir, (tan_half, start, end), correct_opacity)
+    trace_cone_to(
+        pyramid,
+        origin,
+        dir,
+        (tan_half, start, end),
+        correct_opacity,
+    )
 }
 
 /// [`trace_cone`] with its `(tan_half, start, end)`: up to distance `end` (`svo_cone_to`).
@@ -379,7 +387,14 @@ pub fn diffuse(
     for k in 0..trace.cones {
         let d = cone_direction(k, trace.cones);
         let dir = t * d.x + u * d.y + n * d.z;
-        let cone = trace_cone(pyramid, origin, dir, trace.tan_half, trace.start, correct_opacity);
+        let cone = trace_cone(
+            pyramid,
+            origin,
+            dir,
+            trace.tan_half,
+            trace.start,
+            correct_opacity,
+        );
         sum += cone.truncate();
     }
     sum / trace.cones as f32
@@ -414,7 +429,10 @@ pub fn surface_sums(fragments: &[VoxelFragment]) -> BTreeMap<[u32; 3], [u32; 8]>
     for f in fragments {
         let s: &mut [u32; 8] = sums.entry(f.cell()).or_default();
         let albedo = f.albedo.to_le_bytes();
-        let normal = f.normal.to_le_bytes().map(|b| (b as i8).max(-127) as i32 as u32);
+        let normal = f
+            .normal
+            .to_le_bytes()
+            .map(|b| (b as i8).max(-127) as i32 as u32);
         for k in 0..3 {
             s[k] = s[k].wrapping_add(albedo[k] as u32);
             s[4 + k] = s[4 + k].wrapping_add(normal[k]);
@@ -503,7 +521,11 @@ mod tests {
     use super::*;
 
     fn one_leaf() -> Pyramid {
-        Pyramid::from_leaves(2, 1, &BTreeMap::from([([1, 2, 3], Vec3::new(4.0, 2.0, 1.0))]))
+        Pyramid::from_leaves(
+            2,
+            1,
+            &BTreeMap::from([([1, 2, 3], Vec3::new(4.0, 2.0, 1.0))]),
+        )
     }
 
     #[test]
@@ -580,7 +602,14 @@ mod tests {
         assert!(wide.w > 0.2 && wide.w < 0.9 && wide.x > 0.0, "{wide}");
         assert!((wide.x / wide.w - 2.0).abs() < 1e-3, "{wide}");
         let anisotropic = Pyramid::from_leaves(3, 6, &leaves);
-        let wide6 = trace_cone(&anisotropic, Vec3::new(1.0, 4.0, 4.0), Vec3::X, 0.6, 0.5, true);
+        let wide6 = trace_cone(
+            &anisotropic,
+            Vec3::new(1.0, 4.0, 4.0),
+            Vec3::X,
+            0.6,
+            0.5,
+            true,
+        );
         assert!(wide6.w > 0.8 && wide6.w > wide.w + 0.2, "{wide6} {wide}");
         assert!((wide6.x / wide6.w - 2.0).abs() < 1e-3, "{wide6}");
     }
@@ -610,7 +639,10 @@ mod tests {
     fn cones_are_cosine_distributed_over_the_hemisphere() {
         let cones = 64;
         let dirs: Vec<Vec3> = (0..cones).map(|k| cone_direction(k, cones)).collect();
-        assert!(dirs.iter().all(|d| (d.length() - 1.0).abs() < 1e-5 && d.z > 0.0));
+        assert!(
+            dirs.iter()
+                .all(|d| (d.length() - 1.0).abs() < 1e-5 && d.z > 0.0)
+        );
         // The mean cosine of a cosine-distributed direction is 2/3.
         let mean = dirs.iter().map(|d| d.z).sum::<f32>() / cones as f32;
         assert!((mean - 2.0 / 3.0).abs() < 0.01, "{mean}");
@@ -652,10 +684,16 @@ mod tests {
             area: 0.25,
         };
         let sums = inject(&params, [texel, texel], &occupied, 1000.0);
-        assert_eq!(sums, BTreeMap::from([([1, 1, 1], [2000, 1000, 0, 1 << 23])]));
+        assert_eq!(
+            sums,
+            BTreeMap::from([([1, 1, 1], [2000, 1000, 0, 1 << 23])])
+        );
         // Flux 2 W on half a voxel's face, 1000 units per W: 2 / (pi 0.5).
         let radiance = leaf_radiance(sums[&[1, 1, 1]], 1.0 / (1000.0 * std::f32::consts::PI));
-        assert!((radiance.x - 4.0 / std::f32::consts::PI).abs() < 1e-5, "{radiance}");
+        assert!(
+            (radiance.x - 4.0 / std::f32::consts::PI).abs() < 1e-5,
+            "{radiance}"
+        );
         // Nudged into an empty voxel: the point's own.
         let near_top = RsmTexel {
             position: Vec4::new(1.5, 1.9, 1.5, 1.0),

@@ -57,7 +57,10 @@ use crate::{
         voxelize::{self, VoxelFragment, VoxelGrid, Voxelizer},
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
-    method::{Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec, Resolved},
+    method::{
+        Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec,
+        Resolved, Timing,
+    },
 };
 
 use octree::OctreeBuild;
@@ -88,7 +91,11 @@ pub struct VctOptions {
 
 impl Default for VctOptions {
     fn default() -> Self {
-        Self::from_resolved(&METHOD.resolve(&Default::default()).expect("defaults are valid"))
+        Self::from_resolved(
+            &METHOD
+                .resolve(&Default::default())
+                .expect("defaults are valid"),
+        )
     }
 }
 
@@ -269,6 +276,14 @@ pub const METHOD: MethodEntry = MethodEntry {
         emissive: Energy::NoIndirect,
         ..Checks::DEFAULT
     },
+    timing: Timing {
+        about: "Crassin et al. 2011, §10: the light still (the octree built once, a frame the \
+                cones) and moving every frame (the paper's dynamic case: the RSM, voxelisation, \
+                octree build, injection, MIP-mapping and bricks every frame); the voxel \
+                resolutions by `--sweep resolution=...`",
+        compare_with: &["direct", "rsm"],
+        rows: Timing::DEFAULT.rows,
+    },
 };
 
 /// The `vct` method: the octree when something moves, the cones every frame.
@@ -284,11 +299,7 @@ impl VctMethod {
         options.check()?;
         let params = TraceParams {
             occlusion_radius: options.occlusion.unwrap_or(0.0),
-            ..TraceParams::new(
-                options.cones,
-                options.aperture.to_radians(),
-                options.offset,
-            )
+            ..TraceParams::new(options.cones, options.aperture.to_radians(), options.offset)
         };
         let voxels = SparseVoxels::new(
             ctx,

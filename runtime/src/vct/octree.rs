@@ -217,7 +217,8 @@ impl OctreeBuild {
         queue.write_buffer(&self.dispatch, 0, bytemuck::cast_slice(&[1u32, 1, 1]));
         // Level 0 is the root alone; next_level records the others.
         queue.write_buffer(&self.levels, 0, bytemuck::cast_slice(&[0u32, 1]));
-        let (x, y) = crate::common::voxelize::split_groups(shaders::groups_1d(self.fragment_capacity));
+        let (x, y) =
+            crate::common::voxelize::split_groups(shaders::groups_1d(self.fragment_capacity));
         let mut pass = frame.compute_pass("octree build");
         for (level, group) in self.bind_groups.iter().enumerate() {
             pass.set_bind_group(0, group, &[]);

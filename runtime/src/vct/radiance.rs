@@ -171,7 +171,11 @@ impl Svo {
             || RuntimeError::Unsupported(format!("a brick pool for {pool:?}: too many bricks"));
         let (faces, inner_bricks, count) = if pool.anisotropic {
             let inner = pool.inner_tiles.checked_mul(FACES).ok_or_else(too_many)?;
-            (FACES, inner, inner.checked_add(pool.leaf_tiles).ok_or_else(too_many)?)
+            (
+                FACES,
+                inner,
+                inner.checked_add(pool.leaf_tiles).ok_or_else(too_many)?,
+            )
         } else {
             (1, octree.tile_capacity, octree.tile_capacity)
         };
@@ -396,8 +400,7 @@ impl VoxelRadiance {
         ];
         let level_layout = layout::bind_group_layout(device, "svo radiance", &entries);
         // `plan` writes the constants the others read: its own groups, without them.
-        let plan_layout =
-            layout::bind_group_layout(device, "svo plan", &[entries[0], entries[3]]);
+        let plan_layout = layout::bind_group_layout(device, "svo plan", &[entries[0], entries[3]]);
         let plan_out_layout = layout::bind_group_layout(
             device,
             "svo plan out",

@@ -120,8 +120,12 @@ impl ConeTrace {
         params: &wgpu::Buffer,
     ) -> (wgpu::Buffer, wgpu::BindGroup) {
         let indirect = ctx.pixel_buffer("vct indirect");
-        let views = [&ctx.gbuffer.position, &ctx.gbuffer.normal, &ctx.gbuffer.albedo]
-            .map(|t| t.create_view(&Default::default()));
+        let views = [
+            &ctx.gbuffer.position,
+            &ctx.gbuffer.normal,
+            &ctx.gbuffer.albedo,
+        ]
+        .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![
             params.as_entire_binding(),
             ctx.view.as_entire_binding(),
@@ -220,7 +224,10 @@ impl ConeProbe {
             device,
             "vct probe",
             &self.bind_layout,
-            &[(7, input.as_entire_binding()), (8, output.as_entire_binding())],
+            &[
+                (7, input.as_entire_binding()),
+                (8, output.as_entire_binding()),
+            ],
         );
         let mut encoder = device.create_command_encoder(&Default::default());
         {
@@ -266,7 +273,10 @@ mod tests {
             &[
                 ("cones", offset_of!(TraceParams, cones)),
                 ("tan_half", offset_of!(TraceParams, tan_half)),
-                ("occlusion_radius", offset_of!(TraceParams, occlusion_radius)),
+                (
+                    "occlusion_radius",
+                    offset_of!(TraceParams, occlusion_radius),
+                ),
                 ("start", offset_of!(TraceParams, start)),
                 ("offset", offset_of!(TraceParams, offset)),
                 ("half_angle", offset_of!(TraceParams, half_angle)),

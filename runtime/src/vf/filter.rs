@@ -336,7 +336,9 @@ mod tests {
         let visible = [5, NO_VOXEL, 7, 9, 5, 2];
         let lists = filter_cpu(&params, &visible, &position, &normal, Vec3::ZERO);
         assert_eq!(lists, vec![vec![5], vec![7, 9], vec![2, 5]]);
-        let packed = [1, 5, 0, 0, 0, 0, 0, 2, 7, 9, 0, 0, 0, 0, 2, 2, 5, 0, 0, 0, 0];
+        let packed = [
+            1, 5, 0, 0, 0, 0, 0, 2, 7, 9, 0, 0, 0, 0, 2, 2, 5, 0, 0, 0, 0,
+        ];
         assert_eq!(unpack_lists(&params, &packed), lists);
     }
 }

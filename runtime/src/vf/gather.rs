@@ -369,7 +369,10 @@ mod tests {
         };
         let (head_on, sixty) = (0.0, std::f32::consts::FRAC_PI_3);
         let ratio = light(0.0, head_on) / light(100.0, head_on);
-        assert!((ratio - Vec3::splat(0.75)).abs().max_element() < 1e-4, "{ratio}");
+        assert!(
+            (ratio - Vec3::splat(0.75)).abs().max_element() < 1e-4,
+            "{ratio}"
+        );
         let ratio = light(0.0, sixty) / light(100.0, sixty);
         assert!((ratio - Vec3::ONE).abs().max_element() < 1e-4, "{ratio}");
     }

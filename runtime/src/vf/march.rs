@@ -76,12 +76,7 @@ impl SparseRays {
     /// `rays` rays per pixel of the context's G-buffer reduced `factor` times, through
     /// `grid`'s voxels and `light`'s discs (their radii times `disc_scale`), origins lifted by
     /// `offset`.
-    pub fn new(
-        ctx: &FrameContext,
-        grid: &ProxyGrid,
-        light: &ProxyLight,
-        shape: RayShape,
-    ) -> Self {
+    pub fn new(ctx: &FrameContext, grid: &ProxyGrid, light: &ProxyLight, shape: RayShape) -> Self {
         let RayShape {
             factor,
             rays,

@@ -47,7 +47,13 @@ pub mod proxies;
 
 /// This folder's WGSL, for the registry ([`crate::shaders`]).
 pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
-    modules: &[proxies::SHADER, light::SHADER, march::SHADER, filter::SHADER, gather::SHADER],
+    modules: &[
+        proxies::SHADER,
+        light::SHADER,
+        march::SHADER,
+        filter::SHADER,
+        gather::SHADER,
+    ],
     libraries: &[crate::shaders::library!("vf/proxy.wgsl")],
 };
 
@@ -60,7 +66,7 @@ use crate::{
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     method::{
         Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, OptionKind, OptionSpec,
-        Resolved,
+        Resolved, Timing, TimingRow,
     },
 };
 use filter::{FilterShape, MAX_FILTER_RADIUS, VisibilityFilter};
@@ -103,7 +109,11 @@ pub struct VfOptions {
 
 impl Default for VfOptions {
     fn default() -> Self {
-        Self::from_resolved(&METHOD.resolve(&Default::default()).expect("defaults are valid"))
+        Self::from_resolved(
+            &METHOD
+                .resolve(&Default::default())
+                .expect("defaults are valid"),
+        )
     }
 }
 
@@ -307,7 +317,13 @@ pub const METHOD: MethodEntry = MethodEntry {
         PassInfo {
             name: "vf gather",
             stage: Stage::Frame,
-            reads: &[Slot::Reduced, Slot::Voxels, Slot::GBuffer, Slot::Scene, Slot::View],
+            reads: &[
+                Slot::Reduced,
+                Slot::Voxels,
+                Slot::GBuffer,
+                Slot::Scene,
+                Slot::View,
+            ],
             writes: &[Slot::Reduced],
         },
         filters::PASSES[0],
@@ -330,6 +346,39 @@ pub const METHOD: MethodEntry = MethodEntry {
         golden_flip: 0.01,
         emissive: Energy::Within(0.72),
         ..Checks::DEFAULT
+    },
+    timing: Timing {
+        about: "Chen et al. 2014, Table 1: its marching sizes for a 512² image scaled to the \
+                image (marching at 1/8 and 1/4, gathering at half resolution), each without and \
+                with the 7x7 filter, then the defaults; camera and light at rest",
+        compare_with: &["direct"],
+        rows: &[
+            TimingRow {
+                label: "marching 1/8 (64² of 512²), no filter",
+                options: "march=8,gather=2,filter=0",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "marching 1/8 (64² of 512²), 7x7 filter",
+                options: "march=8,gather=2,filter=3",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "marching 1/4 (128² of 512²), no filter",
+                options: "march=4,gather=2,filter=0",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "marching 1/4 (128² of 512²), 7x7 filter",
+                options: "march=4,gather=2,filter=3",
+                moving_light: false,
+            },
+            TimingRow {
+                label: "defaults",
+                options: "",
+                moving_light: false,
+            },
+        ],
     },
 };
 
