@@ -16,7 +16,7 @@ use crate::{
     CliResult, check_writable,
     cli::{AnimateOptions, RenderConfig},
     load_scene,
-    render::{gpu_renderer, renderer_settings, save_png},
+    render::{gpu_renderer, renderer_settings},
     scene_dir,
 };
 
@@ -189,7 +189,7 @@ pub fn run_animate(config: &RenderConfig, options: &AnimateOptions) -> CliResult
         }
         let mut image = readback::render_image(&mut renderer, 1).map_err(gpu_error)?;
         crate::render::expose(config, &mut image, &mut metered);
-        save_png(path, &image)?;
+        readback::save_png(path, &image)?;
         if let Some(gif) = &mut gif {
             gif.push(image.display)?;
         }

@@ -8,7 +8,8 @@
 //! - [`runtime`]: the GPU runtime on wgpu (loaders, visibility queries in WGSL, rendering).
 //! - `report` (feature `lab`, on by default): the lab's reports (`cssm_lab::report`): the
 //!   compression report measured against the paper, the methods' error against the path tracer,
-//!   the comparison page;
+//!   the comparison page; and `measure` (`cssm_lab::measure`), the engine that renders what
+//!   `cssm report error` and `cssm compare` measure;
 //! - [`summary`]: what `cssm bake`, `cssm inspect` and `cssm check` print, as text or JSON
 //!   (`cssm_bake::summary`);
 //! - [`builtin`]: the built-in scenes.
@@ -33,10 +34,10 @@ pub use cssm_formats as formats;
 pub use cssm_raycast as raycast;
 pub use cssm_runtime as runtime;
 
-/// The lab (`cssm-lab`): the reports, the image metrics, the comparison page and the
-/// diagnostics (feature `lab`).
+/// The lab (`cssm-lab`): the reports, the image metrics, the comparison page, the engine that
+/// renders what they measure and the diagnostics (feature `lab`).
 #[cfg(feature = "lab")]
-pub use cssm_lab::{diagnose, report};
+pub use cssm_lab::{diagnose, measure, report};
 
 pub use cssm_bake::{flag_error, summary};
 pub use cssm_formats::files::{human_bytes, safe_file_stem};

@@ -1,10 +1,10 @@
 //! The `cssm` command line: a thin layer over the `cssm-formats`, `cssm-bake` and
 //! `cssm-runtime` libraries. [`cli`] holds the clap definitions and turns each command's
 //! arguments into a config of library types, checked by the libraries; `bake_cmd`,
-//! `check_cmd`, `render`, `view` (`cssm view`, the window), `error_cmd` (`cssm report error`)
-//! and `compare_cmd` (`cssm compare`) run the commands, on what [`measure`] shares, `inspect`
-//! and the other reports are here. What `bake`, `inspect` and `check` print, text or
-//! `--json`, is [`cssm::summary`].
+//! `check_cmd`, `render` and `view` (`cssm view`, the window) run the commands; `inspect` and
+//! the reports are here, `cssm report error` and `cssm compare` run by the lab's engine
+//! ([`cssm::measure`]) with the command's scene loading and bake ([`CommandHost`]). What
+//! `bake`, `inspect` and `check` print, text or `--json`, is [`cssm::summary`].
 //!
 //! Exit codes: 0 success, 1 a check ran and failed its threshold, 2 an error.
 
@@ -17,9 +17,6 @@ mod animate;
 mod bake_cmd;
 mod check_cmd;
 mod cli;
-mod compare_cmd;
-mod error_cmd;
-mod measure;
 mod render;
 mod view;
 
@@ -64,8 +61,18 @@ fn main() -> ExitCode {
         Command::Report(ReportCommand::Compression(args)) => run_report(args),
         Command::Report(ReportCommand::Heads(args)) => run_heads(args),
         Command::Report(ReportCommand::Church(args)) => run_church(args),
-        Command::Report(ReportCommand::Error(args)) => args.config().and_then(error_cmd::run_error),
-        Command::Compare(args) => args.config().and_then(compare_cmd::run_compare),
+        Command::Report(ReportCommand::Error(args)) => args
+            .config()
+            .and_then(|config| {
+                cssm::measure::error_run::run(&config, &command_line(), &CommandHost)
+            })
+            .map(|()| ExitCode::SUCCESS),
+        Command::Compare(args) => args
+            .config()
+            .and_then(|config| {
+                cssm::measure::compare_run::run(&config, &command_line(), &CommandHost)
+            })
+            .map(|()| ExitCode::SUCCESS),
         Command::Diagnose(command) => {
             let scenes = LOAD_OPTIONS.get().copied().unwrap_or_default();
             cssm::diagnose::run(&command, scenes).map(|()| ExitCode::SUCCESS)
@@ -108,6 +115,40 @@ fn load_scene(dir: &Path) -> Result<Scene, String> {
         eprintln!("warning: {}", printable(w));
     }
     Ok(scene)
+}
+
+/// What the lab's runs of `cssm report error` and `cssm compare` take from the command: the
+/// built-in scenes, and the command's scene loading and bake with their spinner and progress
+/// bar.
+struct CommandHost;
+
+impl cssm::measure::Host for CommandHost {
+    fn builtin_scenes(&self) -> std::io::Result<Vec<PathBuf>> {
+        Ok(vec![
+            cssm::builtin::cornell_box()?,
+            cssm::builtin::cornell_glossy()?,
+        ])
+    }
+
+    fn load_scene(&self, dir: &Path) -> Result<Scene, String> {
+        load_scene(dir)
+    }
+
+    fn bake(
+        &self,
+        scene: &Scene,
+        options: &cssm::bake::BakeOptions,
+    ) -> Result<cssm::bake::Baked, cssm::bake::BakeError> {
+        bake_cmd::bake_with_progress(scene, options)
+    }
+}
+
+/// The command line as typed (`cssm` and its arguments), for a report to name.
+fn command_line() -> String {
+    std::iter::once("cssm".to_string())
+        .chain(std::env::args().skip(1))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 fn read_file(path: &Path) -> Result<CssmFile, String> {
@@ -244,10 +285,7 @@ fn inspect_chunk(args: &InspectArgs) -> CliResult {
 
 fn run_report(args: cssm::report::CompressionArgs) -> CliResult {
     let exe = std::env::current_exe().map_err(|e| format!("cannot find the cssm binary: {e}"))?;
-    let command = std::iter::once("cssm".to_string())
-        .chain(std::env::args().skip(1))
-        .collect::<Vec<_>>()
-        .join(" ");
+    let command = command_line();
     let cornell = cssm::builtin::cornell_box()
         .map_err(|e| format!("cannot prepare the built-in Cornell box: {e}"))?;
     let report = cssm::report::run(&args, &exe, &command, &cornell)?;

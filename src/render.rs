@@ -1,5 +1,5 @@
 //! `cssm render`: the command line's loop over the runtime's [`Renderer`], and the image files
-//! it writes. Every method and option comes from the runtime's method table
+//! it writes ([`readback::save_png`], [`readback::save_exr`]). Every method and option comes from the runtime's method table
 //! ([`runtime::method::METHODS`]); every range is checked there.
 
 use std::{path::Path, process::ExitCode};
@@ -103,9 +103,9 @@ pub fn run_render(config: RenderConfig) -> CliResult {
     };
     let mut image = image;
     expose(&config, &mut image, &mut None);
-    save_png(&config.out, &image)?;
+    readback::save_png(&config.out, &image)?;
     if let Some(exr) = &config.exr {
-        save_exr(exr, &image)?;
+        readback::save_exr(exr, &image)?;
     }
     eprintln!(
         "wrote {}{}",
@@ -496,58 +496,3 @@ pub(crate) fn render_cssm(config: &RenderConfig, scene: &Scene) -> Result<CssmFi
 
 /// The largest atlas `cssm render` bakes in memory when no `--cssm` is given.
 const LARGEST_IN_MEMORY_ATLAS: u32 = 512;
-
-/// Encodes `image` as `format` in memory and writes it with the project's one atomic write
-/// (`formats::cssm::write_bytes_atomic`): a failed write never leaves a half-written image.
-fn save_image(
-    path: &Path,
-    image: ::image::DynamicImage,
-    format: ::image::ImageFormat,
-) -> Result<(), String> {
-    let fail = |reason: String| format!("{}: {reason}", path.display());
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    image
-        .write_to(&mut bytes, format)
-        .map_err(|e| fail(e.to_string()))?;
-    formats::cssm::write_bytes_atomic(path, bytes.get_ref()).map_err(|e| match e {
-        // The error names the path already; keep just the cause.
-        formats::cssm::CssmError::Io { error, .. } => fail(error.to_string()),
-        other => fail(other.to_string()),
-    })
-}
-
-/// The tone-mapped image as PNG.
-pub(crate) fn save_png(path: &Path, image: &readback::Image) -> Result<(), String> {
-    save_rgba_png(path, image.width, image.height, image.display.clone())
-}
-
-/// RGBA8 pixels of `width` x `height` as PNG.
-pub(crate) fn save_rgba_png(
-    path: &Path,
-    width: u32,
-    height: u32,
-    rgba: Vec<u8>,
-) -> Result<(), String> {
-    let img = ::image::RgbaImage::from_raw(width, height, rgba)
-        .ok_or_else(|| format!("{}: the display image has the wrong size", path.display()))?;
-    save_image(path, img.into(), ::image::ImageFormat::Png)
-}
-
-/// The linear radiance as OpenEXR (32-bit float RGBA).
-pub(crate) fn save_exr(path: &Path, image: &readback::Image) -> Result<(), String> {
-    save_radiance_exr(path, image.width, image.height, &image.radiance)
-}
-
-/// Linear RGBA radiance of `width` x `height` as OpenEXR (32-bit float RGBA): what
-/// `cssm render --exr` and `cssm view`'s EXR screenshots write.
-pub(crate) fn save_radiance_exr(
-    path: &Path,
-    width: u32,
-    height: u32,
-    radiance: &[[f32; 4]],
-) -> Result<(), String> {
-    let data: Vec<f32> = radiance.iter().flatten().copied().collect();
-    let img = ::image::Rgba32FImage::from_raw(width, height, data)
-        .ok_or_else(|| format!("{}: the radiance image has the wrong size", path.display()))?;
-    save_image(path, img.into(), ::image::ImageFormat::OpenExr)
-}

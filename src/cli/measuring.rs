@@ -1,5 +1,9 @@
 //! `cssm report error` and `cssm compare`: the flags they share ([`MeasureFlags`]), each
-//! `--method` spec parsed against the method table ([`Variant`]), and their configurations.
+//! `--method` spec parsed against the method table (into the lab's [`Variant`]), and their
+//! configurations (the lab's [`ErrorConfig`] and [`CompareConfig`], which
+//! [`cssm::measure`] runs).
+
+use cssm::measure::{CompareConfig, ErrorConfig, Variant};
 
 use super::*;
 
@@ -44,40 +48,6 @@ pub struct ErrorArgs {
     /// scene files, size, samples, bounces and component, instead of path tracing again.
     #[arg(long)]
     reference_cache: bool,
-}
-
-/// One `--method` of `cssm report error`, checked by the method table.
-pub struct Variant {
-    /// The spec as the user wrote it, spaces trimmed (`lightcuts:bounces=2`).
-    pub spec: String,
-    /// The method.
-    pub method: &'static MethodEntry,
-    /// The options the spec set, and `--bounces` / `--samples` where it did not.
-    pub values: OptionValues,
-    /// Every option of the method, checked.
-    pub resolved: Resolved,
-}
-
-/// `cssm report error`, checked.
-pub struct ErrorConfig {
-    /// Scene directories or mesh files; empty: the built-in scenes.
-    pub scenes: Vec<PathBuf>,
-    /// The variants, in the order given.
-    pub variants: Vec<Variant>,
-    /// Image size, exposure (a multiplier) and shadow-map resolution, checked.
-    pub frame: runtime::frame::FrameSettings,
-    /// The reference's options (`samples`, `bounces`), checked by its table entry.
-    pub reference: Resolved,
-    /// Which light the images hold.
-    pub component: Component,
-    /// The in-memory bake of the methods that need a `.cssm`.
-    pub bake: bake::BakeOptions,
-    /// Report directory.
-    pub out: PathBuf,
-    /// `--reference-cache`.
-    pub reference_cache: bool,
-    /// Frames rendered per GPU variant, 1..=[`MAX_FRAMES`].
-    pub frames: u32,
 }
 
 impl ErrorArgs {
@@ -254,28 +224,6 @@ pub struct CompareArgs {
     no_cache: bool,
 }
 
-/// `cssm compare`, checked.
-pub struct CompareConfig {
-    /// Scene directories or mesh files; empty: the built-in scenes.
-    pub scenes: Vec<PathBuf>,
-    /// The methods, in the order given.
-    pub variants: Vec<Variant>,
-    /// Image size, exposure (a multiplier) and shadow-map resolution, checked.
-    pub frame: runtime::frame::FrameSettings,
-    /// Exposure in stops, as given.
-    pub exposure_stops: f32,
-    /// The reference's options (`samples`, `bounces`), checked by its table entry.
-    pub reference: Resolved,
-    /// The in-memory bake of the methods that need a `.cssm`.
-    pub bake: bake::BakeOptions,
-    /// Page directory.
-    pub out: PathBuf,
-    /// Whether cached references may be reused.
-    pub reuse_references: bool,
-    /// Frames rendered per GPU method, 1..=[`MAX_FRAMES`].
-    pub frames: u32,
-}
-
 impl CompareArgs {
     /// The methods split ([`split_methods`]), parsed and resolved against the method table, and
     /// the shared flags checked; an error names the method or the flag.
@@ -338,30 +286,17 @@ pub(super) fn parse_variant(text: &str, bounces: u32, samples: u32) -> Result<Va
         None => (text.trim(), None),
     };
     let method = runtime::method::find(name).map_err(|e| fail(e.to_string()))?;
-    let mut values = OptionValues::default();
-    let mut given = Vec::new();
-    for part in options.into_iter().flat_map(|o| o.split(',')) {
-        let (key, value) = part
-            .split_once('=')
-            .ok_or_else(|| fail(format!("'{}' is not OPTION=VALUE", part.trim())))?;
-        let (key, value) = (key.trim(), value.trim());
-        let spec = method.option(key).ok_or_else(|| {
-            let known: Vec<&str> = method.options.iter().map(|o| o.name).collect();
-            fail(format!(
-                "method {method} has no option '{key}' (its options: {})",
-                if known.is_empty() {
-                    "none".into()
-                } else {
-                    known.join(", ")
-                }
-            ))
-        })?;
-        if values.get(spec.name).is_some() {
-            return Err(fail(format!("option '{key}' is given twice")));
-        }
-        values.set(spec.name, spec.parse(value).map_err(fail)?);
-        given.push(format!("{key}={value}"));
-    }
+    // `NAME:` with nothing after it is an empty part, refused as one.
+    let options = options.map(|o| if o.trim().is_empty() { "," } else { o });
+    let mut values = method
+        .parse_options(options.unwrap_or_default())
+        .map_err(fail)?;
+    let given: Vec<String> = options
+        .into_iter()
+        .flat_map(|o| o.split(','))
+        .filter_map(|part| part.split_once('='))
+        .map(|(key, value)| format!("{}={}", key.trim(), value.trim()))
+        .collect();
     for (option, value) in [("bounces", bounces), ("samples", samples)] {
         if method.option(option).is_some() && values.get(option).is_none() {
             values.set(option, OptionValue::Count(value));

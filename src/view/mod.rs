@@ -48,7 +48,7 @@ use crate::{
     CliResult, check_writable,
     cli::{Pose, ViewConfig},
     load_scene,
-    render::{posed, render_cssm, renderer_settings, save_radiance_exr, save_rgba_png},
+    render::{posed, render_cssm, renderer_settings},
     scene_dir,
 };
 

@@ -52,11 +52,11 @@ impl App {
                 .iter()
                 .map(|v| v.to_array())
                 .collect();
-            save_radiance_exr(path, w, h, &radiance)?;
+            readback::save_radiance_exr(path, w, h, &radiance)?;
         } else {
             let rgba = readback::read_texture(&gfx.gpu.device, &gfx.gpu.queue, &gfx.image, 4)
                 .map_err(fail)?;
-            save_rgba_png(path, w, h, rgba)?;
+            readback::save_rgba_png(path, w, h, rgba)?;
         }
         let frames = gfx.renderer.frames_accumulated();
         eprintln!(

@@ -1,4 +1,8 @@
-//! Copies GPU buffers and textures back to the CPU (tests, image output, timings).
+//! Copies GPU buffers and textures back to the CPU (tests, image output, timings), and writes
+//! a read-back image as PNG or OpenEXR (`cssm render`, `cssm view`'s screenshots, the lab's
+//! `cssm report error` and `cssm compare`).
+
+use std::path::Path;
 
 use crate::RuntimeError;
 
@@ -233,4 +237,85 @@ pub fn vec4s(bytes: &[u8]) -> Vec<glam::Vec4> {
         .iter()
         .map(|&v| glam::Vec4::from(v))
         .collect()
+}
+
+/// The tone-mapped image as PNG.
+///
+/// # Errors
+/// A display image of the wrong size, a failed encode or write; the message names `path`.
+pub fn save_png(path: &Path, image: &Image) -> Result<(), String> {
+    save_rgba_png(path, image.width, image.height, image.display.clone())
+}
+
+/// RGBA8 pixels of `width` x `height` as PNG.
+///
+/// # Errors
+/// Pixels of the wrong size, a failed encode or write; the message names `path`.
+pub fn save_rgba_png(path: &Path, width: u32, height: u32, rgba: Vec<u8>) -> Result<(), String> {
+    let img = ::image::RgbaImage::from_raw(width, height, rgba)
+        .ok_or_else(|| format!("{}: the display image has the wrong size", path.display()))?;
+    save_image(path, img.into(), ::image::ImageFormat::Png)
+}
+
+/// The linear radiance as OpenEXR (32-bit float RGBA).
+///
+/// # Errors
+/// A failed encode or write; the message names `path`.
+pub fn save_exr(path: &Path, image: &Image) -> Result<(), String> {
+    save_radiance_exr(path, image.width, image.height, &image.radiance)
+}
+
+/// Linear RGBA radiance of `width` x `height` as OpenEXR (32-bit float RGBA): what
+/// `cssm render --exr` and `cssm view`'s EXR screenshots write.
+///
+/// # Errors
+/// Radiance of the wrong size, a failed encode or write; the message names `path`.
+pub fn save_radiance_exr(
+    path: &Path,
+    width: u32,
+    height: u32,
+    radiance: &[[f32; 4]],
+) -> Result<(), String> {
+    let data: Vec<f32> = radiance.iter().flatten().copied().collect();
+    let img = ::image::Rgba32FImage::from_raw(width, height, data)
+        .ok_or_else(|| format!("{}: the radiance image has the wrong size", path.display()))?;
+    save_image(path, img.into(), ::image::ImageFormat::OpenExr)
+}
+
+/// The linear RGBA radiance of an image file (what [`save_exr`] writes) and its width and
+/// height.
+///
+/// # Errors
+/// A file that cannot be read or decoded; the message names `path`.
+pub fn load_radiance(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), String> {
+    let image = ::image::open(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .to_rgba32f();
+    let (width, height) = image.dimensions();
+    let radiance = image
+        .as_raw()
+        .chunks_exact(4)
+        .map(|p| [p[0], p[1], p[2], p[3]])
+        .collect();
+    Ok((width, height, radiance))
+}
+
+/// Encodes `image` as `format` in memory and writes it with the project's one atomic write
+/// (`cssm_formats::cssm::write_bytes_atomic`): a failed write never leaves a half-written image.
+fn save_image(
+    path: &Path,
+    image: ::image::DynamicImage,
+    format: ::image::ImageFormat,
+) -> Result<(), String> {
+    use cssm_formats::cssm::{CssmError, write_bytes_atomic};
+    let fail = |reason: String| format!("{}: {reason}", path.display());
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image
+        .write_to(&mut bytes, format)
+        .map_err(|e| fail(e.to_string()))?;
+    write_bytes_atomic(path, bytes.get_ref()).map_err(|e| match e {
+        // The error names the path already; keep just the cause.
+        CssmError::Io { error, .. } => fail(error.to_string()),
+        other => fail(other.to_string()),
+    })
 }

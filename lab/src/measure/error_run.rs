@@ -1,32 +1,59 @@
-//! `cssm report error`: per scene the reference path tracer's image, then every variant's,
-//! measured against it ([`cssm::report::error`]) and written out
-//! ([`cssm::report::error_write`]). The rendering is [`crate::measure`]'s; this file only
-//! measures and writes.
+//! `cssm report error`'s run: per scene the reference path tracer's image, then every
+//! variant's, measured against it ([`crate::report::error`]) and written out
+//! ([`crate::report::error_write`]: error.md, error.csv, each image and each scene's strip).
+//! The rendering is [`super::reference`]'s and [`super::render`]'s.
 
-use std::{process::ExitCode, time::Instant};
+use std::{path::PathBuf, time::Instant};
 
-use cssm::{
-    formats::CssmFile,
-    report::{
-        error::Figures,
-        error_write::{self, ErrorReport, ErrorRow, Measured},
-    },
-    runtime,
+use cssm_bake::BakeOptions;
+use cssm_formats::CssmFile;
+use cssm_runtime::{
+    self as runtime,
+    common::{compose::Component, readback},
+    frame::FrameSettings,
+    method::Resolved,
 };
 
-use crate::{
-    CliResult,
-    cli::ErrorConfig,
-    measure::{self, ReferenceFiles, ReferenceSpec, RenderSpec, write_text},
-    render::{save_png, save_rgba_png},
+use super::{Host, Reference, ReferenceFiles, ReferenceSpec, RenderSpec, Variant, write_text};
+use crate::report::{
+    error::Figures,
+    error_write::{self, ErrorReport, ErrorRow, Measured},
 };
 
-pub fn run_error(config: ErrorConfig) -> CliResult {
+/// `cssm report error`, checked.
+pub struct ErrorConfig {
+    /// Scene directories or mesh files; empty: the host's built-in scenes.
+    pub scenes: Vec<PathBuf>,
+    /// The variants, in the order given.
+    pub variants: Vec<Variant>,
+    /// Image size, exposure (a multiplier) and shadow-map resolution, checked.
+    pub frame: FrameSettings,
+    /// The reference's options (`samples`, `bounces`), checked by its table entry.
+    pub reference: Resolved,
+    /// Which light the images hold.
+    pub component: Component,
+    /// The in-memory bake of the methods that need a `.cssm`.
+    pub bake: BakeOptions,
+    /// Report directory.
+    pub out: PathBuf,
+    /// `--reference-cache`: reuse a cached reference of the same scene and settings.
+    pub reference_cache: bool,
+    /// Frames rendered per GPU variant, at least one.
+    pub frames: u32,
+}
+
+/// Runs `cssm report error` as `command` (the command line, which the report names): writes
+/// the report into `config.out` and prints its table.
+///
+/// # Errors
+/// A scene, a reference or a file that fails, or any variant's render that failed (after the
+/// report is written, which tells each one's error).
+pub fn run(config: &ErrorConfig, command: &str, host: &dyn Host) -> Result<(), String> {
     let start = Instant::now();
     let out = &config.out;
-    measure::check_out_dir(out)?;
-    let scenes = measure::load_scenes(&config.scenes)?;
-    let output = |name: &str| crate::out_path(out, name, false);
+    super::check_out_dir(out)?;
+    let scenes = super::load_scenes(&config.scenes, host)?;
+    let output = |name: &str| super::output(out, name, false);
     // The fixed names are checked before the first render, not after minutes of it.
     for name in ["error.md", "error.csv"] {
         output(name)?;
@@ -37,12 +64,12 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
     let (mut references, mut rows) = (Vec::new(), Vec::new());
     for scene in &scenes {
         // File names from the scene's name as one safe component (it may hold `/` or `..`).
-        let scene_stem = cssm::safe_file_stem(&scene.name);
+        let scene_stem = cssm_formats::files::safe_file_stem(&scene.name);
         let files = |ext: &str| output(&format!("{scene_stem}-reference.{ext}"));
-        let measure::Reference {
+        let Reference {
             image: reference,
             summary,
-        } = measure::reference_image(
+        } = super::reference_image(
             scene,
             &ReferenceSpec {
                 frame: config.frame,
@@ -67,7 +94,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
                 bake: &config.bake,
                 timed: true,
             };
-            let outcome = measure::render_variant(&spec, scene, variant, &mut gpu, &mut cssm)
+            let outcome = super::render_variant(&spec, scene, variant, host, &mut gpu, &mut cssm)
                 .and_then(|rendered| {
                     let image = rendered.image;
                     let figures = Figures::measure(
@@ -77,7 +104,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
                         (&reference.radiance, &reference.display),
                     );
                     let stem = error_write::file_stem(&variant.spec);
-                    save_png(&output(&format!("{scene_stem}-{stem}.png"))?, &image)?;
+                    readback::save_png(&output(&format!("{scene_stem}-{stem}.png"))?, &image)?;
                     strip.push(image.display);
                     Ok(Measured {
                         figures,
@@ -98,7 +125,7 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
         }
         let images: Vec<&[u8]> = strip.iter().map(Vec::as_slice).collect();
         let (strip_w, pixels) = error_write::strip(w, h, &images);
-        save_rgba_png(
+        readback::save_rgba_png(
             &output(&format!("{scene_stem}-strip.png"))?,
             strip_w,
             h,
@@ -108,9 +135,9 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
     }
 
     let report = ErrorReport {
-        command: measure::command_line(),
-        commit: cssm::report::commit(),
-        machine: cssm::report::machine(),
+        command: command.to_string(),
+        commit: crate::report::commit(),
+        machine: crate::report::machine(),
         device: gpu.as_ref().map(runtime::Gpu::describe),
         settings: format!(
             "{w}x{h}, reference {} paths per pixel, {} bounce(s), component {}, exposure x{}, \
@@ -143,5 +170,5 @@ pub fn run_error(config: ErrorConfig) -> CliResult {
         ));
     }
     eprintln!("wrote {}", out.join("error.md").display());
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }

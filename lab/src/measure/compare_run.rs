@@ -1,35 +1,58 @@
-//! `cssm compare`: per scene the reference path tracer's full image and indirect light (cached
-//! in `OUT/reference-cache/`), then every method's, measured against them
-//! ([`cssm::report::error`], the reference's noise taken out by [`cssm::report::compare`]) and
-//! written as a page ([`cssm::report::compare_html`]), CSV, JSON and Markdown. The rendering is
-//! [`crate::measure`]'s.
+//! `cssm compare`'s run: per scene the reference path tracer's full image and indirect light
+//! (cached in `OUT/reference-cache/`), then every method's, measured against them
+//! ([`crate::report::error`], the reference's noise taken out by [`crate::report::compare`])
+//! and written as a page ([`crate::report::compare_html`]), CSV, JSON and Markdown. The
+//! rendering is [`super::reference`]'s and [`super::render`]'s.
 
 use std::{
     path::{Path, PathBuf},
-    process::ExitCode,
     time::Instant,
 };
 
-use cssm::{
-    formats::{CssmFile, Scene},
-    report::{
-        compare::{
-            self, CompareReport, CompareSettings, ComponentFigures, Components, MethodComparison,
-            MethodImages, MethodMeasured, ReferenceEntry, SceneComparison,
-        },
-        compare_html,
-        error::{self, Figures},
-        error_write::file_stem,
+use cssm_bake::BakeOptions;
+use cssm_formats::{CssmFile, Scene};
+use cssm_runtime::{
+    self as runtime,
+    common::{
+        compose::Component,
+        readback::{self, Image},
     },
-    runtime::{self, common::compose::Component, common::readback::Image},
+    frame::FrameSettings,
+    method::Resolved,
 };
 
-use crate::{
-    CliResult,
-    cli::{CompareConfig, Variant},
-    measure::{self, ReferenceFiles, ReferenceSpec, RenderSpec, write_text},
-    render::{save_png, save_rgba_png},
+use super::{Host, ReferenceFiles, ReferenceSpec, RenderSpec, Variant, write_text};
+use crate::report::{
+    compare::{
+        self, CompareReport, CompareSettings, ComponentFigures, Components, MethodComparison,
+        MethodImages, MethodMeasured, ReferenceEntry, SceneComparison,
+    },
+    compare_html,
+    error::{self, Figures},
+    error_write::file_stem,
 };
+
+/// `cssm compare`, checked.
+pub struct CompareConfig {
+    /// Scene directories or mesh files; empty: the host's built-in scenes.
+    pub scenes: Vec<PathBuf>,
+    /// The methods, in the order given.
+    pub variants: Vec<Variant>,
+    /// Image size, exposure (a multiplier) and shadow-map resolution, checked.
+    pub frame: FrameSettings,
+    /// Exposure in stops, as given.
+    pub exposure_stops: f32,
+    /// The reference's options (`samples`, `bounces`), checked by its table entry.
+    pub reference: Resolved,
+    /// The in-memory bake of the methods that need a `.cssm`.
+    pub bake: BakeOptions,
+    /// Page directory.
+    pub out: PathBuf,
+    /// Whether cached references may be reused.
+    pub reuse_references: bool,
+    /// Frames rendered per GPU method, at least one.
+    pub frames: u32,
+}
 
 /// The page's own files in OUT, which a run replaces (besides `images/` and
 /// `reference-cache/`).
@@ -41,26 +64,32 @@ const PAGE_FILES: [&str; 5] = [
     "compare.md",
 ];
 
-pub fn run_compare(config: CompareConfig) -> CliResult {
+/// Runs `cssm compare` as `command` (the command line, which the page names): writes the page
+/// and its files into `config.out` and prints the Markdown table.
+///
+/// # Errors
+/// A scene, a reference or a file that fails, or any method's render that failed (after the
+/// page is written, which tells each one's error).
+pub fn run(config: &CompareConfig, command: &str, host: &dyn Host) -> Result<(), String> {
     let start = Instant::now();
     let out = &config.out;
-    measure::check_out_dir(out)?;
-    let scenes = measure::load_scenes(&config.scenes)?;
+    super::check_out_dir(out)?;
+    let scenes = super::load_scenes(&config.scenes, host)?;
     // Every fixed name is checked before the first render: a link planted as `index.html`
     // or `images` is refused now, not after minutes of rendering (and never written through).
     for name in PAGE_FILES {
         output(out, name)?;
     }
-    let cache = crate::out_path(out, "reference-cache", true)?;
+    let cache = super::output(out, "reference-cache", true)?;
     let mut gpu: Option<runtime::Gpu> = None;
     let mut comparisons = Vec::new();
     for scene in &scenes {
-        comparisons.push(compare_scene(&config, scene, &cache, &mut gpu)?);
+        comparisons.push(compare_scene(config, scene, &cache, host, &mut gpu)?);
     }
     let report = CompareReport {
-        command: measure::command_line(),
-        commit: cssm::report::commit(),
-        machine: cssm::report::machine(),
+        command: command.to_string(),
+        commit: crate::report::commit(),
+        machine: crate::report::machine(),
         device: gpu.as_ref().map(runtime::Gpu::describe),
         settings: CompareSettings {
             width: config.frame.width,
@@ -107,12 +136,12 @@ pub fn run_compare(config: CompareConfig) -> CliResult {
             out.join("index.html").display()
         ));
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
-/// `name` inside `--out`, never through a link ([`crate::out_path`]).
+/// `name` inside `--out`, never through a link ([`super::output`]).
 fn output(out: &Path, name: &str) -> Result<PathBuf, String> {
-    crate::out_path(out, name, false)
+    super::output(out, name, false)
 }
 
 /// The reference cache's file of `scene`'s `component` reference at these settings, with
@@ -141,6 +170,7 @@ fn compare_scene(
     config: &CompareConfig,
     scene: &Scene,
     cache: &Path,
+    host: &dyn Host,
     gpu: &mut Option<runtime::Gpu>,
 ) -> Result<SceneComparison, String> {
     let out = &config.out;
@@ -152,7 +182,7 @@ fn compare_scene(
     let reference = |component: Component| -> Result<(Image, ReferenceEntry), String> {
         let file = cache_file(cache, scene, component, config);
         let png_rel = format!("{images_rel}/reference-{component}.png");
-        let reference = measure::reference_image(
+        let reference = super::reference_image(
             scene,
             &ReferenceSpec {
                 frame: config.frame,
@@ -185,7 +215,7 @@ fn compare_scene(
                 bake: &config.bake,
                 timed: component == Component::Full,
             };
-            measure::render_variant(&spec, scene, variant, gpu, &mut cssm)
+            super::render_variant(&spec, scene, variant, host, gpu, &mut cssm)
         };
         let stem = file_stem(&variant.spec);
         let measured = render(Component::Full).and_then(|full| {
@@ -204,10 +234,10 @@ fn compare_scene(
                 indirect: format!("{images_rel}/{stem}-indirect.png"),
                 indirect_error: format!("{images_rel}/{stem}-indirect-error.png"),
             };
-            save_png(&output(out, &paths.full)?, &full.image)?;
-            save_png(&output(out, &paths.indirect)?, &indirect.image)?;
+            readback::save_png(&output(out, &paths.full)?, &full.image)?;
+            readback::save_png(&output(out, &paths.indirect)?, &indirect.image)?;
             let map = error::flip_map(w, h, &indirect_ref.0.display, &indirect.image.display);
-            save_rgba_png(&output(out, &paths.indirect_error)?, w, h, map)?;
+            readback::save_rgba_png(&output(out, &paths.indirect_error)?, w, h, map)?;
             Ok(MethodMeasured {
                 figures: Components {
                     full: against(&full.image, &full_ref),
@@ -233,6 +263,8 @@ fn compare_scene(
     })
 }
 
+/// One method's row of the page: its figures, or the error its render failed with (told on
+/// stderr as well).
 fn comparison(
     scene: &Scene,
     variant: &Variant,
