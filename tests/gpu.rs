@@ -176,7 +176,17 @@ fn render(
     method: &str,
     options: &RenderOptions,
 ) -> Result<Image, cssm_runtime::RuntimeError> {
-    let method = method::find(method)?;
+    render_entry(gpu, scene, file, method::find(method)?, options)
+}
+
+/// [`render`] of a method's entry, in the table or not.
+fn render_entry(
+    gpu: &Gpu,
+    scene: &Scene,
+    file: Option<&CssmFile>,
+    method: &'static MethodEntry,
+    options: &RenderOptions,
+) -> Result<Image, cssm_runtime::RuntimeError> {
     let values = options.values(method);
     let mut renderer = Renderer::new(
         &gpu.device,

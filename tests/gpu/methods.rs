@@ -1,19 +1,21 @@
 //! The tests every method gets from the method table (`cssm_runtime::METHODS`): an analytic
 //! energy check in a closed sphere, and a golden image of the Cornell box compared with FLIP.
 //! Each method declares the tolerances it meets (`MethodEntry::checks`); a new method of the
-//! table is tested here without a line of its own.
+//! table is tested here without a line of its own, and a method written in a test, outside the
+//! table, gets the same checks (`a_method_written_here_is_built_and_held_to_the_energy_check`).
 
 use std::path::{Path, PathBuf};
 
 use cssm_bake::BakeOptions;
 use cssm_formats::{CssmFile, Scene};
 use cssm_runtime::{
-    METHODS,
+    METHODS, RuntimeError,
     common::{compose::Component, readback::Image},
-    method::{Backend, MethodEntry},
+    frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
+    method::{self, Backend, Checks, Energy, GiMethod, MethodEntry, MethodSetup, Timing},
 };
 
-use super::{RenderOptions, cornell, energy_failure, gpu, render, render_reference};
+use super::{RenderOptions, cornell, energy_failure, gpu, render_entry, render_reference};
 
 /// Albedo of the sphere's wall.
 pub(super) const RHO: f32 = 0.5;
@@ -122,13 +124,13 @@ pub(super) fn sphere() -> &'static (Scene, f32, CssmFile) {
 
 /// `method` on `scene` with `options`: the renderer for a GPU method, the CPU run otherwise.
 pub(super) fn image_of(
-    method: &MethodEntry,
+    method: &'static MethodEntry,
     scene: &Scene,
     file: &CssmFile,
     options: &RenderOptions,
 ) -> Image {
     match method.backend {
-        Backend::Gpu(_) => render(gpu(), scene, Some(file), method.name, options),
+        Backend::Gpu(_) => render_entry(gpu(), scene, Some(file), method, options),
         Backend::Cpu(_) => render_reference(scene, options),
     }
     .unwrap_or_else(|e| panic!("{}: {e}", method.name))
@@ -141,6 +143,13 @@ pub(super) fn image_of(
 /// `bounces` option computes one bounce.
 #[test]
 fn every_method_conserves_energy_in_a_closed_sphere() {
+    let failures: Vec<String> = METHODS.iter().filter_map(energy_check).collect();
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The energy check of [`every_method_conserves_energy_in_a_closed_sphere`] of one method: what
+/// is wrong, if anything.
+fn energy_check(method: &'static MethodEntry) -> Option<String> {
     let (scene, area, file) = sphere();
     let power = INTENSITY * std::f32::consts::TAU * (1.0 - CUTOFF_DEG.to_radians().cos());
     let options = RenderOptions {
@@ -152,27 +161,146 @@ fn every_method_conserves_energy_in_a_closed_sphere() {
         shadow_resolution: 512,
         ..Default::default()
     };
-    let mut failures = Vec::new();
-    for method in METHODS {
-        let image = image_of(method, scene, file, &options);
-        let computed = if method.option("bounces").is_some() {
-            BOUNCES
-        } else {
-            1
-        };
-        let bounces: f32 = (1..=computed).map(|k| RHO.powi(k as i32)).sum();
-        let expected = RHO / std::f32::consts::PI * power / area * bounces;
-        // The spot light falls on the wall behind the camera: a screen-space method may
-        // see none of it.
-        failures.extend(energy_failure(
-            method.name,
-            method.checks.energy,
-            &image,
-            expected,
-            false,
-        ));
+    let image = image_of(method, scene, file, &options);
+    let computed = if method.option("bounces").is_some() {
+        BOUNCES
+    } else {
+        1
+    };
+    let bounces: f32 = (1..=computed).map(|k| RHO.powi(k as i32)).sum();
+    let expected = RHO / std::f32::consts::PI * power / area * bounces;
+    // The spot light falls on the wall behind the camera: a screen-space method may see none
+    // of it.
+    energy_failure(method.name, method.checks.energy, &image, expected, false)
+}
+
+/// Progressive radiosity's ambient term (Cohen, Chen, Wallace and Greenberg 1988), the light
+/// the spot lights send once reflected, spread evenly over the scene and reflected `bounces`
+/// times, with the scene's area-weighted mean albedo for every surface: one indirect radiance
+/// for every pixel. Here as the smallest method there is, written outside the runtime's folders
+/// and its table. `scale` makes it wrong on purpose.
+struct Ambient {
+    /// The radiance, in every pixel (rgba, a = 1).
+    constant: wgpu::Buffer,
+    /// What the renderer composes: the constant copied in every frame.
+    indirect: wgpu::Buffer,
+}
+
+impl Ambient {
+    fn build(setup: &MethodSetup, scale: f32) -> Result<Box<dyn GiMethod>, RuntimeError> {
+        let scene = setup.scene;
+        let (mut area, mut albedo) = (0.0f32, 0.0f32);
+        for (t, &material) in scene.triangle_materials.iter().enumerate() {
+            let [a, b, c] = scene.triangle(t);
+            let triangle_area = (b - a).cross(c - a).length() / 2.0;
+            let kd = scene.materials[material as usize].kd;
+            area += triangle_area;
+            albedo += triangle_area * (kd[0] + kd[1] + kd[2]) / 3.0;
+        }
+        let rho = albedo / area;
+        let power: f32 = scene
+            .lights
+            .iter()
+            .map(|l| {
+                let intensity = (l.intensity[0] + l.intensity[1] + l.intensity[2]) / 3.0;
+                intensity * std::f32::consts::TAU * (1.0 - l.cutoff_deg.to_radians().cos())
+            })
+            .sum();
+        let bounces = setup.options.count("bounces").max(1);
+        let reflected: f32 = (1..=bounces).map(|k| rho.powi(k as i32)).sum();
+        let radiance = scale * rho / std::f32::consts::PI * power / area * reflected;
+        let ctx = setup.ctx;
+        let pixels = (ctx.settings.width * ctx.settings.height) as usize;
+        let texel = [radiance, radiance, radiance, 1.0f32];
+        let constant = wgpu::util::DeviceExt::create_buffer_init(
+            &ctx.device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("ambient"),
+                contents: bytemuck::cast_slice(&vec![texel; pixels]),
+                usage: wgpu::BufferUsages::COPY_SRC,
+            },
+        );
+        let indirect = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ambient indirect"),
+            size: constant.size(),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(Box::new(Ambient { constant, indirect }))
     }
-    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+impl GiMethod for Ambient {
+    fn encode(&mut self, _: &FrameContext, frame: &mut FrameEncoder) {
+        frame.encoder.copy_buffer_to_buffer(
+            &self.constant,
+            0,
+            &self.indirect,
+            0,
+            self.constant.size(),
+        );
+    }
+
+    fn indirect(&self) -> Option<&wgpu::Buffer> {
+        Some(&self.indirect)
+    }
+
+    fn resize(&mut self, _: &FrameContext) -> Result<(), RuntimeError> {
+        Err(RuntimeError::Unsupported(
+            "the test's ambient term keeps its size".into(),
+        ))
+    }
+}
+
+/// An entry of [`Ambient`], right (`scale` 1) or wrong.
+const fn ambient_entry(
+    name: &'static str,
+    build: fn(&MethodSetup) -> Result<Box<dyn GiMethod>, RuntimeError>,
+) -> MethodEntry {
+    MethodEntry {
+        name,
+        summary: "progressive radiosity's ambient term (Cohen et al. 1988), in a test",
+        needs_cssm: false,
+        options: &[method::BOUNCES],
+        passes: &[PassInfo {
+            name: "ambient",
+            stage: Stage::Frame,
+            reads: &[],
+            writes: &[Slot::Indirect],
+        }],
+        backend: Backend::Gpu(build),
+        checks: Checks {
+            energy: Energy::Within(0.01),
+            ..Checks::DEFAULT
+        },
+        timing: Timing::DEFAULT,
+    }
+}
+
+static AMBIENT: MethodEntry = ambient_entry("ambient", build_ambient);
+static AMBIENT_TEN_PERCENT_HIGH: MethodEntry = ambient_entry("ambient-high", build_ambient_high);
+
+fn build_ambient(setup: &MethodSetup) -> Result<Box<dyn GiMethod>, RuntimeError> {
+    Ambient::build(setup, 1.0)
+}
+
+fn build_ambient_high(setup: &MethodSetup) -> Result<Box<dyn GiMethod>, RuntimeError> {
+    Ambient::build(setup, 1.1)
+}
+
+/// A method is its entry and the [`GiMethod`] it builds: the ambient term above, written in this
+/// test, in no folder of the runtime and no line of its table, is built by the renderer, its
+/// pass scheduled between the shared ones, and held to the energy check every method of the
+/// table gets, which it meets (it is that check's closed form for one albedo), while the same
+/// term 10% too high fails it. A method of the runtime is this plus its folder's WGSL, CPU twin
+/// and one line of `method_table!`.
+#[test]
+fn a_method_written_here_is_built_and_held_to_the_energy_check() {
+    assert!(METHODS.iter().all(|m| m.name != AMBIENT.name));
+    cssm_runtime::frame::check_schedule(AMBIENT.passes, true).expect("its passes fit a frame");
+    assert_eq!(energy_check(&AMBIENT), None);
+    let wrong = energy_check(&AMBIENT_TEN_PERCENT_HIGH).expect("10% too much light fails");
+    assert!(wrong.contains("relative error"), "{wrong}");
 }
 
 /// Where failed comparisons leave their images (`target/tmp/golden/`).
