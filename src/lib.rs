@@ -10,8 +10,8 @@
 //!   compression report measured against the paper, the methods' error against the path tracer,
 //!   the comparison page; and `measure` (`cssm_lab::measure`), the engine that renders what
 //!   `cssm report error` and `cssm compare` measure;
-//! - [`summary`]: what `cssm bake`, `cssm inspect` and `cssm check` print, as text or JSON
-//!   (`cssm_bake::summary`);
+//! - [`summary`]: what `cssm bake`, `cssm inspect` and `cssm check` print, as text or JSON, and
+//!   [`flag_error`], a bake error in the command's flags (`cssm-output`);
 //! - [`builtin`]: the built-in scenes.
 //!
 //! The command's window (feature `viewer`) and the lab (feature `lab`) are on by default; a
@@ -39,5 +39,5 @@ pub use cssm_runtime as runtime;
 #[cfg(feature = "lab")]
 pub use cssm_lab::{diagnose, measure, report};
 
-pub use cssm_bake::{flag_error, summary};
 pub use cssm_formats::files::{human_bytes, safe_file_stem};
+pub use cssm_output::{flag_error, summary};

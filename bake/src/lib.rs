@@ -26,7 +26,6 @@ pub mod raster;
 mod slice;
 
 use slice::bake_slice;
-pub mod summary;
 pub mod traverse;
 
 /// Exact ray casting (obvhs), shared with the runtime: [`cssm_raycast`].
@@ -613,33 +612,6 @@ const PILOT_BATCH_MAPS: usize = 256;
 
 /// Largest chart whose pilot maps are rendered once for all orders (6 MiB at cube 8).
 const PILOT_CACHED_MAPS: usize = 4096;
-
-/// A bake error as the command line says it: a parameter by the flag that sets it (`cssm bake`
-/// and `cssm report compression` spell them alike), any other error as the library does.
-///
-/// ```
-/// use cssm_bake::BakeOptions;
-///
-/// let e = BakeOptions { atlas_resolution: 16, ..Default::default() }.check().unwrap_err();
-/// assert_eq!(cssm_bake::flag_error(&e), "--atlas 16 is out of range 32..=1024");
-/// ```
-pub fn flag_error(e: &BakeError) -> String {
-    match e {
-        BakeError::Parameter {
-            parameter,
-            value,
-            problem,
-        } => {
-            let flag = match parameter {
-                BakeParameter::AtlasResolution => "--atlas",
-                BakeParameter::CubeResolution => "--cube",
-                BakeParameter::Near => "--near",
-            };
-            format!("{flag} {value} {problem}")
-        }
-        other => other.to_string(),
-    }
-}
 
 #[cfg(test)]
 pub(crate) mod tests {

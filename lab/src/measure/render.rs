@@ -109,7 +109,7 @@ pub fn render_variant(
                         format!(
                             "{}: bake: {}",
                             scene.path.display(),
-                            cssm_bake::flag_error(&e)
+                            cssm_output::flag_error(&e)
                         )
                     })
                 });

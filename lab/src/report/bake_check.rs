@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use cssm_bake::summary::{BakeSummary, CheckSummary};
+use cssm_output::summary::{BakeSummary, CheckSummary};
 
 use super::{Measured, Plan};
 

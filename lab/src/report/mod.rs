@@ -150,7 +150,7 @@ pub fn run(
     for plan in &plans {
         plan.bake_options()
             .check()
-            .map_err(|e| cssm_bake::flag_error(&e))?;
+            .map_err(|e| cssm_output::flag_error(&e))?;
     }
     let work =
         tempfile::tempdir().map_err(|e| format!("cannot create a temporary directory: {e}"))?;

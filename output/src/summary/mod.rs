@@ -9,7 +9,7 @@
 //!
 //! ```
 //! let json = r#"{"agreement":0.98,"causes_atlas":0,"causes_cube":0,"causes_filter":1,"causes_near":0,"exchanging_agreement":0.99,"exchanging_false_occluded_rate":0.01,"exchanging_false_visible_rate":0.02,"exchanging_pairs":7,"false_occluded_rate":0.01,"false_visible_rate":0.03,"occluded_occluded":4,"occluded_visible":0,"pairs":10,"seconds":0.5,"unmapped":0,"visible_occluded":1,"visible_visible":5}"#;
-//! let check: cssm_bake::summary::CheckSummary = serde_json::from_str(json)?;
+//! let check: cssm_output::summary::CheckSummary = serde_json::from_str(json)?;
 //! assert_eq!(check.exchanging_pairs, 7);
 //! assert_eq!(check.to_json(), json);
 //! # Ok::<(), serde_json::Error>(())

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use cssm_formats::{self as formats, Scene};
 
 use super::{human_bytes, is_zero, is_zero_seconds, json_line};
-use crate as bake;
+use cssm_bake as bake;
 
 /// `cssm bake`: the settings, the figures of the bake and of the file written, the time each
 /// stage took and the memory the process used.

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use cssm_formats as formats;
 
 use super::{human_bytes, json_line};
-use crate as bake;
+use cssm_bake as bake;
 
 /// `cssm bake --chunk I/N`: which slice the chunk holds and what baking it took.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use super::{BakeSummary, CheckSummary, InspectSummary, json_line};
-use crate::{self as bake, check::Agreement};
+use cssm_bake::{self as bake, check::Agreement};
 
 /// Reads `value`'s JSON back and checks that it says the same: every key and integer
 /// exactly, every float to the last bit but one (serde_json parses floats fast, not always

@@ -9,7 +9,7 @@ use std::{
 use serde::{Deserialize, Serialize};
 
 use super::json_line;
-use crate::{self as bake, check::Agreement};
+use cssm_bake::{self as bake, check::Agreement};
 
 /// `cssm check`: the confusion matrix of the CSSM against exact ray casts over every pair, and
 /// the agreement over the pairs that exchange light ([`bake::check::Measurement`]).
