@@ -6,11 +6,14 @@
 //!
 //! ```text
 //! cargo bench --bench frame_time -- [--size 640x480] [--frames 5] [--one-shots 3]
-//!     [--methods direct,lightmap,lightcuts] [--atlas 64] [--cube 32] [--out FILE.md]
+//!     [--methods direct,lightmap,lightcuts] [--atlas 64] [--cube 32] [--moving-light]
+//!     [--out FILE.md]
 //! ```
 //!
 //! `--methods all` names every GPU method of the method table; `--one-shots 0` times the
-//! persistent renderer alone.
+//! persistent renderer alone. `--moving-light` adds a row per method whose light is set again
+//! before every frame, as a dragged light is: the prepare passes (shadow maps, and the
+//! radiosity of the CSSM methods) run in every frame (issue 49's "light moving" frame).
 //!
 //! Wall-clock milliseconds per frame from submit to the GPU's idle (median), and GPU
 //! milliseconds per pass from timestamp queries where the adapter has them. On lavapipe the
@@ -53,6 +56,7 @@ fn main() {
         methods.split(',').map(str::trim).collect()
     };
     let out: Option<PathBuf> = arg(&args, "--out").map(PathBuf::from);
+    let moving_light = args.iter().any(|a| a == "--moving-light");
 
     let gpu = Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
     let dir = cssm::builtin::cornell_box().expect("built-in scene");
@@ -128,6 +132,15 @@ fn main() {
         );
         print!("{row}");
         report += &row;
+        if moving_light && let Some(light) = scene.lights.first() {
+            let (b, passes) = timed_frames(&gpu, &mut renderer, &view, frames, Some(light));
+            let row = format!(
+                "| {name}, light moving | - | {b:.1} | - | {} |\n",
+                passes_cell(&passes)
+            );
+            print!("{row}");
+            report += &row;
+        }
     }
     write_report(out.as_deref(), &report);
 }

@@ -268,7 +268,10 @@ measure() {
     # shellcheck disable=SC2086
     bakes_on_both $gpu_bakes_scenes
     # The persistent renderer's frame against a one-shot render (issue 16), with GPU ms per pass.
+    # With the light moved before every frame too (issue 49: the CSSM methods' radiosity runs
+    # in every frame then).
     run frame-time "$c/frame_time" --size $frame_size --frames $frames --one-shots $one_shots \
+        --moving-light \
         --out "$out/runtime-frame-time.md"
     # Every method of the table in one persistent renderer at 1280x720: the frame time a window
     # of that size shows (issue 26), without the presentation.
