@@ -6,7 +6,10 @@
 //! cargo bench --bench vct_pools -- [--scene DIR] [--resolutions 64,128,256] [--out FILE.md]
 //! ```
 
-use cssm::runtime::{self, vct::SparseVoxels};
+use cssm::runtime::{
+    self,
+    vct::{SparseVoxels, VctOptions, trace::TraceParams},
+};
 
 #[path = "common/mod.rs"]
 mod common;
@@ -33,15 +36,20 @@ fn main() {
          | ---: | ---: | ---: | ---: | ---: | ---: |\n",
         bench.setting()
     );
+    let defaults = VctOptions::default();
     for &resolution in &resolutions {
-        // The pools as the method sizes them at its default cones.
-        let cones = runtime::vct::trace::TraceParams::new(16, 7.5f32.to_radians(), 2.0);
+        // The pools as the method sizes them at its defaults (the bounces size nothing).
+        let cones = TraceParams::new(
+            defaults.cones,
+            defaults.aperture.to_radians(),
+            defaults.offset,
+        );
         let voxels = SparseVoxels::new(
             renderer.context(),
             bench.scene.bounds(),
             resolution,
-            true,
-            false,
+            defaults.anisotropic,
+            defaults.correct_opacity,
             &cones,
             runtime::common::converge::BouncePlan::exactly(0),
         )
