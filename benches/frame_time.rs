@@ -6,11 +6,13 @@
 //!
 //! ```text
 //! cargo bench --bench frame_time -- [--size 640x480] [--frames 5] [--one-shots 3]
-//!     [--methods direct,lightmap,lightcuts] [--atlas 64] [--cube 32] [--moving-light]
-//!     [--out FILE.md]
+//!     [--methods direct,lightmap,lightcuts] [--method NAME:OPTION=VALUE,...]... [--atlas 64]
+//!     [--cube 32] [--moving-light] [--out FILE.md]
 //! ```
 //!
-//! `--methods all` names every GPU method of the method table; `--one-shots 0` times the
+//! `--methods all` names every GPU method of the method table at its defaults; `--method SPEC`
+//! (repeatable, instead of `--methods`) a variant with options, as `cssm render --method` takes
+//! it (`lightcuts:gather=walk`); `--one-shots 0` times the
 //! persistent renderer alone. `--moving-light` adds a row per method whose light is set again
 //! before every frame, as a dragged light is: the prepare passes (shadow maps, and the
 //! radiosity of the CSSM methods) run in every frame (issue 49's "light moving" frame).
@@ -46,7 +48,14 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(32);
     let methods = arg(&args, "--methods").unwrap_or_else(|| "direct,lightmap,lightcuts".into());
-    let methods: Vec<&str> = if methods == "all" {
+    let specs: Vec<&str> = args
+        .windows(2)
+        .filter(|w| w[0] == "--method")
+        .map(|w| w[1].as_str())
+        .collect();
+    let methods: Vec<&str> = if !specs.is_empty() {
+        specs
+    } else if methods == "all" {
         runtime::METHODS
             .iter()
             .filter(|m| m.on_gpu())
@@ -92,7 +101,11 @@ fn main() {
         gpu.describe()
     );
     for name in methods {
-        let entry = method::find(name).unwrap_or_else(|e| panic!("{e}"));
+        let (method_name, options) = name.split_once(':').unwrap_or((name, ""));
+        let entry = method::find(method_name).unwrap_or_else(|e| panic!("{e}"));
+        let values = entry
+            .parse_options(options)
+            .unwrap_or_else(|e| panic!("--method {name}: {e}"));
         let cssm = entry.needs_cssm.then_some(&file);
         let build = || {
             Renderer::new(
@@ -101,7 +114,7 @@ fn main() {
                 &scene,
                 cssm,
                 entry,
-                &Default::default(),
+                &values,
                 &settings,
             )
             .expect("renderer")

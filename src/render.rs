@@ -283,8 +283,8 @@ fn print_stats(
             file,
             &radiance(BouncePlan::exactly(0))?,
             &albedo,
-            threshold,
-            exposure,
+            (threshold, exposure),
+            0.0,
             STATS_WARPS,
         );
         println!(
@@ -294,14 +294,50 @@ fn print_stats(
         );
     }
     if method == "lightcuts" {
+        use runtime::lightcuts::{GatherForm, cpu::TwinGather};
         let options = runtime::lightcuts::LightcutsOptions::from_resolved(&config.resolved);
         let (width, height) = (settings.frame.width, settings.frame.height);
         let view = runtime::common::camera::View::of_scene(scene, width, height);
+        let radiance = radiance(radiosity_plan)?;
+        let near_radius = runtime::lightcuts::near_radius(&file.hierarchy, options.near);
+        // The counts do not depend on the far field's values, only on where pixels look it up.
+        let far = vec![glam::Vec3::ZERO; file.texels.len()];
+        let lists = runtime::lightcuts::near_lists(file, options.near);
+        let form = match options.form {
+            GatherForm::Walk => TwinGather::Walk,
+            GatherForm::Atlas => {
+                let (materials, _) =
+                    runtime::load::cpu_materials(scene).map_err(|e| e.to_string())?;
+                let albedo: Vec<glam::Vec3> = runtime::radiosity::texel_albedo(&materials, file)
+                    .iter()
+                    .map(|a| glam::Vec3::new(a[0], a[1], a[2]))
+                    .collect();
+                let stats = runtime::work::passes::radiosity_gather_stats(
+                    file,
+                    &radiance,
+                    &albedo,
+                    (threshold, exposure),
+                    near_radius,
+                    STATS_WARPS,
+                );
+                println!(
+                    "{} (the last bounce over the atlas, the near field of {} texel sizes left \
+                     to the pixels), counted by its CPU twin:\n{stats}",
+                    stats.pass, options.near
+                );
+                TwinGather::Atlas {
+                    far: &far,
+                    near_radius,
+                    lists: lists.as_ref(),
+                }
+            }
+        };
         let stats = runtime::work::passes::final_gather_stats(
             scene,
             file,
             &view,
-            &radiance(radiosity_plan)?,
+            &radiance,
+            form,
             options.downsample,
             threshold,
             exposure,

@@ -115,6 +115,8 @@ struct RenderOptions {
     /// `lightcuts`' gather resolution: 1 (every pixel) unless a test asks, so that the twin
     /// tests hold the kernel itself.
     downsample: u32,
+    /// `lightcuts`' gather form (its default `atlas`, or `walk`).
+    gather: &'static str,
 }
 
 impl Default for RenderOptions {
@@ -131,6 +133,7 @@ impl Default for RenderOptions {
             component: Component::Full,
             samples: 256,
             downsample: 1,
+            gather: "atlas",
         }
     }
 }
@@ -146,6 +149,7 @@ impl RenderOptions {
                 "jitter" => OptionValue::Switch(self.jitter),
                 "samples" => OptionValue::Count(self.samples),
                 "downsample" if method.name == "lightcuts" => OptionValue::Count(self.downsample),
+                "gather" if method.name == "lightcuts" => OptionValue::Choice(self.gather),
                 _ => continue,
             };
             values.set(spec.name, value);

@@ -237,10 +237,22 @@ pub struct GpuTraversalParams {
     /// 1: each sender is a random point of a random texel of its node (§4.5); 0: the node's
     /// representative.
     pub jitter: u32,
-    /// 1: gather (a bounce); 0: write the direct light only (the start of the iteration).
+    /// 1: gather (a bounce); 0: write the direct light only (the start of the iteration); 2:
+    /// gather the far field only, every leaf sender weighted by `1 - near_split_weight` and
+    /// every node within `near_radius` refined (`lightcuts`' texture-space final gather).
     pub gather: u32,
     /// Frames accumulated so far (final gather's progressive average).
     pub frame: u32,
+    /// The reach of the near field `lightcuts` gathers per pixel (world units; 0: none), see
+    /// `transfer::near_split_weight`.
+    pub near_radius: f32,
+    /// How far from its texel's centre a pixel reads the texel's near list (world units; 0:
+    /// no lists, the near field walks the hierarchy), `lightcuts::near::NearLists::margin`.
+    pub near_margin: f32,
+    /// How far off its texel's plane a pixel reads the list, `NearLists::plane`.
+    pub near_plane: f32,
+    /// Unused (16-byte size).
+    pub padding: u32,
 }
 
 #[cfg(test)]
@@ -377,6 +389,9 @@ mod tests {
                 ("jitter", offset_of!(GpuTraversalParams, jitter)),
                 ("gather", offset_of!(GpuTraversalParams, gather)),
                 ("frame", offset_of!(GpuTraversalParams, frame)),
+                ("near_radius", offset_of!(GpuTraversalParams, near_radius)),
+                ("near_margin", offset_of!(GpuTraversalParams, near_margin)),
+                ("near_plane", offset_of!(GpuTraversalParams, near_plane)),
             ],
         );
         check(

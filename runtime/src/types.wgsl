@@ -103,4 +103,8 @@ struct TraversalParams {
     jitter: u32,
     gather: u32,
     frame: u32,
+    near_radius: f32,
+    near_margin: f32,
+    near_plane: f32,
+    padding: u32,
 }

@@ -437,6 +437,18 @@ fn moved_object_final_gather_matches_cpu_twin() {
     let mut query = MovingQuery::new(file, scene, QueryOptions::default()).unwrap();
     query.set_poses(&fixture.poses()).unwrap();
     let twin_scene = TwinScene::moving(&query, &fixture.motions());
+    let mut held = Default::default();
+    let form = super::radiosity::twin_gather(
+        scene,
+        &twin_scene,
+        &radiance,
+        cssm_runtime::radiosity::RadiosityOptions {
+            threshold: options.threshold,
+            exposure: options.exposure,
+        },
+        options.gather,
+        &mut held,
+    );
     let seen = super::cpu_receivers(&posed_scene, file, w, h);
     let keep = super::interior(&posed_scene, &seen, w, h);
     let block_triangles = &scene.objects[fixture.block].triangles;
@@ -457,6 +469,7 @@ fn moved_object_final_gather_matches_cpu_twin() {
                 gather_pixel(
                     &twin_scene,
                     &radiance,
+                    form,
                     options.threshold,
                     options.exposure,
                     None,

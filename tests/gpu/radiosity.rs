@@ -303,9 +303,68 @@ pub(crate) fn interior(
         .collect()
 }
 
+/// What [`twin_gather`]'s form borrows: the far field and the near lists.
+pub(crate) type TwinHeld = (
+    Vec<glam::Vec3>,
+    Option<cssm_runtime::lightcuts::near::NearLists>,
+);
+
+/// The CPU twin's form of `lightcuts`' final gather `gather` (the option's value) over
+/// `twin`, from the node radiance `radiance` with the oracle of `options`: for `atlas`, its
+/// far field computed here ([`cpu::far_field`]) at the default near field, and the near lists
+/// the renderer makes, held in `held`.
+pub(crate) fn twin_gather<'f>(
+    scene: &Scene,
+    twin: &cssm_runtime::radiosity::cpu::TwinScene,
+    radiance: &[glam::Vec3],
+    options: cssm_runtime::radiosity::RadiosityOptions,
+    gather: &str,
+    held: &'f mut TwinHeld,
+) -> cssm_runtime::lightcuts::cpu::TwinGather<'f> {
+    use cssm_runtime::{
+        lightcuts::{cpu::TwinGather, near_lists, near_radius},
+        radiosity::cpu,
+    };
+    if gather == "walk" {
+        return TwinGather::Walk;
+    }
+    let near = method::find("lightcuts")
+        .expect("lightcuts")
+        .options
+        .iter()
+        .find(|o| o.name == "near")
+        .map(|o| match o.kind {
+            cssm_runtime::method::OptionKind::Number { default, .. } => default,
+            _ => unreachable!("near is a number"),
+        })
+        .expect("lightcuts has a near field");
+    // The file's hierarchy, as the renderer takes it, whatever the objects' poses.
+    let radius = near_radius(&twin.visibility.cssm().file().hierarchy, near);
+    let (materials, _) = cssm_runtime::load::cpu_materials(scene).expect("materials");
+    let albedo = vec3s(&cssm_runtime::radiosity::texel_albedo(
+        &materials,
+        twin.visibility.cssm().file(),
+    ));
+    let traversal = cpu::Traversal {
+        threshold: options.threshold,
+        exposure: options.exposure,
+    };
+    let file = twin.visibility.cssm().file();
+    *held = (
+        cpu::far_field(twin, radiance, &albedo, &traversal, radius),
+        near_lists(file, near),
+    );
+    TwinGather::Atlas {
+        far: &held.0,
+        near_radius: radius,
+        lists: held.1.as_ref(),
+    }
+}
+
 /// Relative RMSE over the interior pixels of the GPU final gather (1 bounce, `w`x`h`, oracle
-/// `threshold`) against its CPU twin gathering from the same node radiance (receivers with the
-/// G-buffer's normal-mapped shading normals), and the GPU's radiance.
+/// `threshold`, form `gather`) against its CPU twin gathering from the same node radiance
+/// (receivers with the G-buffer's normal-mapped shading normals), and the GPU's radiance.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn final_gather_vs_twin(
     scene: &Scene,
     file: &CssmFile,
@@ -313,6 +372,7 @@ pub(crate) fn final_gather_vs_twin(
     h: u32,
     threshold: f32,
     jitter: bool,
+    gather: &'static str,
 ) -> (f64, Vec<glam::Vec3>) {
     use cssm_runtime::{common::compose::Component, radiosity::RadiosityOptions};
     let options = RenderOptions {
@@ -323,6 +383,7 @@ pub(crate) fn final_gather_vs_twin(
         component: Component::Indirect,
         threshold,
         jitter,
+        gather,
         ..Default::default()
     };
     let image = render(gpu(), scene, Some(file), "lightcuts", &options).expect("render");
@@ -341,6 +402,19 @@ pub(crate) fn final_gather_vs_twin(
     let radiance = vec3s(&atlas.node_radiance);
     let query = VisibilityQuery::new(file, QueryOptions::default());
     let twin_scene = cssm_runtime::radiosity::cpu::TwinScene::baked(&query);
+    let radiosity_options = RadiosityOptions {
+        threshold,
+        exposure: options.exposure,
+    };
+    let mut held = Default::default();
+    let form = twin_gather(
+        scene,
+        &twin_scene,
+        &radiance,
+        radiosity_options,
+        gather,
+        &mut held,
+    );
     let seen = cpu_receivers(scene, file, w, h);
     let keep = interior(scene, &seen, w, h);
     let twin: Vec<glam::Vec3> = seen
@@ -358,6 +432,7 @@ pub(crate) fn final_gather_vs_twin(
                 cssm_runtime::lightcuts::cpu::gather_pixel(
                     &twin_scene,
                     &radiance,
+                    form,
                     options.threshold,
                     options.exposure,
                     jitter.then_some((seed, pixel as u32)),
@@ -371,8 +446,8 @@ pub(crate) fn final_gather_vs_twin(
         .collect();
     let rmse = relative_rmse(&vec3s(&image.radiance), &twin, &keep);
     eprintln!(
-        "final gather {w}x{h}, 1 bounce, atlas {}, threshold {threshold}, jitter {jitter}: GPU vs \
-         CPU twin relative RMSE {:.4}% over {} interior pixels",
+        "final gather ({gather}) {w}x{h}, 1 bounce, atlas {}, threshold {threshold}, jitter \
+         {jitter}: GPU vs CPU twin relative RMSE {:.4}% over {} interior pixels",
         file.params.atlas_resolution,
         100.0 * rmse,
         keep.iter().filter(|&&k| k).count()
@@ -384,14 +459,32 @@ pub(crate) fn final_gather_vs_twin(
 fn final_gather_matches_cpu_twin() {
     let (scene, file) = cornell32();
     let threshold = cssm_runtime::radiosity::DEFAULT_THRESHOLD;
-    let (rmse, _) = final_gather_vs_twin(scene, file, 64, 48, threshold, false);
+    let (rmse, _) = final_gather_vs_twin(scene, file, 64, 48, threshold, false, "walk");
     // §4.5: every sender a random point of a random texel of its node, drawn alike on both sides.
-    let (jittered, _) = final_gather_vs_twin(scene, file, 64, 48, threshold, true);
+    let (jittered, _) = final_gather_vs_twin(scene, file, 64, 48, threshold, true, "walk");
     // A coarse cut, mostly clusters (their moment and other-side texel, transfer.rs).
-    let (coarse, _) = final_gather_vs_twin(scene, file, 64, 48, 0.5, false);
+    let (coarse, _) = final_gather_vs_twin(scene, file, 64, 48, 0.5, false, "walk");
     assert!(rmse < 0.01, "relative RMSE {rmse}");
     assert!(jittered < 0.01, "jittered: relative RMSE {jittered}");
     assert!(coarse < 0.01, "threshold 0.5: relative RMSE {coarse}");
+}
+
+/// The texture-space form (`gather=atlas`, the default): the far-field pass over the atlas and
+/// each pixel's bicubic lookup of it plus its own near field, against the CPU twin computing
+/// the far field with `radiosity::cpu::far_field`; and, on the same frame, the two forms
+/// against each other, which split the same transfer differently and stay close.
+#[test]
+fn atlas_final_gather_matches_cpu_twin() {
+    let (scene, file) = cornell32();
+    let threshold = cssm_runtime::radiosity::DEFAULT_THRESHOLD;
+    let (rmse, atlas) = final_gather_vs_twin(scene, file, 64, 48, threshold, false, "atlas");
+    let (coarse, _) = final_gather_vs_twin(scene, file, 64, 48, 0.5, false, "atlas");
+    let (_, walk) = final_gather_vs_twin(scene, file, 64, 48, threshold, false, "walk");
+    let apart = relative_rmse(&atlas, &walk, &vec![true; walk.len()]);
+    eprintln!("gather=atlas against gather=walk: relative RMSE {apart:.4}");
+    assert!(rmse < 0.01, "relative RMSE {rmse}");
+    assert!(coarse < 0.01, "threshold 0.5: relative RMSE {coarse}");
+    assert!(apart > 1e-4 && apart < 0.2, "atlas against walk: {apart}");
 }
 
 /// Long cuts (about 900 senders per pixel at atlas 64 and the default threshold, 16 depth
@@ -402,7 +495,7 @@ fn final_gather_matches_cpu_twin() {
 #[test]
 fn final_gather_long_cuts_match_cpu_twin() {
     let (scene, file) = cornell();
-    let (short, _) = final_gather_vs_twin(scene, file, 40, 30, 0.1, false);
+    let (short, _) = final_gather_vs_twin(scene, file, 40, 30, 0.1, false, "walk");
     let (long, _) = final_gather_vs_twin(
         scene,
         file,
@@ -410,6 +503,7 @@ fn final_gather_long_cuts_match_cpu_twin() {
         30,
         cssm_runtime::radiosity::DEFAULT_THRESHOLD,
         false,
+        "walk",
     );
     assert!(
         short < 0.01 && long < 0.01,
@@ -642,4 +736,85 @@ pub(crate) fn image_difference(a: &Image, b: &Image) -> (f64, f32) {
         }
     }
     ((squared / norm.max(1e-30)).sqrt(), largest)
+}
+
+/// The texture-space final gather splits every transfer between the atlas's far field and the
+/// pixel's near field by distance alone (`transfer::near_split_weight`): at a texel's centre,
+/// with the oracle refining every lit node (threshold 0, so both walks reach the same leaves),
+/// the CPU twins' far field plus near field is the whole gather, texel for texel; and the near
+/// field from the texels' near lists is the walked one.
+#[test]
+fn far_and_near_fields_add_up_to_the_whole_gather() {
+    use cssm_runtime::{
+        gpu_types::GpuMaterial,
+        lightcuts::cpu::{Receiver, TwinGather, gather_planes},
+        radiosity::cpu::{Traversal, TwinScene, gather_texel_split},
+    };
+    let (scene, file) = cornell32();
+    let query = VisibilityQuery::new(file, QueryOptions::default());
+    let twin = TwinScene::baked(&query);
+    let atlas = solve_atlas(scene, file, 0, Default::default()).expect("radiosity");
+    let radiance = vec3s(&atlas.node_radiance);
+    let traversal = Traversal {
+        threshold: 0.0,
+        exposure: 1.0,
+    };
+    let radius = cssm_runtime::lightcuts::near_radius(&file.hierarchy, 4.0);
+    let zeros = vec![glam::Vec3::ZERO; file.texels.len()];
+    let nodes = &file.hierarchy.nodes;
+    let (mut worst, mut near_share, mut worst_list) = (0.0f32, 0.0f32, 0.0f32);
+    // The near lists (`lightcuts/near.rs`) hold every leaf the walk reaches with light to give.
+    let lists = cssm_runtime::lightcuts::near_lists(file, 4.0);
+    for t in (0..file.texels.len() as u32).step_by(97) {
+        let texel = &file.texels[t as usize];
+        let (p, n) = (texel.pos(), texel.nrm());
+        let whole = |near: f32| {
+            let mut none = cssm_formats::visibility::QueryWork::default();
+            let (e, _) = gather_texel_split(
+                &twin, nodes, &radiance, &traversal, near, t, p, n, 1.0, &mut none,
+            );
+            e
+        };
+        let receiver = Receiver {
+            position: p,
+            normal: n,
+            view: n,
+            albedo: glam::Vec3::ONE,
+            atlas: glam::Vec2::new(texel.x as f32 + 0.5, texel.y as f32 + 0.5),
+        };
+        let near = |lists| {
+            gather_planes(
+                &twin,
+                &radiance,
+                TwinGather::Atlas {
+                    far: &zeros,
+                    near_radius: radius,
+                    lists,
+                },
+                0.0,
+                1.0,
+                None,
+                &receiver,
+                &GpuMaterial::default(),
+            )
+            .irradiance
+        };
+        let (walked, listed) = (near(None), near(lists.as_ref()));
+        let (all, far) = (whole(0.0), whole(radius));
+        let scale = all.max_element().max(1e-6);
+        worst = worst.max((far + walked - all).abs().max_element() / scale);
+        worst_list = worst_list.max((listed - walked).abs().max_element() / scale);
+        let near = walked;
+        near_share = near_share.max(near.max_element() / scale);
+    }
+    eprintln!(
+        "far + near against the whole gather: largest difference {:.2e} of the texel's light; \
+         the near field up to {:.1}% of it; near lists against the walk {:.2e}",
+        worst,
+        100.0 * near_share,
+        worst_list
+    );
+    assert!(worst < 1e-4, "far + near differs by {worst}");
+    assert!(worst_list < 1e-4, "the near lists differ by {worst_list}");
+    assert!(near_share > 0.05, "no texel's near field mattered");
 }

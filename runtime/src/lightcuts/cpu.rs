@@ -7,13 +7,31 @@ use glam::{Vec2, Vec3};
 
 use crate::{
     gpu_types::GpuMaterial,
+    lightmap::{Filter, lookup},
     radiosity::cpu::TwinScene,
     radiosity::transfer::{
         brdf_bound, in_near_field, irradiance_bound, irradiance_from, irradiance_from_cluster,
-        irradiance_from_footprint, jitter_in_disk, jitter_leaf, phong_lobe, tone_mapped,
-        visibility_sender,
+        irradiance_from_footprint, irradiance_from_texel, jitter_in_disk, jitter_leaf,
+        near_split_weight, phong_lobe, tone_mapped, visibility_sender,
     },
 };
+
+/// How the twin gathers a pixel: the kernel's `grid.mode` ([`super::GatherForm`]).
+#[derive(Clone, Copy, Debug)]
+pub enum TwinGather<'a> {
+    /// The walk over the whole hierarchy.
+    Walk,
+    /// The far field's bicubic lookup plus the near field within `near_radius`; glossy pixels
+    /// walk for their lobe.
+    Atlas {
+        /// Per texel (texel order), the far field ([`crate::radiosity::cpu::far_field`]).
+        far: &'a [Vec3],
+        /// The near field's reach, world units ([`super::near_radius`]).
+        near_radius: f32,
+        /// The texels' near lists, or none (every near field walks the hierarchy).
+        lists: Option<&'a super::near::NearLists>,
+    },
+}
 
 /// A receiver point of the final gather, as the G-buffer holds it.
 #[derive(Clone, Copy, Debug)]
@@ -94,26 +112,30 @@ pub struct Gathered {
 pub fn gather_pixel(
     scene: &TwinScene,
     radiance: &[Vec3],
+    form: TwinGather,
     threshold: f32,
     exposure: f32,
     jitter: Option<(u32, u32)>,
     r: &Receiver,
     material: &GpuMaterial,
 ) -> (Vec3, u32) {
-    let g = gather_planes(scene, radiance, threshold, exposure, jitter, r, material);
+    let g = gather_planes(
+        scene, radiance, form, threshold, exposure, jitter, r, material,
+    );
     let out =
         r.albedo / std::f32::consts::PI * g.irradiance + Vec3::from(material.ks) * g.lobe_weighted;
     (out, g.cut)
 }
 
-/// `final_gather.wgsl::gather_pixel`: the indirect light arriving at the receiver as the two
-/// planes the kernel writes, and the cut size, gathering from the node radiance `radiance`
-/// (`jitter`: the seed when senders are random texels of their node, and the receiver's id),
-/// over `scene`'s texels and hierarchy.
+/// `final_gather.wgsl`'s `main` for one pixel: the indirect light arriving at the receiver as
+/// the two planes the kernel writes, and the cut size, gathering as `form` says from the node
+/// radiance `radiance` (`jitter`: the seed when senders are random texels of their node, and
+/// the receiver's id), over `scene`'s texels and hierarchy.
 #[allow(clippy::too_many_arguments)]
 pub fn gather_planes(
     scene: &TwinScene,
     radiance: &[Vec3],
+    form: TwinGather,
     threshold: f32,
     exposure: f32,
     jitter: Option<(u32, u32)>,
@@ -122,7 +144,7 @@ pub fn gather_planes(
 ) -> Gathered {
     let mut none = cssm_formats::visibility::QueryWork::default();
     gather_planes_counted(
-        scene, radiance, threshold, exposure, jitter, r, material, &mut none,
+        scene, radiance, form, threshold, exposure, jitter, r, material, &mut none,
     )
 }
 
@@ -132,6 +154,7 @@ pub fn gather_planes(
 pub fn gather_planes_counted(
     scene: &TwinScene,
     radiance: &[Vec3],
+    form: TwinGather,
     threshold: f32,
     exposure: f32,
     jitter: Option<(u32, u32)>,
@@ -139,10 +162,7 @@ pub fn gather_planes_counted(
     material: &GpuMaterial,
     tally: &mut impl crate::work::GatherTally,
 ) -> Gathered {
-    let (texels, nodes) = (&scene.texels, &scene.hierarchy.nodes);
-    let leaf_texels = &scene.hierarchy.leaf_texels;
-    let (ks, ns) = (Vec3::from(material.ks), material.ns);
-    let (p, n, v) = (r.position, r.normal, r.view);
+    let texels = &scene.texels;
     // The receiver's own texels, found once for all its senders (as the kernel does: its four
     // sender-filter slots, `CssmSenders`), and the object they lie on (the first slot's; a
     // point without texels: the static part, answered unshadowed).
@@ -156,6 +176,167 @@ pub fn gather_planes_counted(
         .first()
         .filter(|s| s.1 > 0.0)
         .map_or(0, |s| texels[s.0 as usize].object);
+    let end = PixelEnd {
+        senders: &senders,
+        object,
+    };
+    let walk = |oracle_albedo: Vec3, tally: &mut _| {
+        let oracle = Oracle {
+            threshold,
+            exposure,
+            albedo: oracle_albedo,
+        };
+        gather_walk(scene, radiance, &oracle, jitter, r, material, &end, tally)
+    };
+    match form {
+        TwinGather::Walk => walk(r.albedo, tally),
+        TwinGather::Atlas {
+            far,
+            near_radius,
+            lists,
+        } => {
+            let mut gathered = if Vec3::from(material.ks).cmpgt(Vec3::ZERO).any() {
+                walk(Vec3::ZERO, tally)
+            } else {
+                Gathered::default()
+            };
+            let atlas = lookup(scene.visibility.cssm(), far, r.atlas, Filter::Bicubic);
+            let near = near_field(scene, radiance, (near_radius, lists), r, &end, tally);
+            gathered.irradiance = atlas + near;
+            gathered
+        }
+    }
+}
+
+/// The pixel's end of every query: its sender-filter slots and the object they lie on.
+struct PixelEnd<'s> {
+    senders: &'s [(u32, f32)],
+    object: u32,
+}
+
+impl PixelEnd<'_> {
+    /// The clear fraction between the pixel at `r` and `sender` (at `position`; its object's
+    /// and both ends' maps, §3.3), 1 where no texel answers.
+    fn visibility(
+        &self,
+        scene: &TwinScene,
+        r: &Receiver,
+        sender: u32,
+        position: Vec3,
+        tally: &mut impl crate::work::GatherTally,
+    ) -> f32 {
+        let y = &scene.texels[sender as usize];
+        tally.query();
+        scene
+            .visibility
+            .between_counted(
+                &ObjectPoint {
+                    senders: self.senders,
+                    position: r.position,
+                    normal: r.normal,
+                    object: self.object,
+                },
+                &ObjectPoint {
+                    senders: &[(sender, 1.0)],
+                    position,
+                    normal: y.nrm(),
+                    object: y.object,
+                },
+                tally,
+            )
+            .unwrap_or(1.0)
+    }
+}
+
+/// The near field's loop iterations, as [`crate::work::GatherTally::node`] hears them: after
+/// any the walk could reach, so that the warp replay issues them together.
+const NEAR_LOOP: u32 = 1 << 24;
+
+/// `final_gather.wgsl::near_field`: the leaves within `radius` of the receiver, each weighted
+/// by [`near_split_weight`], from its texel's list when `lists` has one for it, else walked.
+fn near_field(
+    scene: &TwinScene,
+    radiance: &[Vec3],
+    (radius, lists): (f32, Option<&super::near::NearLists>),
+    r: &Receiver,
+    end: &PixelEnd,
+    tally: &mut impl crate::work::GatherTally,
+) -> Vec3 {
+    let nodes = &scene.hierarchy.nodes;
+    let (p, n) = (r.position, r.normal);
+    let mut e = Vec3::ZERO;
+    let leaf = |s: usize, tally: &mut _| {
+        let node = &nodes[s];
+        let l = radiance[s];
+        let y = &scene.texels[node.representative as usize];
+        let w = near_split_weight(y.pos().distance(p), radius);
+        if w <= 0.0 || !l.cmpgt(Vec3::ZERO).any() {
+            return Vec3::ZERO;
+        }
+        let (unoccluded, _) = irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, l);
+        let unoccluded = w * unoccluded;
+        if !unoccluded.cmpgt(Vec3::ZERO).any() {
+            return Vec3::ZERO;
+        }
+        unoccluded * end.visibility(scene, r, node.representative, y.pos(), tally)
+    };
+    let list = lists
+        .zip(end.senders.first())
+        .and_then(|(lists, &(t, weight))| {
+            let texel = scene.texels.get(t as usize).filter(|_| weight > 0.0)?;
+            lists.list(t, p, texel.pos(), texel.nrm())
+        });
+    if let Some(list) = list {
+        for (iteration, &s) in (0..).zip(list) {
+            tally.node(NEAR_LOOP + iteration, s);
+            e += leaf(s as usize, tally);
+        }
+        return e;
+    }
+    let (mut s, mut iteration) = (0usize, 0);
+    while s < nodes.len() {
+        // The kernel's second loop, after a glossy pixel's walk: its own iterations.
+        tally.node(NEAR_LOOP + iteration, s as u32);
+        iteration += 1;
+        let node = &nodes[s];
+        if (Vec3::from(node.center) - p).length() - node.radius >= radius {
+            s = node.skip as usize;
+            continue;
+        }
+        if node.count > 1 {
+            s += 1;
+            continue;
+        }
+        e += leaf(s, tally);
+        s = node.skip as usize;
+    }
+    e
+}
+
+/// The walk's oracle: its threshold and exposure, and the diffuse albedo it bounds the BRDF
+/// with beside the material's lobe (zero: the lobe's alone).
+struct Oracle {
+    threshold: f32,
+    exposure: f32,
+    albedo: Vec3,
+}
+
+/// `final_gather.wgsl::gather_pixel`: the walk over the whole hierarchy.
+#[allow(clippy::too_many_arguments)]
+fn gather_walk(
+    scene: &TwinScene,
+    radiance: &[Vec3],
+    oracle: &Oracle,
+    jitter: Option<(u32, u32)>,
+    r: &Receiver,
+    material: &GpuMaterial,
+    end: &PixelEnd,
+    tally: &mut impl crate::work::GatherTally,
+) -> Gathered {
+    let (texels, nodes) = (&scene.texels, &scene.hierarchy.nodes);
+    let leaf_texels = &scene.hierarchy.leaf_texels;
+    let (ks, ns) = (Vec3::from(material.ks), material.ns);
+    let (p, n, v) = (r.position, r.normal, r.view);
     let mut gathered = Gathered::default();
     let mut s = 0usize;
     let mut iteration = 0;
@@ -167,8 +348,8 @@ pub fn gather_planes_counted(
         if node.count > 1 {
             let to_center = Vec3::from(node.center) - p;
             let bound = irradiance_bound(p, n, node, l)
-                * brdf_bound(n, v, r.albedo, ks, ns, to_center, node.radius);
-            if tone_mapped(bound, exposure) > threshold {
+                * brdf_bound(n, v, oracle.albedo, ks, ns, to_center, node.radius);
+            if tone_mapped(bound, oracle.exposure) > oracle.threshold {
                 s += 1;
                 continue;
             }
@@ -200,34 +381,15 @@ pub fn gather_planes_counted(
             if e.cmpgt(Vec3::ZERO).any() {
                 // Unjittered, a cluster seen from the other side than its representative's:
                 // the visibility of its texel facing the receiver (transfer.rs).
-                let (sender, y, position) = if jitter.is_none() {
+                let (sender, position) = if jitter.is_none() {
                     let sender = visibility_sender(node, &scene.spreads[s], texels, p);
-                    let y = &texels[sender as usize];
-                    (sender, y, y.pos())
+                    (sender, texels[sender as usize].pos())
                 } else {
-                    (sender, y, position)
+                    (sender, position)
                 };
                 // The pixel's texels and the sender's (both ends, when the options ask), each
                 // object's own and the other moving objects' CSMs (§3.3).
-                tally.query();
-                let visibility = scene
-                    .visibility
-                    .between_counted(
-                        &ObjectPoint {
-                            senders: &senders,
-                            position: p,
-                            normal: n,
-                            object,
-                        },
-                        &ObjectPoint {
-                            senders: &[(sender, 1.0)],
-                            position,
-                            normal: y.nrm(),
-                            object: y.object,
-                        },
-                        tally,
-                    )
-                    .unwrap_or(1.0);
+                let visibility = end.visibility(scene, r, sender, position, tally);
                 gathered.irradiance += e * visibility;
                 gathered.lobe_weighted += phong_lobe(n, v, w, ns) * e * visibility;
             }

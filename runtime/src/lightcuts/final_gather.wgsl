@@ -1,17 +1,25 @@
 #import cssm::types::{Material, Node, TraversalParams, View}
-#import cssm::visibility::{cssm_senders_at, cssm_senders_texel, cssm_texels}
+#import cssm::visibility::{CssmSenders, cssm_senders_at, cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
 #import cssm::lowres::lowres_representative
-#import cssm::transfer::{phong_lobe, brdf_bound, faces, in_near_field, irradiance_bound, irradiance_from, irradiance_from_cluster, irradiance_from_footprint, jitter_in_disk, jitter_leaf, tone_mapped}
+#import cssm::atlas_filter::atlas_lookup
+#import cssm::transfer::{phong_lobe, brdf_bound, faces, in_near_field, irradiance_bound, irradiance_from, irradiance_from_cluster, irradiance_from_footprint, irradiance_from_texel, jitter_in_disk, jitter_leaf, near_split_weight, tone_mapped}
 
-// Final gathering per pixel (§4.4.1): the stackless traversal of Fig. 10 from the G-buffer
-// pixel instead of a receiver leaf, the oracle bounding the normalised Phong BRDF so glossy
-// surfaces refine towards their highlight; each node of the cut is a VPL holding the direct
-// light and the diffuse bounces of the radiosity iteration. With jittering (§4.5) every sender
-// is a random point of a random texel of its node and frames are averaged progressively.
+// Final gathering per pixel (§4.4.1), in one of two forms (`grid.mode`):
+// - 0, the walk: the stackless traversal of Fig. 10 from the G-buffer pixel instead of a
+//   receiver leaf, the oracle bounding the normalised Phong BRDF so glossy surfaces refine
+//   towards their highlight; each node of the cut is a VPL holding the direct light and the
+//   diffuse bounces of the radiosity iteration. With jittering (§4.5) every sender is a random
+//   point of a random texel of its node and frames are averaged progressively.
+// - 1, texture space with a per-pixel near field: the irradiance is the atlas's far field
+//   (`atlas_values`, gathered once per texel by the far-field pass, radiosity/gather.wgsl with
+//   `gather` 2), looked up with the bicubic filter, plus the pixel's own near field: the leaves
+//   within `params.near_radius`, weighted by `near_split_weight`, so that the two halves sum to
+//   the whole transfer. Only what changes within a texel or two is gathered per pixel. A
+//   glossy pixel (Ks above 0) walks for its lobe alone, the oracle bounding its lobe only.
 // Senders on moving objects send from where their objects stand now (posed.wgsl, §3.3).
-// CPU twin: lightcuts/cpu.rs::gather_pixel. Needs types.wgsl, transfer.wgsl, the CSSM library
+// CPU twin: lightcuts/cpu.rs::gather_planes. Needs types.wgsl, transfer.wgsl, the CSSM library
 // at group 1 and the moving objects' (moving.wgsl) at group 2.
 
 @group(0) @binding(0) var<uniform> params: TraversalParams;
@@ -30,12 +38,93 @@
 // filters when the gather runs at a reduced resolution).
 @group(0) @binding(10) var<storage, read_write> planes: array<vec4f>;
 @group(0) @binding(11) var<uniform> grid: GatherGrid;
+// Per texel the start of its near list, and one past the last texel; the lists' leaf nodes
+// (lightcuts/near.rs; unread without lists, `params.near_margin` 0).
+@group(0) @binding(12) var<storage, read> near_offsets: array<u32>;
+@group(0) @binding(13) var<storage, read> near_leaves: array<u32>;
 
 struct GatherGrid {
     // The gather's resolution: the G-buffer's reduced by `factor` per side.
     low_size: vec2u,
     factor: u32,
-    _pad: u32,
+    // 0: the walk; 1: the atlas's far field and the pixel's near field.
+    mode: u32,
+}
+
+// Where the pixel's end of every visibility query lies: its texels (the sender filter's four
+// slots, found once for all its senders) and the object they lie on (a point without texels
+// answers unshadowed).
+struct PixelEnd {
+    senders: CssmSenders,
+    object: u32,
+}
+
+fn pixel_end(atlas: vec2f) -> PixelEnd {
+    let senders = cssm_senders_at(atlas);
+    var object = 0u;
+    if senders.weights.x > 0.0 {
+        object = cssm_texels[senders.texels.x].object;
+    }
+    return PixelEnd(senders, object);
+}
+
+// The light of leaf node `s` at the pixel at `p` weighted by `near_split_weight`, with its
+// footprint's transfer (transfer.rs::irradiance_from_texel) and both ends' visibility.
+fn near_leaf(s: u32, p: vec3f, n: vec3f, end: PixelEnd) -> vec3f {
+    let node = nodes[s];
+    let l = radiance[s].rgb;
+    let y = posed_texel(cssm_texels[node.representative]);
+    let w = near_split_weight(distance(y.position, p), params.near_radius);
+    if w <= 0.0 || !any(l > vec3f(0.0)) {
+        return vec3f(0.0);
+    }
+    let unoccluded = w * irradiance_from_texel(p, n, y.position, y.normal, node.area, l);
+    if !any(unoccluded > vec3f(0.0)) {
+        return vec3f(0.0);
+    }
+    var visibility = moving_visibility_between(end.senders, p, n, end.object, cssm_senders_texel(node.representative), y.position, y.normal, y.object);
+    if visibility < 0.0 {
+        visibility = 1.0;
+    }
+    return unoccluded * visibility;
+}
+
+// The near field of the pixel at `p`: every leaf within `params.near_radius`. A pixel near its
+// texel's centre and in its plane reads the texel's near list (lightcuts/near.rs: the leaves
+// within reach, its own plane's left out); any other walks the hierarchy, descending only into
+// nodes reaching within the radius.
+fn near_field(p: vec3f, n: vec3f, end: PixelEnd) -> vec3f {
+    var e = vec3f(0.0);
+    if params.near_margin > 0.0 && end.senders.weights.x > 0.0 {
+        let t = end.senders.texels.x;
+        let texel = cssm_texels[t];
+        let d = p - texel.position;
+        if length(d) <= params.near_margin && abs(dot(d, texel.normal)) <= params.near_plane {
+            for (var i = near_offsets[t]; i < near_offsets[t + 1u]; i++) {
+                e += near_leaf(near_leaves[i], p, n, end);
+            }
+            return e;
+        }
+    }
+    let radius = params.near_radius;
+    var s = 0u;
+    loop {
+        if s >= params.node_count {
+            break;
+        }
+        let node = nodes[s];
+        if length(node.center - p) - node.radius >= radius {
+            s = node.skip;
+            continue;
+        }
+        if node.count > 1u {
+            s += 1u;
+            continue;
+        }
+        e += near_leaf(s, p, n, end);
+        s = node.skip;
+    }
+    return e;
 }
 
 struct Gathered {
@@ -44,17 +133,13 @@ struct Gathered {
     cut: u32,
 }
 
-// The indirect light arriving at `p` (its irradiance, and its irradiance weighted by the Phong
-// lobe towards `v`), and the cut size; the radiance towards `v` is
-// albedo / pi * irradiance + ks * lobe_weighted.
-fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, atlas: vec2f) -> Gathered {
-    // The receiver's own texels, found once for all its senders.
-    let senders = cssm_senders_at(atlas);
-    // The object the pixel lies on: its texels' (a point without texels answers unshadowed).
-    var object = 0u;
-    if senders.weights.x > 0.0 {
-        object = cssm_texels[senders.texels.x].object;
-    }
+// The walk: the indirect light arriving at `p` (its irradiance, and its irradiance weighted by
+// the Phong lobe towards `v`), and the cut size; the radiance towards `v` is
+// albedo / pi * irradiance + ks * lobe_weighted. The oracle bounds the BRDF of `albedo` and
+// the material's lobe (a zero `albedo`: the lobe's alone).
+fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, end: PixelEnd) -> Gathered {
+    let senders = end.senders;
+    let object = end.object;
     var irradiance = vec3f(0.0);
     var lobe_weighted = vec3f(0.0);
     var cut = 0u;
@@ -145,7 +230,15 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         let atlas = textureLoad(gbuffer_atlas, xy, 0).xy;
         let m = materials[u32(normal.w)];
         let v = normalize(view.eye - position.xyz);
-        value = gather_pixel(pixel, position.xyz, normal.xyz, v, albedo, m, atlas);
+        let end = pixel_end(atlas);
+        if grid.mode == 0u {
+            value = gather_pixel(pixel, position.xyz, normal.xyz, v, albedo, m, end);
+        } else {
+            if any(m.ks > vec3f(0.0)) {
+                value = gather_pixel(pixel, position.xyz, normal.xyz, v, vec3f(0.0), m, end);
+            }
+            value.irradiance = atlas_lookup(atlas, true) + near_field(position.xyz, normal.xyz, end);
+        }
     }
     // Progressive mean over the frames of a still camera (§4.5).
     let index = id.y * grid.low_size.x + id.x;

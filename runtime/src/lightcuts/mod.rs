@@ -14,6 +14,7 @@
 //! CPU twin: [`cpu::gather_pixel`] (test `final_gather_matches_cpu_twin`).
 
 pub mod cpu;
+pub mod near;
 
 /// This folder's WGSL, for the registry ([`crate::shaders`]).
 pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
@@ -45,13 +46,33 @@ use crate::{
 pub const FINAL_GATHER_SHADER: crate::shaders::Shader =
     crate::shaders::shader!("final gather", "lightcuts/final_gather.wgsl");
 
-/// `final_gather.wgsl`'s `GatherGrid`: the gather's resolution.
+/// `final_gather.wgsl`'s `GatherGrid`: the gather's resolution and form.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct GpuGatherGrid {
     low_size: [u32; 2],
     factor: u32,
-    _pad: u32,
+    mode: u32,
+}
+
+/// How the final gather finds a pixel's indirect light (`gather=`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GatherForm {
+    /// Every pixel walks the whole hierarchy (the paper's §4.4.1 per pixel).
+    Walk = 0,
+    /// The atlas's far field, gathered once per texel, looked up with the bicubic filter, plus
+    /// each pixel's own near field; glossy pixels walk for their lobe.
+    Atlas = 1,
+}
+
+/// The near field's reach in world units: `sizes` times the mean texel size of `hierarchy`
+/// (the square root of the scene's area over its texels; the atlas's texel density is one
+/// for the whole scene, so this is every chart's texel).
+pub fn near_radius(hierarchy: &cssm_formats::hierarchy::Hierarchy, sizes: f32) -> f32 {
+    let (Some(root), leaves) = (hierarchy.nodes.first(), hierarchy.leaf_texels.len()) else {
+        return 0.0;
+    };
+    sizes * (root.area / leaves.max(1) as f32).sqrt()
 }
 
 /// The final-gather pass: per gather pixel (the G-buffer's, or one in `factor` x `factor`), two
@@ -64,20 +85,45 @@ pub struct FinalGather {
     bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
     factor: u32,
+    form: GatherForm,
+    /// The near lists' offsets and leaves (a word each without lists).
+    near_lists: [wgpu::Buffer; 2],
     low_size: (u32, u32),
     base: GpuTraversalParams,
 }
 
+/// The near lists of `file`'s texels for the near field of `sizes` texel sizes (`near=`), or
+/// `None` for a file with moving objects, whose texels move away from where the lists were
+/// made (their near fields walk the hierarchy).
+pub fn near_lists(file: &cssm_formats::CssmFile, sizes: f32) -> Option<near::NearLists> {
+    let radius = near_radius(&file.hierarchy, sizes);
+    file.csms
+        .is_empty()
+        .then(|| near::NearLists::new(&file.hierarchy, &file.texels, radius, radius / sizes))
+}
+
+/// How the final gather gathers a pixel's near field.
+pub struct NearSetup<'a> {
+    /// The form of the gather.
+    pub form: GatherForm,
+    /// The near field's reach (world units; [`near_radius`]).
+    pub radius: f32,
+    /// The texels' near lists, or none: every near field walks the hierarchy.
+    pub lists: Option<&'a near::NearLists>,
+}
+
 impl FinalGather {
     /// The pass over the context's G-buffer at one pixel in `factor` x `factor`, gathering from
-    /// `node_radiance` (per node `vec4f`) over the context's `.cssm` into `planes` (two planes
-    /// of `vec4f` at [`filters::low_size`]).
+    /// `sources.0` (per node `vec4f` radiance) and, in the [`GatherForm::Atlas`] form, the far
+    /// field `sources.1` (per texel `vec4f`) and the near field `near` says over the context's
+    /// `.cssm` into `planes` (two planes of `vec4f` at [`filters::low_size`]).
     ///
     /// # Errors
-    /// No `.cssm` in the context.
+    /// No `.cssm` in the context, or near lists beyond the device's binding limit.
     pub fn new(
         ctx: &FrameContext,
-        node_radiance: &wgpu::Buffer,
+        sources: (&wgpu::Buffer, &wgpu::Buffer),
+        near: &NearSetup,
         threshold: f32,
         factor: u32,
         planes: &wgpu::Buffer,
@@ -85,13 +131,28 @@ impl FinalGather {
         let device = &ctx.device;
         let cssm = ctx.cssm()?;
         let low_size = filters::low_size(ctx.size(), factor);
+        let (near_margin, near_plane) = near.lists.map_or((0.0, 0.0), |l| (l.margin, l.plane));
         let base = GpuTraversalParams {
             receiver_count: low_size.0 * low_size.1,
             node_count: cssm.hierarchy.node_count,
             threshold,
             exposure: ctx.settings.exposure,
+            near_radius: near.radius,
+            near_margin,
+            near_plane,
             ..Default::default()
         };
+        let words = |label: &str, words: &[u32]| {
+            let words = if words.is_empty() { &[0u32][..] } else { words };
+            crate::load::storage_buffer(device, label, bytemuck::cast_slice(words))
+        };
+        if let Some(lists) = near.lists {
+            crate::load::limit_check(device, "near lists", lists.bytes())?;
+        }
+        let near_lists = [
+            words("near offsets", near.lists.map_or(&[], |l| &l.offsets)),
+            words("near leaves", near.lists.map_or(&[], |l| &l.leaves)),
+        ];
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("final gather params"),
             contents: bytemuck::bytes_of(&base),
@@ -120,6 +181,10 @@ impl FinalGather {
             layout::texture(9, d2, c),
             layout::storage(10, false, c),
             layout::uniform(11, c),
+            layout::storage(12, true, c),
+            layout::storage(13, true, c),
+            // `lightmap/bicubic.wgsl`'s `atlas_values`: the far field.
+            layout::storage(15, true, c),
         ];
         let bind_layout = layout::bind_group_layout(device, "final gather", &entries);
         let pipeline = layout::compute_pipeline(
@@ -130,7 +195,13 @@ impl FinalGather {
                 .moving
                 .with_layout(&[&bind_layout, &cssm.query.bind_group_layout]),
         );
-        let bind_group = Self::bind(ctx, &bind_layout, &params, &grid, node_radiance, planes)?;
+        let bind_group = Self::bind(
+            ctx,
+            &bind_layout,
+            [&params, &grid, &near_lists[0], &near_lists[1]],
+            sources,
+            planes,
+        )?;
         let gather = Self {
             params,
             grid,
@@ -138,6 +209,8 @@ impl FinalGather {
             bind_layout,
             bind_group,
             factor,
+            form: near.form,
+            near_lists,
             low_size,
             base,
         };
@@ -149,7 +222,7 @@ impl FinalGather {
         let grid = GpuGatherGrid {
             low_size: [self.low_size.0, self.low_size.1],
             factor: self.factor,
-            _pad: 0,
+            mode: self.form as u32,
         };
         ctx.queue
             .write_buffer(&self.grid, 0, bytemuck::bytes_of(&grid));
@@ -159,9 +232,8 @@ impl FinalGather {
     fn bind(
         ctx: &FrameContext,
         bind_layout: &wgpu::BindGroupLayout,
-        params: &wgpu::Buffer,
-        grid: &wgpu::Buffer,
-        node_radiance: &wgpu::Buffer,
+        [params, grid, near_offsets, near_leaves]: [&wgpu::Buffer; 4],
+        (node_radiance, far): (&wgpu::Buffer, &wgpu::Buffer),
         planes: &wgpu::Buffer,
     ) -> Result<wgpu::BindGroup, RuntimeError> {
         let hierarchy = &ctx.cssm()?.hierarchy;
@@ -184,11 +256,15 @@ impl FinalGather {
         resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
         resources.push(planes.as_entire_binding());
         resources.push(grid.as_entire_binding());
-        Ok(layout::bind_group(
+        resources.push(near_offsets.as_entire_binding());
+        resources.push(near_leaves.as_entire_binding());
+        let mut at: Vec<(u32, wgpu::BindingResource)> = (0..).zip(resources).collect();
+        at.push((15, far.as_entire_binding()));
+        Ok(layout::bind_group_at(
             &ctx.device,
             "final gather",
             bind_layout,
-            &resources,
+            &at,
         ))
     }
 
@@ -199,18 +275,18 @@ impl FinalGather {
     pub fn resize(
         &mut self,
         ctx: &FrameContext,
-        node_radiance: &wgpu::Buffer,
+        sources: (&wgpu::Buffer, &wgpu::Buffer),
         planes: &wgpu::Buffer,
     ) -> Result<(), RuntimeError> {
         self.low_size = filters::low_size(ctx.size(), self.factor);
         self.base.receiver_count = self.low_size.0 * self.low_size.1;
         self.write_grid(ctx);
+        let [offsets, leaves] = &self.near_lists;
         self.bind_group = Self::bind(
             ctx,
             &self.bind_layout,
-            &self.params,
-            &self.grid,
-            node_radiance,
+            [&self.params, &self.grid, offsets, leaves],
+            sources,
             planes,
         )?;
         Ok(())
@@ -316,6 +392,25 @@ pub const METHOD: MethodEntry = MethodEntry {
         method::BOUNCES,
         method::THRESHOLD,
         OptionSpec {
+            name: "gather",
+            help: "atlas: each pixel looks up the far field, gathered once per texel, and \
+                   gathers its own near field (glossy pixels also walk for their lobe); walk: \
+                   every pixel walks the whole hierarchy",
+            kind: OptionKind::Choice {
+                default: "atlas",
+                choices: &["atlas", "walk"],
+            },
+        },
+        OptionSpec {
+            name: "near",
+            help: "reach of the near field a pixel gathers itself with gather=atlas, in texel \
+                   sizes (its senders' weight falls from 1 at half the reach to 0 at it)",
+            kind: OptionKind::Number {
+                default: 4.0,
+                min: 1.0,
+            },
+        },
+        OptionSpec {
             name: "jitter",
             help: "every frame sends from a random point of each node of the cut (§4.5), so \
                    the frames' mean converges",
@@ -340,6 +435,13 @@ pub const METHOD: MethodEntry = MethodEntry {
         radiosity::PREPARE_PASSES[1],
         radiosity::PREPARE_PASSES[2],
         radiosity::PREPARE_PASSES[3],
+        // With `gather=atlas` only.
+        PassInfo {
+            name: "lightcuts: far field",
+            stage: Stage::Prepare,
+            reads: &[Slot::Cssm, Slot::TexelRadiance, Slot::NodeRadiance],
+            writes: &[Slot::TexelIrradiance],
+        },
         PassInfo {
             name: "final gather",
             stage: Stage::Frame,
@@ -347,6 +449,7 @@ pub const METHOD: MethodEntry = MethodEntry {
                 Slot::Cssm,
                 Slot::GBuffer,
                 Slot::NodeRadiance,
+                Slot::TexelIrradiance,
                 Slot::Scene,
                 Slot::View,
             ],
@@ -381,6 +484,10 @@ pub struct LightcutsOptions {
     pub bounces: u32,
     /// Oracle threshold (§4.3), of the radiosity and of the final gather.
     pub threshold: f32,
+    /// How a pixel gathers.
+    pub form: GatherForm,
+    /// The near field's reach in texel sizes ([`GatherForm::Atlas`]).
+    pub near: f32,
     /// Jitter the senders every frame (§4.5).
     pub jitter: bool,
     /// Reduction of the final gather's resolution per side (1: every pixel).
@@ -395,6 +502,12 @@ impl LightcutsOptions {
         Self {
             bounces: options.count("bounces"),
             threshold: options.number("threshold"),
+            form: if options.choice("gather") == "walk" {
+                GatherForm::Walk
+            } else {
+                GatherForm::Atlas
+            },
+            near: options.number("near"),
             jitter: options.switch("jitter"),
             downsample: options.count("downsample"),
             blur: options.count("blur"),
@@ -410,6 +523,10 @@ impl LightcutsOptions {
 /// The `lightcuts` method.
 struct Lightcuts {
     gi: AtlasGi,
+    /// The far field, with [`GatherForm::Atlas`].
+    far: Option<radiosity::FarField>,
+    /// Bound where the final gather reads the far field ([`GatherForm::Walk`] reads none).
+    far_buffer: wgpu::Buffer,
     gather: FinalGather,
     planes: Planes,
     resolve: PlaneResolve,
@@ -425,11 +542,36 @@ impl Lightcuts {
             exposure: ctx.settings.exposure,
         };
         let plan = BouncePlan::from_option(options.bounces).one_fewer();
-        let gi = AtlasGi::new(ctx, setup.cssm_file()?, radiosity_options, plan)?;
+        let file = setup.cssm_file()?;
+        let gi = AtlasGi::new(ctx, file, radiosity_options, plan)?;
+        let near_radius = match options.form {
+            GatherForm::Atlas => near_radius(&file.hierarchy, options.near),
+            GatherForm::Walk => 0.0,
+        };
+        let far = (options.form == GatherForm::Atlas)
+            .then(|| gi.radiosity.far_field(&ctx.device, near_radius));
+        let far_buffer = match &far {
+            Some(far) => far.irradiance.clone(),
+            None => ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("final gather: no far field"),
+                size: 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            }),
+        };
+        let lists = match options.form {
+            GatherForm::Atlas => near_lists(file, options.near),
+            GatherForm::Walk => None,
+        };
         let planes = Planes::new(ctx, &options)?;
         let gather = FinalGather::new(
             ctx,
-            gi.radiosity.radiance(),
+            (gi.radiosity.radiance(), &far_buffer),
+            &NearSetup {
+                form: options.form,
+                radius: near_radius,
+                lists: lists.as_ref(),
+            },
             options.threshold,
             options.downsample,
             planes.gathered(),
@@ -437,6 +579,8 @@ impl Lightcuts {
         let resolve = PlaneResolve::new(ctx, "lightcuts resolve", planes.resolved());
         Ok(Box::new(Self {
             gi,
+            far,
+            far_buffer,
             gather,
             planes,
             resolve,
@@ -448,6 +592,9 @@ impl Lightcuts {
 impl GiMethod for Lightcuts {
     fn prepare(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
         self.gi.run(ctx, frame);
+        if let (Some(far), Some(cssm)) = (&self.far, &ctx.cssm) {
+            far.run(frame, cssm);
+        }
     }
 
     fn encode(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
@@ -462,8 +609,8 @@ impl GiMethod for Lightcuts {
 
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
         self.planes.resize(ctx);
-        let radiance = self.gi.radiosity.radiance();
-        self.gather.resize(ctx, radiance, self.planes.gathered())?;
+        let sources = (self.gi.radiosity.radiance(), &self.far_buffer);
+        self.gather.resize(ctx, sources, self.planes.gathered())?;
         self.resolve.resize(ctx, self.planes.resolved());
         Ok(())
     }

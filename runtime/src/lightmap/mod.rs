@@ -25,7 +25,7 @@ use crate::{
 /// This folder's WGSL, for the registry ([`crate::shaders`]).
 pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
     modules: &[LOOKUP_SHADER],
-    libraries: &[],
+    libraries: &[crate::shaders::library!("lightmap/bicubic.wgsl")],
 };
 
 /// `lightmap/lookup.wgsl` with the CSSM library.
@@ -42,7 +42,7 @@ pub enum Filter {
 }
 
 /// Uniform cubic B-spline weights of the samples at -1, 0, 1, 2 for the fraction `t`
-/// (`lookup.wgsl`: `bspline_weights`).
+/// (`bicubic.wgsl`: `bspline_weights`).
 pub fn bspline_weights(t: f32) -> [f32; 4] {
     let (t2, s) = (t * t, 1.0 - t);
     let t3 = t2 * t;
@@ -54,7 +54,7 @@ pub fn bspline_weights(t: f32) -> [f32; 4] {
     ]
 }
 
-/// `lookup.wgsl::lookup`: the irradiance at atlas coordinates `p` (texels) from the
+/// `bicubic.wgsl::atlas_lookup`: the irradiance at atlas coordinates `p` (texels) from the
 /// per-texel `irradiance`.
 pub fn lookup(query: &VisibilityQuery, irradiance: &[Vec3], p: Vec2, filter: Filter) -> Vec3 {
     let Some(centre) = query.texel_at_point(p) else {
@@ -129,7 +129,8 @@ impl AtlasLookup {
         let entries = [
             layout::uniform(0, c),
             layout::uniform(1, c),
-            layout::storage(2, true, c),
+            // `bicubic.wgsl`'s `atlas_values`.
+            layout::storage(15, true, c),
             layout::texture(3, d2, c),
             layout::texture(4, d2, c),
             layout::texture(5, d2, c),
@@ -165,13 +166,18 @@ impl AtlasLookup {
         let views = [&gbuffer.position, &gbuffer.albedo, &gbuffer.atlas]
             .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![
-            params.as_entire_binding(),
-            ctx.view.as_entire_binding(),
-            texel_irradiance.as_entire_binding(),
+            (0, params.as_entire_binding()),
+            (1, ctx.view.as_entire_binding()),
+            (15, texel_irradiance.as_entire_binding()),
         ];
-        resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        resources.push(indirect.as_entire_binding());
-        let bind_group = layout::bind_group(&ctx.device, "atlas lookup", bind_layout, &resources);
+        resources.extend(
+            (3..)
+                .zip(&views)
+                .map(|(binding, view)| (binding, wgpu::BindingResource::TextureView(view))),
+        );
+        resources.push((6, indirect.as_entire_binding()));
+        let bind_group =
+            layout::bind_group_at(&ctx.device, "atlas lookup", bind_layout, &resources);
         (indirect, bind_group)
     }
 

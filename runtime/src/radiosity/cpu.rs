@@ -22,8 +22,8 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::transfer::{
-    irradiance_bound, irradiance_from_cluster, irradiance_from_texel, node_spreads, tone_mapped,
-    visibility_sender,
+    irradiance_bound, irradiance_from_cluster, irradiance_from_texel, near_split_weight,
+    node_spreads, tone_mapped, visibility_sender,
 };
 use crate::{
     common::converge::{BouncePlan, Convergence, run_plan},
@@ -175,6 +175,29 @@ pub fn gather_texel_counted(
     rho: f32,
     tally: &mut impl crate::work::GatherTally,
 ) -> (Vec3, u32) {
+    gather_texel_split(
+        scene, nodes, radiance, traversal, 0.0, receiver, p, n, rho, tally,
+    )
+}
+
+/// `gather.wgsl::gather_texel` with `params.gather` 2 (`near_radius` above 0): the far field
+/// of texel `receiver`, every node reaching within `near_radius` refined and every leaf sending
+/// `1 - near_split_weight` of its light (`lightcuts`' texture-space final gather); with
+/// `near_radius` 0, [`gather_texel_counted`].
+#[allow(clippy::too_many_arguments)]
+pub fn gather_texel_split(
+    scene: &TwinScene,
+    nodes: &[GpuNode],
+    radiance: &[Vec3],
+    traversal: &Traversal,
+    near_radius: f32,
+    receiver: u32,
+    p: Vec3,
+    n: Vec3,
+    rho: f32,
+    tally: &mut impl crate::work::GatherTally,
+) -> (Vec3, u32) {
+    let far_only = near_radius > 0.0;
     let texels = &scene.texels;
     let mut e = Vec3::ZERO;
     let mut cut = 0;
@@ -186,10 +209,11 @@ pub fn gather_texel_counted(
         let node = &nodes[s];
         let l = radiance[s];
         if node.count > 1
-            && tone_mapped(
+            && (tone_mapped(
                 irradiance_bound(p, n, node, l) * (rho / PI),
                 traversal.exposure,
             ) > traversal.threshold
+                || (far_only && (Vec3::from(node.center) - p).length() - node.radius < near_radius))
         {
             s += 1;
             continue;
@@ -201,7 +225,13 @@ pub fn gather_texel_counted(
             let spread = &scene.spreads[s];
             // A single texel's footprint is integrated in its near field.
             let (unoccluded, _) = if node.count == 1 {
-                irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, l)
+                let (e, w) = irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, l);
+                let far = if far_only {
+                    1.0 - near_split_weight(y.pos().distance(p), near_radius)
+                } else {
+                    1.0
+                };
+                (e * far, w)
             } else {
                 irradiance_from_cluster(p, n, y.pos(), node, spread, l)
             };
@@ -336,6 +366,49 @@ pub fn radiosity_over(
         gathered: gathered_total,
         convergence,
     }
+}
+
+/// The far field of every texel (texel order) from the node radiance `radiance`: what
+/// `lightcuts`' far-field pass (`gather.wgsl` with `params.gather` 2) writes, each texel's
+/// [`gather_texel_split`] at `near_radius`, reflecting `albedo` in the oracle.
+pub fn far_field(
+    scene: &TwinScene,
+    radiance: &[Vec3],
+    albedo: &[Vec3],
+    traversal: &Traversal,
+    near_radius: f32,
+) -> Vec<Vec3> {
+    let nodes = &scene.hierarchy.nodes;
+    let mut far = vec![Vec3::ZERO; scene.texels.len()];
+    let leaves: Vec<u32> = nodes
+        .iter()
+        .filter(|n| n.count == 1)
+        .map(|n| scene.hierarchy.leaf_texels[n.first as usize])
+        .collect();
+    let gathered: Vec<(u32, Vec3)> = leaves
+        .par_iter()
+        .map(|&t| {
+            let texel = &scene.texels[t as usize];
+            let mut none = cssm_formats::visibility::QueryWork::default();
+            let (e, _) = gather_texel_split(
+                scene,
+                nodes,
+                radiance,
+                traversal,
+                near_radius,
+                t,
+                texel.pos(),
+                texel.nrm(),
+                albedo[t as usize].max_element(),
+                &mut none,
+            );
+            (t, e)
+        })
+        .collect();
+    for (t, e) in gathered {
+        far[t as usize] = e;
+    }
+    far
 }
 
 /// Ground truth over the same texels: `iterations` Jacobi bounces where every texel gathers

@@ -2,7 +2,7 @@
 #import cssm::visibility::{cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
-#import cssm::transfer::{TRANSFER_PI, faces, irradiance_bound, irradiance_from_cluster, irradiance_from_texel, tone_mapped}
+#import cssm::transfer::{TRANSFER_PI, faces, irradiance_bound, irradiance_from_cluster, irradiance_from_texel, near_split_weight, tone_mapped}
 
 // GPU hierarchical radiosity with clustering (§4.1.1, §4.3): one thread per receiver leaf
 // (texel) walks the hierarchy without a stack from the root, refining a sender while the oracle
@@ -12,6 +12,10 @@
 // new radiance (direct + reflected indirect); the pull pass (pull.wgsl) then rebuilds the
 // inner nodes. Texels of moving objects transfer light where their objects stand now
 // (posed.wgsl; the nodes' bounds refitted around them, radiosity::MovingTexels, §3.3).
+// With `params.gather` 2 it gathers the far field only, for `lightcuts`' texture-space final
+// gather (lightcuts/mod.rs): every node reaching within `params.near_radius` of the receiver is
+// refined down to its leaves, each leaf sends `1 - near_split_weight` of its light, and the
+// texel's irradiance is all it writes (the pixels gather the rest themselves).
 // CPU twin: radiosity/cpu.rs::gather_texel.
 // Needs types.wgsl, transfer.wgsl and the CSSM library at group 1.
 
@@ -32,6 +36,7 @@
 
 // Irradiance at texel `receiver` (position p, normal n, albedo rho) from the whole scene.
 fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
+    let far_only = params.gather == 2u;
     var e = vec3f(0.0);
     var s = 0u;
     loop {
@@ -40,8 +45,9 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
         }
         let node = nodes[s];
         let radiance = radiance_in[s].rgb;
-        // Refine: descend into the left child (§4.3, Fig. 10).
-        if node.count > 1u && tone_mapped(irradiance_bound(p, n, node, radiance) * (rho / TRANSFER_PI), params.exposure) > params.threshold {
+        // Refine: descend into the left child (§4.3, Fig. 10); for the far field, also every
+        // node reaching into the near field, whose leaves the split weighs one by one.
+        if node.count > 1u && (tone_mapped(irradiance_bound(p, n, node, radiance) * (rho / TRANSFER_PI), params.exposure) > params.threshold || (far_only && length(node.center - p) - node.radius < params.near_radius)) {
             s += 1u;
             continue;
         }
@@ -53,6 +59,9 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
             var unoccluded: vec3f;
             if node.count == 1u {
                 unoccluded = irradiance_from_texel(p, n, y.position, y.normal, node.area, radiance);
+                if far_only {
+                    unoccluded *= 1.0 - near_split_weight(distance(y.position, p), params.near_radius);
+                }
             } else {
                 unoccluded = irradiance_from_cluster(p, n, y.position, node, radiance);
             }
@@ -94,5 +103,8 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         e = gather_texel(texel, t.position, t.normal, max(albedo.x, max(albedo.y, albedo.z)));
     }
     texel_irradiance[texel] = vec4f(e, 1.0);
+    if params.gather == 2u {
+        return;
+    }
     radiance_out[ln.y] = vec4f(texel_direct[texel].rgb + albedo / TRANSFER_PI * e, 1.0);
 }

@@ -21,7 +21,10 @@
 //! `radiosity_matches_brute_force`).
 
 pub mod cpu;
+mod far_field;
 pub mod transfer;
+
+pub use far_field::FarField;
 
 /// This folder's WGSL, for the registry ([`crate::shaders`]).
 pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
@@ -258,6 +261,14 @@ pub struct Radiosity {
     level_sizes: Vec<u32>,
     /// The test that ends the iteration once converged, on the root (node 0).
     converge: ConvergeGpu,
+    /// What [`Self::far_field`] binds again: the gather's layout, the texels' direct light and
+    /// albedo, the hierarchy's nodes and leaves, and the oracle's options.
+    gather_layout: wgpu::BindGroupLayout,
+    texel_direct: wgpu::Buffer,
+    albedo: wgpu::Buffer,
+    tree: [wgpu::Buffer; 2],
+    node_count: u32,
+    options: RadiosityOptions,
 }
 
 impl Radiosity {
@@ -329,6 +340,7 @@ impl Radiosity {
                     jitter: 0,
                     gather,
                     frame: 0,
+                    ..Default::default()
                 }),
                 usage: wgpu::BufferUsages::UNIFORM,
             })
@@ -426,6 +438,12 @@ impl Radiosity {
             leaf_count: hierarchy.leaf_count,
             level_sizes: hierarchy.levels.iter().map(|&(s, e)| e - s).collect(),
             converge,
+            gather_layout,
+            texel_direct: texel_direct.clone(),
+            albedo,
+            tree: [hierarchy.nodes.clone(), hierarchy.leaves.clone()],
+            node_count: hierarchy.node_count,
+            options,
         })
     }
 

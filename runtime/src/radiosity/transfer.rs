@@ -278,6 +278,22 @@ pub fn in_near_field(p: Vec3, y: Vec3, area: f32) -> bool {
     (y - p).length_squared() < NEAR_FIELD_SIZES * NEAR_FIELD_SIZES * area
 }
 
+/// The share of a single texel's light that `lightcuts`' per-pixel near field takes, at
+/// distance `dist` from the receiver (`radius`: the near field's reach,
+/// [`crate::lightcuts::near_radius`]): 1 within half the reach, 0 beyond it, a smoothstep
+/// between. The texture-space final gather splits every transfer in two by it: the atlas
+/// gathers `1 - w` of each sender at the texel centres, where what is left is smooth enough to
+/// interpolate, and each pixel gathers `w` of its own near senders. The weight depends on the
+/// distance alone, so the two halves sum to the whole transfer wherever the receiver is.
+/// `transfer.wgsl`: `near_split_weight`.
+pub fn near_split_weight(dist: f32, radius: f32) -> f32 {
+    if radius <= 0.0 {
+        return 0.0;
+    }
+    let t = ((dist - 0.5 * radius) / (0.5 * radius)).clamp(0.0, 1.0);
+    1.0 - t * t * (3.0 - 2.0 * t)
+}
+
 /// Receivers closer than this many texel sizes to a texel's plane are in it
 /// ([`irradiance_from_footprint`]).
 const COPLANAR: f32 = 1e-3;

@@ -112,6 +112,14 @@ fn in_near_field(p: vec3f, y: vec3f, area: f32) -> bool {
     return dot(d, d) < NEAR_FIELD_SIZES * NEAR_FIELD_SIZES * area;
 }
 
+// transfer::near_split_weight.
+fn near_split_weight(dist: f32, radius: f32) -> f32 {
+    if radius <= 0.0 {
+        return 0.0;
+    }
+    return 1.0 - smoothstep(0.5 * radius, radius, dist);
+}
+
 // transfer::irradiance_from_footprint: Lambert's formula over the octagon of the texel's area,
 // clipped to the receiver's hemisphere; xyz irradiance.
 fn irradiance_from_footprint(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, area: f32, radiance: vec3f) -> vec3f {

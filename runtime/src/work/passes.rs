@@ -222,8 +222,10 @@ fn count_warps<R>(
 }
 
 /// The final gather's stats (`lightcuts/final_gather.wgsl`) at `width` x `height`, gathering at
-/// one pixel in `downsample`² (the representative taken as each block's top-left pixel), from
-/// node radiance `radiance` with the oracle's `threshold` and `exposure`: every `step`-th tile
+/// one pixel in `downsample`² (the representative taken as each block's top-left pixel) as
+/// `form` says, from node radiance `radiance` with the oracle's `threshold` and `exposure`
+/// (the far field's bicubic lookup is not counted: 16 texels and their values a pixel, against
+/// the walks' hundreds of nodes): every `step`-th tile
 /// of the gather's 8x8 tiles counted so that about `tiles` are, each tile's two warps (its top
 /// and bottom four rows).
 ///
@@ -235,6 +237,7 @@ pub fn final_gather_stats(
     file: &CssmFile,
     view: &View,
     radiance: &[Vec3],
+    form: crate::lightcuts::cpu::TwinGather,
     downsample: u32,
     threshold: f32,
     exposure: f32,
@@ -277,6 +280,7 @@ pub fn final_gather_stats(
             gather_planes_counted(
                 &twin,
                 radiance,
+                form,
                 threshold,
                 exposure,
                 None,
@@ -291,13 +295,14 @@ pub fn final_gather_stats(
 /// The radiosity gather's stats (`radiosity/gather.wgsl`, one thread a leaf texel in the
 /// hierarchy's leaf order) for one bounce from node radiance `radiance`, texels reflecting
 /// `albedo`, with the oracle's `threshold` and `exposure`: every `step`-th warp of 32
-/// consecutive leaves counted so that about `warps` are.
+/// consecutive leaves counted so that about `warps` are. With `near_radius` above 0, the same
+/// kernel as `lightcuts`' far-field pass (the near field within it left out).
 pub fn radiosity_gather_stats(
     file: &CssmFile,
     radiance: &[Vec3],
     albedo: &[Vec3],
-    threshold: f32,
-    exposure: f32,
+    (threshold, exposure): (f32, f32),
+    near_radius: f32,
     warps: u32,
 ) -> PassStats {
     let query = VisibilityQuery::new(file, Default::default());
@@ -318,18 +323,24 @@ pub fn radiosity_gather_stats(
         .chunks(WARP_LANES)
         .step_by(step)
         .map(|warp| warp.iter().map(|&t| Some(t)).collect());
+    let pass = if near_radius > 0.0 {
+        "lightcuts far field"
+    } else {
+        "radiosity gather"
+    };
     count_warps(
-        "radiosity gather",
+        pass,
         file,
         leaves.len() as u64,
         sampled,
         |&texel: &u32, lane| {
             let t = &twin.texels[texel as usize];
-            crate::radiosity::cpu::gather_texel_counted(
+            crate::radiosity::cpu::gather_texel_split(
                 &twin,
                 nodes,
                 radiance,
                 &traversal,
+                near_radius,
                 texel,
                 t.pos(),
                 t.nrm(),
