@@ -273,6 +273,13 @@ measure() {
     run frame-time "$c/frame_time" --size $frame_size --frames $frames --one-shots $one_shots \
         --moving-light \
         --out "$out/runtime-frame-time.md"
+    # lightcuts' final gather in texture space against the walk it replaced (issue 49, item 2;
+    # reports/final-gather.md), one bounce so that the builds' prepare passes stay short: the
+    # frame is the final gather either way.
+    run frame-time-gather "$c/frame_time" --size $frame_size --frames $frames --one-shots 0 \
+        --method lightcuts:gather=walk,bounces=1 --method lightcuts:bounces=1 \
+        --method lightcuts:downsample=1,bounces=1 --method lightcuts:gather=walk,downsample=1,bounces=1 \
+        --out "$out/runtime-frame-time-gather.md"
     # Every method of the table in one persistent renderer at 1280x720: the frame time a window
     # of that size shows (issue 26), without the presentation.
     run frame-time-all "$c/frame_time" --size $wide --frames $frames --one-shots $one_shots_all \

@@ -273,12 +273,13 @@ fn print_stats(
     } else {
         radiosity_plan.max.to_string()
     };
+    // The texels' bounce albedo, which the radiosity's oracle reads.
+    let (materials, _) = runtime::load::cpu_materials(scene).map_err(|e| e.to_string())?;
+    let albedo: Vec<glam::Vec3> = runtime::radiosity::texel_albedo(&materials, file)
+        .iter()
+        .map(|a| glam::Vec3::new(a[0], a[1], a[2]))
+        .collect();
     if radiosity_plan.max > 0 {
-        let (materials, _) = runtime::load::cpu_materials(scene).map_err(|e| e.to_string())?;
-        let albedo: Vec<glam::Vec3> = runtime::radiosity::texel_albedo(&materials, file)
-            .iter()
-            .map(|a| glam::Vec3::new(a[0], a[1], a[2]))
-            .collect();
         let stats = runtime::work::passes::radiosity_gather_stats(
             file,
             &radiance(BouncePlan::exactly(0))?,
@@ -306,12 +307,6 @@ fn print_stats(
         let form = match options.form {
             GatherForm::Walk => TwinGather::Walk,
             GatherForm::Atlas => {
-                let (materials, _) =
-                    runtime::load::cpu_materials(scene).map_err(|e| e.to_string())?;
-                let albedo: Vec<glam::Vec3> = runtime::radiosity::texel_albedo(&materials, file)
-                    .iter()
-                    .map(|a| glam::Vec3::new(a[0], a[1], a[2]))
-                    .collect();
                 let stats = runtime::work::passes::radiosity_gather_stats(
                     file,
                     &radiance,

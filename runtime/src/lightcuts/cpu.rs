@@ -293,23 +293,15 @@ fn near_field(
         }
         return e;
     }
-    let (mut s, mut iteration) = (0usize, 0);
-    while s < nodes.len() {
+    let mut iteration = 0;
+    super::near::walk_within(nodes, p, radius, |s, is_leaf| {
         // The kernel's second loop, after a glossy pixel's walk: its own iterations.
         tally.node(NEAR_LOOP + iteration, s as u32);
         iteration += 1;
-        let node = &nodes[s];
-        if (Vec3::from(node.center) - p).length() - node.radius >= radius {
-            s = node.skip as usize;
-            continue;
+        if is_leaf {
+            e += leaf(s, tally);
         }
-        if node.count > 1 {
-            s += 1;
-            continue;
-        }
-        e += leaf(s, tally);
-        s = node.skip as usize;
-    }
+    });
     e
 }
 

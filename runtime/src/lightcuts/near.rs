@@ -13,6 +13,8 @@
 //! `final_gather.wgsl::near_field` and its twin `cpu.rs::near_field` read the same lists.
 
 use cssm_formats::{hierarchy::Hierarchy, texel::Texel};
+
+use crate::gpu_types::GpuNode;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -25,6 +27,23 @@ pub const COPLANAR: f32 = 1e-4;
 /// texel's centre reads the list (the centre of a texel's coverage lies within about 0.7 of its
 /// size from any point of it where the chart is not stretched).
 pub const MARGIN_SIZES: f32 = 2.0;
+
+/// The stackless walk of `final_gather.wgsl::near_field` (Fig. 10's skip pointers): `visit`
+/// hears every node it reaches in order (node index, and whether it is a leaf whose bounding
+/// sphere reaches within `reach` of `p`); it descends only into nodes reaching within `reach`.
+pub fn walk_within(nodes: &[GpuNode], p: Vec3, reach: f32, mut visit: impl FnMut(usize, bool)) {
+    let mut s = 0usize;
+    while s < nodes.len() {
+        let node = &nodes[s];
+        let within = (Vec3::from(node.center) - p).length() - node.radius < reach;
+        visit(s, within && node.count <= 1);
+        s = if within && node.count > 1 {
+            s + 1
+        } else {
+            node.skip as usize
+        };
+    }
+}
 
 /// The near lists of every texel: see the module docs.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -46,32 +65,24 @@ impl NearLists {
         let margin = MARGIN_SIZES * size;
         let plane = COPLANAR * size;
         let reach = radius + margin;
+        let nodes = &hierarchy.nodes;
         let lists: Vec<Vec<u32>> = texels
             .par_iter()
             .map(|t| {
                 let mut list = Vec::new();
                 let (c, n) = (t.pos(), t.nrm());
-                let nodes = &hierarchy.nodes;
-                let mut s = 0usize;
-                while s < nodes.len() {
-                    let node = &nodes[s];
-                    if (Vec3::from(node.center) - c).length() - node.radius >= reach {
-                        s = node.skip as usize;
-                        continue;
+                walk_within(nodes, c, reach, |s, is_leaf| {
+                    if !is_leaf {
+                        return;
                     }
-                    if node.count > 1 {
-                        s += 1;
-                        continue;
-                    }
-                    let y = &texels[hierarchy.leaf_texels[node.first as usize] as usize];
+                    let y = &texels[hierarchy.leaf_texels[nodes[s].first as usize] as usize];
                     let coplanar = y.nrm().cross(n).length() < COPLANAR
                         && y.nrm().dot(n) > 0.0
                         && (y.pos() - c).dot(n).abs() < plane;
                     if (y.pos() - c).length() < reach && !coplanar {
                         list.push(s as u32);
                     }
-                    s = node.skip as usize;
-                }
+                });
                 list
             })
             .collect();
