@@ -38,10 +38,11 @@
 // filters when the gather runs at a reduced resolution).
 @group(0) @binding(10) var<storage, read_write> planes: array<vec4f>;
 @group(0) @binding(11) var<uniform> grid: GatherGrid;
-// Per texel the start of its near list, and one past the last texel; the lists' leaf nodes
-// (lightcuts/near.rs; unread without lists, `params.near_margin` 0).
-@group(0) @binding(12) var<storage, read> near_offsets: array<u32>;
-@group(0) @binding(13) var<storage, read> near_leaves: array<u32>;
+// The near lists in one buffer (lightcuts/near.rs, `NearLists::packed`; one buffer, not two,
+// to keep within the runtime's 12 storage buffers a stage): per texel the index in this array
+// where its list starts, and one past the last texel, then the lists' leaf nodes. Unread
+// without lists (`params.near_margin` 0).
+@group(0) @binding(12) var<storage, read> near_lists: array<u32>;
 
 struct GatherGrid {
     // The gather's resolution: the G-buffer's reduced by `factor` per side.
@@ -100,8 +101,8 @@ fn near_field(p: vec3f, n: vec3f, end: PixelEnd) -> vec3f {
         let texel = cssm_texels[t];
         let d = p - texel.position;
         if length(d) <= params.near_margin && abs(dot(d, texel.normal)) <= params.near_plane {
-            for (var i = near_offsets[t]; i < near_offsets[t + 1u]; i++) {
-                e += near_leaf(near_leaves[i], p, n, end);
+            for (var i = near_lists[t]; i < near_lists[t + 1u]; i++) {
+                e += near_leaf(near_lists[i], p, n, end);
             }
             return e;
         }

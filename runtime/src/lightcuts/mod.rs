@@ -86,8 +86,8 @@ pub struct FinalGather {
     bind_group: wgpu::BindGroup,
     factor: u32,
     form: GatherForm,
-    /// The near lists' offsets and leaves (a word each without lists).
-    near_lists: [wgpu::Buffer; 2],
+    /// The near lists, packed (a word without lists).
+    near_lists: wgpu::Buffer,
     low_size: (u32, u32),
     base: GpuTraversalParams,
 }
@@ -119,7 +119,7 @@ impl FinalGather {
     /// `.cssm` into `planes` (two planes of `vec4f` at [`filters::low_size`]).
     ///
     /// # Errors
-    /// No `.cssm` in the context, or near lists beyond the device's binding limit.
+    /// No `.cssm` in the context.
     pub fn new(
         ctx: &FrameContext,
         sources: (&wgpu::Buffer, &wgpu::Buffer),
@@ -131,7 +131,11 @@ impl FinalGather {
         let device = &ctx.device;
         let cssm = ctx.cssm()?;
         let low_size = filters::low_size(ctx.size(), factor);
-        let (near_margin, near_plane) = near.lists.map_or((0.0, 0.0), |l| (l.margin, l.plane));
+        // Lists larger than a binding allows are left out: every near field walks instead.
+        let binding = crate::load::storage_binding_bytes(&device.limits());
+        let lists = near.lists.filter(|l| l.bytes() <= binding);
+        let (near_margin, near_plane) = lists.map_or((0.0, 0.0), |l| (l.margin, l.plane));
+        let packed = lists.map_or(vec![0], near::NearLists::packed);
         let base = GpuTraversalParams {
             receiver_count: low_size.0 * low_size.1,
             node_count: cssm.hierarchy.node_count,
@@ -142,17 +146,8 @@ impl FinalGather {
             near_plane,
             ..Default::default()
         };
-        let words = |label: &str, words: &[u32]| {
-            let words = if words.is_empty() { &[0u32][..] } else { words };
-            crate::load::storage_buffer(device, label, bytemuck::cast_slice(words))
-        };
-        if let Some(lists) = near.lists {
-            crate::load::limit_check(device, "near lists", lists.bytes())?;
-        }
-        let near_lists = [
-            words("near offsets", near.lists.map_or(&[], |l| &l.offsets)),
-            words("near leaves", near.lists.map_or(&[], |l| &l.leaves)),
-        ];
+        let near_lists =
+            crate::load::storage_buffer(device, "near lists", bytemuck::cast_slice(&packed));
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("final gather params"),
             contents: bytemuck::bytes_of(&base),
@@ -182,7 +177,6 @@ impl FinalGather {
             layout::storage(10, false, c),
             layout::uniform(11, c),
             layout::storage(12, true, c),
-            layout::storage(13, true, c),
             // `lightmap/bicubic.wgsl`'s `atlas_values`: the far field.
             layout::storage(15, true, c),
         ];
@@ -198,7 +192,7 @@ impl FinalGather {
         let bind_group = Self::bind(
             ctx,
             &bind_layout,
-            [&params, &grid, &near_lists[0], &near_lists[1]],
+            [&params, &grid, &near_lists],
             sources,
             planes,
         )?;
@@ -232,7 +226,7 @@ impl FinalGather {
     fn bind(
         ctx: &FrameContext,
         bind_layout: &wgpu::BindGroupLayout,
-        [params, grid, near_offsets, near_leaves]: [&wgpu::Buffer; 4],
+        [params, grid, near_lists]: [&wgpu::Buffer; 3],
         (node_radiance, far): (&wgpu::Buffer, &wgpu::Buffer),
         planes: &wgpu::Buffer,
     ) -> Result<wgpu::BindGroup, RuntimeError> {
@@ -256,8 +250,7 @@ impl FinalGather {
         resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
         resources.push(planes.as_entire_binding());
         resources.push(grid.as_entire_binding());
-        resources.push(near_offsets.as_entire_binding());
-        resources.push(near_leaves.as_entire_binding());
+        resources.push(near_lists.as_entire_binding());
         let mut at: Vec<(u32, wgpu::BindingResource)> = (0..).zip(resources).collect();
         at.push((15, far.as_entire_binding()));
         Ok(layout::bind_group_at(
@@ -281,11 +274,10 @@ impl FinalGather {
         self.low_size = filters::low_size(ctx.size(), self.factor);
         self.base.receiver_count = self.low_size.0 * self.low_size.1;
         self.write_grid(ctx);
-        let [offsets, leaves] = &self.near_lists;
         self.bind_group = Self::bind(
             ctx,
             &self.bind_layout,
-            [&self.params, &self.grid, offsets, leaves],
+            [&self.params, &self.grid, &self.near_lists],
             sources,
             planes,
         )?;

@@ -114,6 +114,17 @@ impl NearLists {
         Some(&self.leaves[self.offsets[t] as usize..self.offsets[t + 1] as usize])
     }
 
+    /// The lists as the GPU reads them (`final_gather.wgsl`'s `near_lists`): the offsets,
+    /// moved past themselves, then the leaves, in one array.
+    pub fn packed(&self) -> Vec<u32> {
+        let base = self.offsets.len() as u32;
+        self.offsets
+            .iter()
+            .map(|&o| o + base)
+            .chain(self.leaves.iter().copied())
+            .collect()
+    }
+
     /// Bytes on the GPU: the offsets and the leaves, `u32` each.
     pub fn bytes(&self) -> u64 {
         4 * (self.offsets.len() + self.leaves.len()) as u64
