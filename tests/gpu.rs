@@ -12,6 +12,8 @@ mod direct;
 mod emissive;
 #[path = "gpu/filters.rs"]
 mod filters;
+#[path = "gpu/final_gather.rs"]
+mod final_gather;
 #[path = "gpu/methods.rs"]
 mod methods;
 #[path = "gpu/moving.rs"]

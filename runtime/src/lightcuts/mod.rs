@@ -536,12 +536,15 @@ impl Lightcuts {
         let plan = BouncePlan::from_option(options.bounces).one_fewer();
         let file = setup.cssm_file()?;
         let gi = AtlasGi::new(ctx, file, radiosity_options, plan)?;
-        let near_radius = match options.form {
-            GatherForm::Atlas => near_radius(&file.hierarchy, options.near),
-            GatherForm::Walk => 0.0,
+        // The atlas form's far field and near lists; the walk reads neither.
+        let (near_radius, far, lists) = match options.form {
+            GatherForm::Atlas => {
+                let radius = near_radius(&file.hierarchy, options.near);
+                let far = gi.radiosity.far_field(&ctx.device, radius);
+                (radius, Some(far), near_lists(file, options.near))
+            }
+            GatherForm::Walk => (0.0, None, None),
         };
-        let far = (options.form == GatherForm::Atlas)
-            .then(|| gi.radiosity.far_field(&ctx.device, near_radius));
         let far_buffer = match &far {
             Some(far) => far.irradiance.clone(),
             None => ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -550,10 +553,6 @@ impl Lightcuts {
                 usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
             }),
-        };
-        let lists = match options.form {
-            GatherForm::Atlas => near_lists(file, options.near),
-            GatherForm::Walk => None,
         };
         let planes = Planes::new(ctx, &options)?;
         let gather = FinalGather::new(
