@@ -6,12 +6,13 @@
 //! ```text
 //! cargo bench --bench gather_stats -- [--scene DIR] [--atlas 128] [--cube 32]
 //!     [--size 640x480] [--downsample 1] [--bounces 1] [--threshold 0.02] [--tiles 16]
-//!     [--gather atlas|walk] [--near 4]
+//!     [--gather atlas|walk] [--near 4] [--emitters pixel|far]
 //! ```
 //!
 //! `--gather` is `lightcuts`' option of that name (the default `atlas`: the far field looked up,
 //! the near field within `--near` texel sizes gathered per pixel; `walk`: the whole hierarchy
-//! per pixel). With `atlas` it also counts the far-field pass over the atlas's texels.
+//! per pixel). With `atlas` it also counts the far-field pass over the atlas's texels;
+//! `--emitters` is the option of that name (`pixel`: every pixel gathers the emitters' light).
 
 use cssm::runtime;
 use runtime::{
@@ -38,6 +39,11 @@ fn main() {
         other => panic!("--gather {other}: atlas or walk"),
     };
     let near = parsed(&args, "--near", 4.0f32);
+    let emitters_apart = match parsed(&args, "--emitters", "pixel".to_string()).as_str() {
+        "pixel" => true,
+        "far" => false,
+        other => panic!("--emitters {other}: pixel or far"),
+    };
     let (width, height) = size_arg(&args, "--size", (640, 480));
     let (dir, scene, file) = baked_scene(&args);
     let gpu = runtime::Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
@@ -90,7 +96,13 @@ fn main() {
             &radiance,
             &albedo,
             (threshold, exposure),
-            near_radius,
+            (
+                radiosity::cpu::FarSplit {
+                    near_radius,
+                    emitters_apart,
+                },
+                &radiosity::emitting_materials(&scene),
+            ),
             32,
         );
         println!(
@@ -103,6 +115,7 @@ fn main() {
             far: &far,
             near_radius,
             lists: lists.as_ref(),
+            emitters_apart,
         }
     };
     let stats = final_gather_stats(

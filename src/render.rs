@@ -285,7 +285,7 @@ fn print_stats(
             &radiance(BouncePlan::exactly(0))?,
             &albedo,
             (threshold, exposure),
-            0.0,
+            (runtime::radiosity::cpu::FarSplit::WHOLE, &[]),
             STATS_WARPS,
         );
         println!(
@@ -304,6 +304,11 @@ fn print_stats(
         // The counts do not depend on the far field's values, only on where pixels look it up.
         let far = vec![glam::Vec3::ZERO; file.texels.len()];
         let lists = runtime::lightcuts::near_lists(file, options.near);
+        let emitting = runtime::radiosity::emitting_materials(scene);
+        let split = runtime::radiosity::cpu::FarSplit {
+            near_radius,
+            emitters_apart: options.emitters_apart,
+        };
         let form = match options.form {
             GatherForm::Walk => TwinGather::Walk,
             GatherForm::Atlas => {
@@ -312,18 +317,25 @@ fn print_stats(
                     &radiance,
                     &albedo,
                     (threshold, exposure),
-                    near_radius,
+                    (split, &emitting),
                     STATS_WARPS,
                 );
                 println!(
-                    "{} (the last bounce over the atlas, the near field of {} texel sizes left \
-                     to the pixels), counted by its CPU twin:\n{stats}",
-                    stats.pass, options.near
+                    "{} (the last bounce over the atlas, the near field of {} texel sizes{} \
+                     left to the pixels), counted by its CPU twin:\n{stats}",
+                    stats.pass,
+                    options.near,
+                    if options.emitters_apart {
+                        " and the emitters"
+                    } else {
+                        ""
+                    }
                 );
                 TwinGather::Atlas {
                     far: &far,
                     near_radius,
                     lists: lists.as_ref(),
+                    emitters_apart: options.emitters_apart,
                 }
             }
         };

@@ -14,6 +14,8 @@ mod emissive;
 mod filters;
 #[path = "gpu/final_gather.rs"]
 mod final_gather;
+#[path = "gpu/links.rs"]
+mod links;
 #[path = "gpu/methods.rs"]
 mod methods;
 #[path = "gpu/moving.rs"]

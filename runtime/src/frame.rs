@@ -442,6 +442,7 @@ impl FrameContext {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let gbuffer = GBuffer::new(device, &scene_gpu, &view, settings.width, settings.height);
+        let emitting = crate::radiosity::emitting_materials(scene);
         let cssm = match cssm {
             Some(file) => Some(CssmResources {
                 query: CssmGpu::new(device, queue, file, settings.visibility)?,
@@ -451,8 +452,12 @@ impl FrameContext {
                     scene,
                     &scene_gpu.motion,
                 )?,
-                hierarchy: HierarchyGpu::new(device, &file.hierarchy, &file.texels)?,
-                moving_texels: crate::radiosity::MovingTexels::new(file, scene.objects.len()),
+                hierarchy: HierarchyGpu::new(device, &file.hierarchy, &file.texels, &emitting)?,
+                moving_texels: crate::radiosity::MovingTexels::new(
+                    file,
+                    scene.objects.len(),
+                    &emitting,
+                ),
             }),
             None => None,
         };

@@ -204,9 +204,14 @@ pub struct GpuNodeSpread {
     pub moment_b: [f32; 2],
     /// The texel of the node whose normal is the most opposite to its representative's.
     pub other: u32,
-    /// Padding to 32 bytes.
-    pub padding: u32,
+    /// [`NODE_EMITTER`] and [`NODE_ALL_EMITTERS`] (32 bytes in all).
+    pub flags: u32,
 }
+
+/// [`GpuNodeSpread::flags`]: the node holds a texel whose material emits.
+pub const NODE_EMITTER: u32 = 1;
+/// [`GpuNodeSpread::flags`]: every texel of the node emits.
+pub const NODE_ALL_EMITTERS: u32 = 2;
 
 /// A node as the GPU holds it: the file's node, then its spread (96 bytes, `Pod`); its WGSL twin
 /// is `Node` in `types.wgsl`, whose fields are both parts' in this order (one storage binding:
@@ -251,8 +256,10 @@ pub struct GpuTraversalParams {
     pub near_margin: f32,
     /// How far off its texel's plane a pixel reads the list, `NearLists::plane`.
     pub near_plane: f32,
-    /// Unused (16-byte size).
-    pub padding: u32,
+    /// 1: the emitters' light is kept out of the far field (`gather` 2) and every pixel of the
+    /// texture-space final gather gathers it itself ([`NODE_EMITTER`]); 0: the far field holds
+    /// it.
+    pub emitters: u32,
 }
 
 #[cfg(test)]
@@ -372,6 +379,7 @@ mod tests {
                 ("moment_a", spread + offset_of!(GpuNodeSpread, moment_a)),
                 ("moment_b", spread + offset_of!(GpuNodeSpread, moment_b)),
                 ("other", spread + offset_of!(GpuNodeSpread, other)),
+                ("flags", spread + offset_of!(GpuNodeSpread, flags)),
             ],
         );
         check(
@@ -392,6 +400,7 @@ mod tests {
                 ("near_radius", offset_of!(GpuTraversalParams, near_radius)),
                 ("near_margin", offset_of!(GpuTraversalParams, near_margin)),
                 ("near_plane", offset_of!(GpuTraversalParams, near_plane)),
+                ("emitters", offset_of!(GpuTraversalParams, emitters)),
             ],
         );
         check(

@@ -685,6 +685,19 @@ pub const THRESHOLD: OptionSpec = OptionSpec {
     },
 };
 
+/// `links`: how the radiosity's bounces find their light once a light has been solved for
+/// (`radiosity/links.rs`).
+pub const LINKS: OptionSpec = OptionSpec {
+    name: "links",
+    help: "cached: from the second light on, every radiosity bounce multiplies the cuts and \
+           visibilities stored (once) for the first; walk: every bounce walks the hierarchy \
+           and queries the CSSM",
+    kind: OptionKind::Choice {
+        default: "cached",
+        choices: &["cached", "walk"],
+    },
+};
+
 #[cfg(test)]
 mod tests {
     use super::*;

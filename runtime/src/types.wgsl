@@ -87,12 +87,17 @@ struct Node {
     padding_c: u32,
     // Its spread (gpu_types::GpuNodeSpread, computed at load): the second moment of its texel
     // normals, sum area n n^T (xx, yy, zz, xy; xz, yz), and its texel facing the most away from
-    // its representative.
+    // its representative; NODE_EMITTER and NODE_ALL_EMITTERS.
     moment_a: vec4f,
     moment_b: vec2f,
     other: u32,
-    padding_d: u32,
+    flags: u32,
 }
+
+// gpu_types::NODE_EMITTER: the node holds a texel whose material emits.
+const NODE_EMITTER: u32 = 1u;
+// gpu_types::NODE_ALL_EMITTERS: every texel of the node emits.
+const NODE_ALL_EMITTERS: u32 = 2u;
 
 struct TraversalParams {
     receiver_count: u32,
@@ -106,5 +111,5 @@ struct TraversalParams {
     near_radius: f32,
     near_margin: f32,
     near_plane: f32,
-    padding: u32,
+    emitters: u32,
 }

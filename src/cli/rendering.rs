@@ -259,7 +259,8 @@ pub struct RenderArgs {
     #[arg(long)]
     timings: bool,
     /// Print what the passes do, counted by their CPU twins on a sample of their receivers (the
-    /// radiosity gather of hrc, lightmap and lightcuts, lightcuts' final gather): nodes visited
+    /// radiosity gather of hrc, lightmap and lightcuts, lightcuts' far field (with gather=atlas)
+    /// and final gather): nodes visited
     /// and queried per receiver, CSSM taps, search steps and bytes, the threads against the
     /// device's, their warps replayed (lane efficiency, 32-byte sectors per load), and the GPU
     /// milliseconds a cost model of the NVIDIA H200 predicts from them (reports/runtime.md).

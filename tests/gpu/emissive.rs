@@ -142,7 +142,7 @@ pub(super) fn write_room(dir: &Path, spot: bool) {
 }
 
 /// The room (with the spot light when `spot`) and its bake (atlas 64, cube 16), made once.
-fn room(spot: bool) -> &'static (Scene, CssmFile) {
+pub(super) fn room(spot: bool) -> &'static (Scene, CssmFile) {
     use std::sync::OnceLock;
     static ROOMS: [OnceLock<(Scene, CssmFile)>; 2] = [OnceLock::new(), OnceLock::new()];
     ROOMS[usize::from(spot)].get_or_init(|| {

@@ -355,7 +355,7 @@ fn moved_object_radiosity_matches_cpu_twin() {
     ));
     let mut query = MovingQuery::new(file, scene, QueryOptions::default()).unwrap();
     query.set_poses(&fixture.poses()).unwrap();
-    let twin_scene = cpu::TwinScene::moving(&query, &fixture.motions());
+    let twin_scene = cpu::TwinScene::moving(&query, &fixture.motions(), &[]);
     let options = RadiosityOptions::default();
     let traversal = cpu::Traversal {
         threshold: options.threshold,
@@ -436,7 +436,11 @@ fn moved_object_final_gather_matches_cpu_twin() {
     let posed_scene = scene.posed(&fixture.poses()).unwrap();
     let mut query = MovingQuery::new(file, scene, QueryOptions::default()).unwrap();
     query.set_poses(&fixture.poses()).unwrap();
-    let twin_scene = TwinScene::moving(&query, &fixture.motions());
+    let twin_scene = TwinScene::moving(
+        &query,
+        &fixture.motions(),
+        &cssm_runtime::radiosity::emitting_materials(scene),
+    );
     let mut held = Default::default();
     let form = super::radiosity::twin_gather(
         scene,
@@ -529,6 +533,7 @@ fn placing_an_object_refits_the_gpu_hierarchy() {
     let on_gpu: &[GpuHierarchyNode] = bytemuck::cast_slice(&bytes);
     let nodes: Vec<GpuNode> = on_gpu.iter().map(|n| n.node).collect();
     let posed = cssm_formats::moving::posed_texels(&file.texels, &fixture.motions());
+    let emitting = cssm_runtime::radiosity::emitting_materials(scene);
     let mut refitted = file.hierarchy.clone();
     refitted.refit(&posed);
     assert_eq!(nodes, refitted.nodes);
@@ -536,11 +541,11 @@ fn placing_an_object_refits_the_gpu_hierarchy() {
     // The spreads (the normals' moments turn with the block) are refitted with them.
     assert_eq!(
         on_gpu,
-        cssm_runtime::radiosity::gpu_nodes(&refitted, &posed).as_slice()
+        cssm_runtime::radiosity::gpu_nodes(&refitted, &posed, &emitting).as_slice()
     );
     assert_ne!(
         on_gpu,
-        cssm_runtime::radiosity::gpu_nodes(&refitted, &file.texels).as_slice()
+        cssm_runtime::radiosity::gpu_nodes(&refitted, &file.texels, &emitting).as_slice()
     );
     let root = &nodes[0];
     // The block shrank from scale 3 to 2.5: its texels' areas by (5/6)^2.

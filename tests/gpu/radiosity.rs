@@ -350,14 +350,20 @@ pub(crate) fn twin_gather<'f>(
         exposure: options.exposure,
     };
     let file = twin.visibility.cssm().file();
+    // The renderer's default: every pixel gathers the emitters' light.
+    let split = cpu::FarSplit {
+        near_radius: radius,
+        emitters_apart: true,
+    };
     *held = (
-        cpu::far_field(twin, radiance, &albedo, &traversal, radius),
+        cpu::far_field(twin, radiance, &albedo, &traversal, split),
         near_lists(file, near),
     );
     TwinGather::Atlas {
         far: &held.0,
         near_radius: radius,
         lists: held.1.as_ref(),
+        emitters_apart: split.emitters_apart,
     }
 }
 
@@ -401,7 +407,10 @@ pub(crate) fn final_gather_vs_twin(
     .expect("radiosity");
     let radiance = vec3s(&atlas.node_radiance);
     let query = VisibilityQuery::new(file, QueryOptions::default());
-    let twin_scene = cssm_runtime::radiosity::cpu::TwinScene::baked(&query);
+    let twin_scene = cssm_runtime::radiosity::cpu::TwinScene::baked(
+        &query,
+        &cssm_runtime::radiosity::emitting_materials(scene),
+    );
     let radiosity_options = RadiosityOptions {
         threshold,
         exposure: options.exposure,

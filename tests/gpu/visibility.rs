@@ -254,7 +254,7 @@ fn runs_spread_over_several_bindings_answer_as_one() {
     let options = QueryOptions::default();
     let one = CssmGpu::new(&whole.device, &whole.queue, file, options).unwrap();
     assert_eq!(one.run_bindings, 1);
-    let hierarchy = HierarchyGpu::new(&whole.device, &file.hierarchy, &file.texels).unwrap();
+    let hierarchy = HierarchyGpu::new(&whole.device, &file.hierarchy, &file.texels, &[]).unwrap();
     let run_bytes = 4 * file.runs.runs.len() as u64;
     // Every other buffer still fits one binding; the runs need three.
     let largest_other = [

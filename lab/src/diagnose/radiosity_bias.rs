@@ -340,7 +340,8 @@ fn cluster_variants(
     use cssm_runtime::radiosity::transfer::{
         irradiance_bound, irradiance_from, irradiance_from_cluster, tone_mapped, visibility_sender,
     };
-    let twin = cpu::TwinScene::baked(query);
+    // One bounce's gather: the emitter flags are not read.
+    let twin = cpu::TwinScene::baked(query, &[]);
     let (nodes, leaves) = (&twin.hierarchy.nodes, &twin.hierarchy.leaf_texels);
     let (texels, spreads) = (&twin.texels, &twin.spreads);
     // Radiance per node: the area-weighted mean of its texels' (as `cpu::pull`).

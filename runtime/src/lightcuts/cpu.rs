@@ -6,7 +6,7 @@ use cssm_formats::moving::ObjectPoint;
 use glam::{Vec2, Vec3};
 
 use crate::{
-    gpu_types::GpuMaterial,
+    gpu_types::{GpuMaterial, NODE_ALL_EMITTERS, NODE_EMITTER},
     lightmap::{Filter, lookup},
     radiosity::cpu::TwinScene,
     radiosity::transfer::{
@@ -30,6 +30,9 @@ pub enum TwinGather<'a> {
         near_radius: f32,
         /// The texels' near lists, or none (every near field walks the hierarchy).
         lists: Option<&'a super::near::NearLists>,
+        /// The emitters' light gathered by the pixel, left out of `far` and the near field
+        /// ([`crate::radiosity::cpu::FarSplit::emitters_apart`]).
+        emitters_apart: bool,
     },
 }
 
@@ -180,29 +183,43 @@ pub fn gather_planes_counted(
         senders: &senders,
         object,
     };
-    let walk = |oracle_albedo: Vec3, tally: &mut _| {
+    let walk = |oracle_albedo: Vec3, emitters_only: bool, tally: &mut _| {
         let oracle = Oracle {
             threshold,
             exposure,
             albedo: oracle_albedo,
+            emitters_only,
         };
         gather_walk(scene, radiance, &oracle, jitter, r, material, &end, tally)
     };
     match form {
-        TwinGather::Walk => walk(r.albedo, tally),
+        TwinGather::Walk => walk(r.albedo, false, tally),
         TwinGather::Atlas {
             far,
             near_radius,
             lists,
+            emitters_apart,
         } => {
             let mut gathered = if Vec3::from(material.ks).cmpgt(Vec3::ZERO).any() {
-                walk(Vec3::ZERO, tally)
+                walk(Vec3::ZERO, false, tally)
             } else {
                 Gathered::default()
             };
             let atlas = lookup(scene.visibility.cssm(), far, r.atlas, Filter::Bicubic);
-            let near = near_field(scene, radiance, (near_radius, lists), r, &end, tally);
+            let near = near_field(
+                scene,
+                radiance,
+                (near_radius, lists, emitters_apart),
+                r,
+                &end,
+                tally,
+            );
             gathered.irradiance = atlas + near;
+            if emitters_apart {
+                let emitted = walk(r.albedo, true, tally);
+                gathered.irradiance += emitted.irradiance;
+                gathered.cut += emitted.cut;
+            }
             gathered
         }
     }
@@ -252,12 +269,16 @@ impl PixelEnd<'_> {
 /// any the walk could reach, so that the warp replay issues them together.
 const NEAR_LOOP: u32 = 1 << 24;
 
+/// The emitters' walk's iterations, after the near field's.
+const EMITTER_LOOP: u32 = 2 << 24;
+
 /// `final_gather.wgsl::near_field`: the leaves within `radius` of the receiver, each weighted
-/// by [`near_split_weight`], from its texel's list when `lists` has one for it, else walked.
+/// by [`near_split_weight`], from its texel's list when `lists` has one for it, else walked;
+/// the emitters left out when the pixel gathers them apart.
 fn near_field(
     scene: &TwinScene,
     radiance: &[Vec3],
-    (radius, lists): (f32, Option<&super::near::NearLists>),
+    (radius, lists, emitters_apart): (f32, Option<&super::near::NearLists>, bool),
     r: &Receiver,
     end: &PixelEnd,
     tally: &mut impl crate::work::GatherTally,
@@ -267,6 +288,9 @@ fn near_field(
     let mut e = Vec3::ZERO;
     let leaf = |s: usize, tally: &mut _| {
         let node = &nodes[s];
+        if emitters_apart && scene.spreads[s].flags & NODE_EMITTER != 0 {
+            return Vec3::ZERO;
+        }
         let l = radiance[s];
         let y = &scene.texels[node.representative as usize];
         let w = near_split_weight(y.pos().distance(p), radius);
@@ -305,12 +329,14 @@ fn near_field(
     e
 }
 
-/// The walk's oracle: its threshold and exposure, and the diffuse albedo it bounds the BRDF
-/// with beside the material's lobe (zero: the lobe's alone).
+/// The walk's oracle: its threshold and exposure, the diffuse albedo it bounds the BRDF
+/// with beside the material's lobe (zero: the lobe's alone), and whether the walk takes the
+/// emitters' light alone (nodes holding no emitter skipped, nodes mixing them refined).
 struct Oracle {
     threshold: f32,
     exposure: f32,
     albedo: Vec3,
+    emitters_only: bool,
 }
 
 /// `final_gather.wgsl::gather_pixel`: the walk over the whole hierarchy.
@@ -331,12 +357,26 @@ fn gather_walk(
     let (p, n, v) = (r.position, r.normal, r.view);
     let mut gathered = Gathered::default();
     let mut s = 0usize;
-    let mut iteration = 0;
+    // The kernel's third loop, after the near field's: its own iterations.
+    let mut iteration = if oracle.emitters_only {
+        EMITTER_LOOP
+    } else {
+        0
+    };
     while s < nodes.len() {
         tally.node(iteration, s as u32);
         iteration += 1;
         let node = &nodes[s];
+        let flags = scene.spreads[s].flags;
+        if oracle.emitters_only && flags & NODE_EMITTER == 0 {
+            s = node.skip as usize;
+            continue;
+        }
         let l = radiance[s];
+        if oracle.emitters_only && node.count > 1 && flags & NODE_ALL_EMITTERS == 0 {
+            s += 1;
+            continue;
+        }
         if node.count > 1 {
             let to_center = Vec3::from(node.center) - p;
             let bound = irradiance_bound(p, n, node, l)

@@ -1,4 +1,4 @@
-#import cssm::types::{Material, Node, TraversalParams, View}
+#import cssm::types::{Material, NODE_ALL_EMITTERS, NODE_EMITTER, Node, TraversalParams, View}
 #import cssm::visibility::{CssmSenders, cssm_senders_at, cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
@@ -16,7 +16,10 @@
 //   (`atlas_values`, gathered once per texel by the far-field pass, radiosity/gather.wgsl with
 //   `gather` 2), looked up with the bicubic filter, plus the pixel's own near field: the leaves
 //   within `params.near_radius`, weighted by `near_split_weight`, so that the two halves sum to
-//   the whole transfer. Only what changes within a texel or two is gathered per pixel. A
+//   the whole transfer. Only what changes within a texel or two is gathered per pixel. With
+//   `params.emitters` the emitters' light is the pixel's too (left out of the far field and
+//   the near field): a walk over the nodes holding emitters, refining every node that mixes
+//   them with other texels, so that a lamp's shadows are the pixel's, not the texels'. A
 //   glossy pixel (Ks above 0) walks for its lobe alone, the oracle bounding its lobe only.
 // Senders on moving objects send from where their objects stand now (posed.wgsl, §3.3).
 // CPU twin: lightcuts/cpu.rs::gather_planes. Needs types.wgsl, transfer.wgsl, the CSSM library
@@ -70,9 +73,13 @@ fn pixel_end(atlas: vec2f) -> PixelEnd {
 }
 
 // The light of leaf node `s` at the pixel at `p` weighted by `near_split_weight`, with its
-// footprint's transfer (transfer.rs::irradiance_from_texel) and both ends' visibility.
+// footprint's transfer (transfer.rs::irradiance_from_texel) and both ends' visibility; none
+// from an emitter the pixel gathers apart (`params.emitters`).
 fn near_leaf(s: u32, p: vec3f, n: vec3f, end: PixelEnd) -> vec3f {
     let node = nodes[s];
+    if params.emitters != 0u && (node.flags & NODE_EMITTER) != 0u {
+        return vec3f(0.0);
+    }
     let l = radiance[s].rgb;
     let y = posed_texel(cssm_texels[node.representative]);
     let w = near_split_weight(distance(y.position, p), params.near_radius);
@@ -137,8 +144,10 @@ struct Gathered {
 // The walk: the indirect light arriving at `p` (its irradiance, and its irradiance weighted by
 // the Phong lobe towards `v`), and the cut size; the radiance towards `v` is
 // albedo / pi * irradiance + ks * lobe_weighted. The oracle bounds the BRDF of `albedo` and
-// the material's lobe (a zero `albedo`: the lobe's alone).
-fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, end: PixelEnd) -> Gathered {
+// the material's lobe (a zero `albedo`: the lobe's alone). With `emitters_only`, the
+// emitters' light alone: nodes holding none skipped, nodes mixing them with other texels
+// refined.
+fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: Material, end: PixelEnd, emitters_only: bool) -> Gathered {
     let senders = end.senders;
     let object = end.object;
     var irradiance = vec3f(0.0);
@@ -150,9 +159,15 @@ fn gather_pixel(receiver: u32, p: vec3f, n: vec3f, v: vec3f, albedo: vec3f, m: M
             break;
         }
         let node = nodes[s];
+        if emitters_only && (node.flags & NODE_EMITTER) == 0u {
+            s = node.skip;
+            continue;
+        }
         let l = radiance[s].rgb;
         var refine = false;
-        if node.count > 1u {
+        if emitters_only && node.count > 1u && (node.flags & NODE_ALL_EMITTERS) == 0u {
+            refine = true;
+        } else if node.count > 1u {
             let bound = irradiance_bound(p, n, node, l) * brdf_bound(n, v, albedo, m.ks, m.ns, node.center - p, node.radius);
             refine = tone_mapped(bound, params.exposure) > params.threshold;
         }
@@ -233,12 +248,17 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         let v = normalize(view.eye - position.xyz);
         let end = pixel_end(atlas);
         if grid.mode == 0u {
-            value = gather_pixel(pixel, position.xyz, normal.xyz, v, albedo, m, end);
+            value = gather_pixel(pixel, position.xyz, normal.xyz, v, albedo, m, end, false);
         } else {
             if any(m.ks > vec3f(0.0)) {
-                value = gather_pixel(pixel, position.xyz, normal.xyz, v, vec3f(0.0), m, end);
+                value = gather_pixel(pixel, position.xyz, normal.xyz, v, vec3f(0.0), m, end, false);
             }
             value.irradiance = atlas_lookup(atlas, true) + near_field(position.xyz, normal.xyz, end);
+            if params.emitters != 0u {
+                let emitted = gather_pixel(pixel, position.xyz, normal.xyz, v, albedo, m, end, true);
+                value.irradiance += emitted.irradiance;
+                value.cut += emitted.cut;
+            }
         }
     }
     // Progressive mean over the frames of a still camera (§4.5).

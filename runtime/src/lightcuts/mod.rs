@@ -110,6 +110,9 @@ pub struct NearSetup<'a> {
     pub radius: f32,
     /// The texels' near lists, or none: every near field walks the hierarchy.
     pub lists: Option<&'a near::NearLists>,
+    /// Every pixel gathers the emitters' light itself, left out of the far field and the near
+    /// field ([`radiosity::cpu::FarSplit::emitters_apart`]).
+    pub emitters_apart: bool,
 }
 
 impl FinalGather {
@@ -144,6 +147,7 @@ impl FinalGather {
             near_radius: near.radius,
             near_margin,
             near_plane,
+            emitters: u32::from(near.emitters_apart && near.form == GatherForm::Atlas),
             ..Default::default()
         };
         let near_lists =
@@ -383,6 +387,7 @@ pub const METHOD: MethodEntry = MethodEntry {
     options: &[
         method::BOUNCES,
         method::THRESHOLD,
+        method::LINKS,
         OptionSpec {
             name: "gather",
             help: "atlas: each pixel looks up the far field, gathered once per texel, and \
@@ -400,6 +405,16 @@ pub const METHOD: MethodEntry = MethodEntry {
             kind: OptionKind::Number {
                 default: 4.0,
                 min: 1.0,
+            },
+        },
+        OptionSpec {
+            name: "emitters",
+            help: "with gather=atlas, where the light of emitting surfaces (MTL Ke, glTF \
+                   emissive) is gathered: pixel, by every pixel (their shadows at the pixel's \
+                   resolution); far, in the far field with the rest (at the texels')",
+            kind: OptionKind::Choice {
+                default: "pixel",
+                choices: &["pixel", "far"],
             },
         },
         OptionSpec {
@@ -427,6 +442,8 @@ pub const METHOD: MethodEntry = MethodEntry {
         radiosity::PREPARE_PASSES[1],
         radiosity::PREPARE_PASSES[2],
         radiosity::PREPARE_PASSES[3],
+        radiosity::PREPARE_PASSES[4],
+        radiosity::PREPARE_PASSES[5],
         // With `gather=atlas` only.
         PassInfo {
             name: "lightcuts: far field",
@@ -476,10 +493,15 @@ pub struct LightcutsOptions {
     pub bounces: u32,
     /// Oracle threshold (§4.3), of the radiosity and of the final gather.
     pub threshold: f32,
+    /// The radiosity's bounces multiply the cached links once built (`links=cached`).
+    pub links: bool,
     /// How a pixel gathers.
     pub form: GatherForm,
     /// The near field's reach in texel sizes ([`GatherForm::Atlas`]).
     pub near: f32,
+    /// Every pixel gathers the emitters' light itself, kept out of the far field and the
+    /// near field ([`GatherForm::Atlas`]; `emitters=pixel`).
+    pub emitters_apart: bool,
     /// Jitter the senders every frame (§4.5).
     pub jitter: bool,
     /// Reduction of the final gather's resolution per side (1: every pixel).
@@ -494,12 +516,14 @@ impl LightcutsOptions {
         Self {
             bounces: options.count("bounces"),
             threshold: options.number("threshold"),
+            links: options.choice("links") == "cached",
             form: if options.choice("gather") == "walk" {
                 GatherForm::Walk
             } else {
                 GatherForm::Atlas
             },
             near: options.number("near"),
+            emitters_apart: options.choice("emitters") == "pixel",
             jitter: options.switch("jitter"),
             downsample: options.count("downsample"),
             blur: options.count("blur"),
@@ -535,12 +559,19 @@ impl Lightcuts {
         };
         let plan = BouncePlan::from_option(options.bounces).one_fewer();
         let file = setup.cssm_file()?;
-        let gi = AtlasGi::new(ctx, file, radiosity_options, plan)?;
+        let mut gi = AtlasGi::new(ctx, file, radiosity_options, plan)?;
+        if !options.links {
+            gi.radiosity.walk_always();
+        }
         // The atlas form's far field and near lists; the walk reads neither.
         let (near_radius, far, lists) = match options.form {
             GatherForm::Atlas => {
                 let radius = near_radius(&file.hierarchy, options.near);
-                let far = gi.radiosity.far_field(&ctx.device, radius);
+                let split = radiosity::cpu::FarSplit {
+                    near_radius: radius,
+                    emitters_apart: options.emitters_apart,
+                };
+                let far = gi.radiosity.far_field(&ctx.device, split);
                 (radius, Some(far), near_lists(file, options.near))
             }
             GatherForm::Walk => (0.0, None, None),
@@ -562,6 +593,7 @@ impl Lightcuts {
                 form: options.form,
                 radius: near_radius,
                 lists: lists.as_ref(),
+                emitters_apart: options.emitters_apart,
             },
             options.threshold,
             options.downsample,

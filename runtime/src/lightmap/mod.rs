@@ -205,6 +205,8 @@ const PASSES: &[PassInfo] = &[
     radiosity::PREPARE_PASSES[1],
     radiosity::PREPARE_PASSES[2],
     radiosity::PREPARE_PASSES[3],
+    radiosity::PREPARE_PASSES[4],
+    radiosity::PREPARE_PASSES[5],
     PassInfo {
         name: "atlas lookup",
         stage: Stage::Frame,
@@ -218,7 +220,7 @@ pub const HRC: MethodEntry = MethodEntry {
     name: "hrc",
     summary: "GPU hierarchical radiosity over the atlas, each pixel showing its texel (§4.1-4.3)",
     needs_cssm: true,
-    options: &[method::BOUNCES, method::THRESHOLD],
+    options: &[method::BOUNCES, method::THRESHOLD, method::LINKS],
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Nearest)),
     checks: Checks::DEFAULT,
@@ -230,7 +232,7 @@ pub const LIGHTMAP: MethodEntry = MethodEntry {
     name: "lightmap",
     summary: "hierarchical radiosity looked up per pixel with a bicubic filter (§5, Fig. 17)",
     needs_cssm: true,
-    options: &[method::BOUNCES, method::THRESHOLD],
+    options: &[method::BOUNCES, method::THRESHOLD, method::LINKS],
     passes: PASSES,
     backend: Backend::Gpu(|setup| AtlasGiLookup::build(setup, Filter::Bicubic)),
     checks: Checks::DEFAULT,
@@ -244,6 +246,8 @@ pub struct LookupOptions {
     pub bounces: u32,
     /// Oracle threshold (§4.3).
     pub threshold: f32,
+    /// Bounces multiply the cached links once built (`links=cached`).
+    pub links: bool,
 }
 
 impl LookupOptions {
@@ -252,6 +256,7 @@ impl LookupOptions {
         Self {
             bounces: options.count("bounces"),
             threshold: options.number("threshold"),
+            links: options.choice("links") == "cached",
         }
     }
 }
@@ -272,7 +277,10 @@ impl AtlasGiLookup {
             exposure: ctx.settings.exposure,
         };
         let plan = BouncePlan::from_option(options.bounces);
-        let gi = AtlasGi::new(ctx, file, radiosity_options, plan)?;
+        let mut gi = AtlasGi::new(ctx, file, radiosity_options, plan)?;
+        if !options.links {
+            gi.radiosity.walk_always();
+        }
         let lookup = AtlasLookup::new(
             ctx,
             &ctx.cssm()?.query,

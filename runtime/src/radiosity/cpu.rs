@@ -27,7 +27,7 @@ use super::transfer::{
 };
 use crate::{
     common::converge::{BouncePlan, Convergence, run_plan},
-    gpu_types::{GpuNode, GpuNodeSpread},
+    gpu_types::{GpuNode, GpuNodeSpread, NODE_EMITTER},
 };
 
 const PI: f32 = std::f32::consts::PI;
@@ -90,29 +90,30 @@ pub struct TwinScene<'q, 'a> {
 }
 
 impl<'q, 'a> TwinScene<'q, 'a> {
-    /// The scene as baked: the file's texels and hierarchy, the CSSM query.
-    pub fn baked(query: &'q VisibilityQuery<'a>) -> Self {
+    /// The scene as baked: the file's texels and hierarchy, the CSSM query; `emitting`, per
+    /// material, whether it emits ([`super::emitting_materials`]; the nodes' flags).
+    pub fn baked(query: &'q VisibilityQuery<'a>, emitting: &[bool]) -> Self {
         let file = query.file();
         Self {
             visibility: TwinVisibility::Baked(query),
             texels: Cow::Borrowed(&file.texels),
             hierarchy: Cow::Borrowed(&file.hierarchy),
-            spreads: node_spreads(&file.hierarchy, &file.texels),
+            spreads: node_spreads(&file.hierarchy, &file.texels, emitting),
         }
     }
 
     /// The objects of `query`'s file moved by `motions` (per object, its transform now times
     /// the inverse of its transform as loaded; `query`'s poses the same transforms): texels
     /// carried (`moving::posed_texels`), hierarchy refitted ([`Hierarchy::refit`]), the moving
-    /// objects' query.
-    pub fn moving(query: &'q MovingQuery<'a>, motions: &[Affine3A]) -> Self {
+    /// objects' query; `emitting` as [`Self::baked`] takes it.
+    pub fn moving(query: &'q MovingQuery<'a>, motions: &[Affine3A], emitting: &[bool]) -> Self {
         let file = query.cssm().file();
         let texels = posed_texels(&file.texels, motions);
         let mut hierarchy = file.hierarchy.clone();
         hierarchy.refit(&texels);
         Self {
             visibility: TwinVisibility::Moving(query),
-            spreads: node_spreads(&hierarchy, &texels),
+            spreads: node_spreads(&hierarchy, &texels, emitting),
             texels: Cow::Owned(texels),
             hierarchy: Cow::Owned(hierarchy),
         }
@@ -176,27 +177,59 @@ pub fn gather_texel_counted(
     tally: &mut impl crate::work::GatherTally,
 ) -> (Vec3, u32) {
     gather_texel_split(
-        scene, nodes, radiance, traversal, 0.0, receiver, p, n, rho, tally,
+        scene,
+        nodes,
+        radiance,
+        traversal,
+        FarSplit::WHOLE,
+        receiver,
+        p,
+        n,
+        rho,
+        tally,
     )
 }
 
-/// `gather.wgsl::gather_texel` with `params.gather` 2 (`near_radius` above 0): the far field
-/// of texel `receiver`, every node reaching within `near_radius` refined and every leaf sending
-/// `1 - near_split_weight` of its light (`lightcuts`' texture-space final gather); with
-/// `near_radius` 0, [`gather_texel_counted`].
+/// What the far field of `lightcuts`' texture-space final gather leaves to the pixels (the
+/// GPU's `params.near_radius` and `params.emitters`, read with `params.gather` 2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FarSplit {
+    /// The near field's reach (world units; 0: no split, the whole gather): every node
+    /// reaching within it is refined, every leaf sends `1 - near_split_weight` of its light.
+    pub near_radius: f32,
+    /// The emitters' light left out too: every node holding an emitter texel refined
+    /// ([`crate::gpu_types::NODE_EMITTER`]), every emitter leaf skipped; each pixel gathers
+    /// them itself.
+    pub emitters_apart: bool,
+}
+
+impl FarSplit {
+    /// No split: the gather of a bounce.
+    pub const WHOLE: Self = Self {
+        near_radius: 0.0,
+        emitters_apart: false,
+    };
+}
+
+/// `gather.wgsl::gather_texel` with `params.gather` 2 (`split.near_radius` above 0): the far
+/// field of texel `receiver`, every node reaching within `near_radius` refined and every leaf
+/// sending `1 - near_split_weight` of its light, the emitters left out when `split` says so
+/// (`lightcuts`' texture-space final gather); with [`FarSplit::WHOLE`],
+/// [`gather_texel_counted`].
 #[allow(clippy::too_many_arguments)]
 pub fn gather_texel_split(
     scene: &TwinScene,
     nodes: &[GpuNode],
     radiance: &[Vec3],
     traversal: &Traversal,
-    near_radius: f32,
+    split: FarSplit,
     receiver: u32,
     p: Vec3,
     n: Vec3,
     rho: f32,
     tally: &mut impl crate::work::GatherTally,
 ) -> (Vec3, u32) {
+    let near_radius = split.near_radius;
     let far_only = near_radius > 0.0;
     let texels = &scene.texels;
     let mut e = Vec3::ZERO;
@@ -208,6 +241,15 @@ pub fn gather_texel_split(
         iteration += 1;
         let node = &nodes[s];
         let l = radiance[s];
+        // The emitters' light, left to the pixels: refine down to it and skip it.
+        if far_only && split.emitters_apart && scene.spreads[s].flags & NODE_EMITTER != 0 {
+            s = if node.count > 1 {
+                s + 1
+            } else {
+                node.skip as usize
+            };
+            continue;
+        }
         if node.count > 1
             && (tone_mapped(
                 irradiance_bound(p, n, node, l) * (rho / PI),
@@ -239,34 +281,46 @@ pub fn gather_texel_split(
                 // A cluster seen from the other side than its representative's: the
                 // visibility of its texel facing the receiver (transfer.rs).
                 let sender = visibility_sender(node, spread, texels, p);
-                let y = &texels[sender as usize];
-                // Both ends' cube maps when the options ask (QueryOptions::both_ends), each
-                // object's own and the other moving objects' CSMs (§3.3).
                 tally.query();
-                let visibility = scene
-                    .visibility
-                    .between_counted(
-                        &ObjectPoint {
-                            senders: &[(receiver, 1.0)],
-                            position: p,
-                            normal: n,
-                            object: texels[receiver as usize].object,
-                        },
-                        &ObjectPoint {
-                            senders: &[(sender, 1.0)],
-                            position: y.pos(),
-                            normal: y.nrm(),
-                            object: y.object,
-                        },
-                        tally,
-                    )
-                    .unwrap_or(1.0);
+                let visibility = texel_visibility(scene, (receiver, p, n), sender, tally);
                 e += unoccluded * visibility;
             }
         }
         s = node.skip as usize;
     }
     (e, cut)
+}
+
+/// The clear fraction between texel `receiver` (at `p`, normal `n`) and texel `sender`
+/// where they stand: both ends' cube maps when the options ask (`QueryOptions::both_ends`),
+/// each object's own and the other moving objects' CSMs (§3.3); 1 where neither answers. The
+/// gather's and the links' (`gather.wgsl`, `links.wgsl`: `moving_visibility_between`).
+fn texel_visibility(
+    scene: &TwinScene,
+    (receiver, p, n): (u32, Vec3, Vec3),
+    sender: u32,
+    tally: &mut impl cssm_formats::visibility::QueryTally,
+) -> f32 {
+    let texels = &scene.texels;
+    let y = &texels[sender as usize];
+    scene
+        .visibility
+        .between_counted(
+            &ObjectPoint {
+                senders: &[(receiver, 1.0)],
+                position: p,
+                normal: n,
+                object: texels[receiver as usize].object,
+            },
+            &ObjectPoint {
+                senders: &[(sender, 1.0)],
+                position: y.pos(),
+                normal: y.nrm(),
+                object: y.object,
+            },
+            tally,
+        )
+        .unwrap_or(1.0)
 }
 
 /// `pull.wgsl`: every inner node's radiance becomes the area-weighted mean of its children's
@@ -297,7 +351,7 @@ pub fn radiosity(
     iterations: impl Into<BouncePlan>,
 ) -> CpuRadiosity {
     radiosity_over(
-        &TwinScene::baked(query),
+        &TwinScene::baked(query, &[]),
         direct,
         albedo,
         traversal,
@@ -313,15 +367,58 @@ pub fn radiosity_over(
     traversal: &Traversal,
     iterations: impl Into<BouncePlan>,
 ) -> CpuRadiosity {
-    let plan = iterations.into();
     let nodes = &scene.hierarchy.nodes;
+    iterate(
+        scene,
+        direct,
+        albedo,
+        iterations.into(),
+        |leaf_nodes, radiance| {
+            leaf_nodes
+                .par_iter()
+                .map(|&(t, _)| {
+                    let texel = &scene.texels[t as usize];
+                    gather_texel(
+                        scene,
+                        nodes,
+                        radiance,
+                        traversal,
+                        t,
+                        texel.pos(),
+                        texel.nrm(),
+                        albedo[t as usize].max_element(),
+                    )
+                })
+                .collect()
+        },
+    )
+}
+
+/// Every leaf node of `nodes` in leaf order: (its texel, its node index).
+fn leaf_nodes(scene: &TwinScene) -> Vec<(u32, usize)> {
     let leaf_texels = &scene.hierarchy.leaf_texels;
-    let leaf_nodes: Vec<(u32, usize)> = nodes
+    scene
+        .hierarchy
+        .nodes
         .iter()
         .enumerate()
         .filter(|(_, n)| n.count == 1)
         .map(|(i, n)| (leaf_texels[n.first as usize], i))
-        .collect();
+        .collect()
+}
+
+/// The iteration of [`radiosity_over`] and [`radiosity_with_links`]: the direct light pulled,
+/// then as many bounces as `plan` asks, each `bounce` giving every leaf's (leaf order)
+/// irradiance and cut size from the node radiance before it.
+fn iterate(
+    scene: &TwinScene,
+    direct: &[Vec3],
+    albedo: &[Vec3],
+    plan: BouncePlan,
+    bounce: impl Fn(&[(u32, usize)], &[Vec3]) -> Vec<(Vec3, u32)>,
+) -> CpuRadiosity {
+    let nodes = &scene.hierarchy.nodes;
+    let leaf_nodes = leaf_nodes(scene);
     let mut radiance = vec![Vec3::ZERO; nodes.len()];
     for &(t, i) in &leaf_nodes {
         radiance[i] = direct[t as usize];
@@ -332,27 +429,10 @@ pub fn radiosity_over(
     // The test reads the root, node 0 (none in a hierarchy without texels).
     let root = |radiance: &[Vec3]| radiance.first().copied().unwrap_or_default();
     let convergence = run_plan(plan, root(&radiance), |_| {
-        let gathered: Vec<(u32, usize, Vec3, u32)> = leaf_nodes
-            .par_iter()
-            .map(|&(t, i)| {
-                let texel = &scene.texels[t as usize];
-                let a = albedo[t as usize];
-                let (e, cut) = gather_texel(
-                    scene,
-                    nodes,
-                    &radiance,
-                    traversal,
-                    t,
-                    texel.pos(),
-                    texel.nrm(),
-                    a.max_element(),
-                );
-                (t, i, e, cut)
-            })
-            .collect();
-        gathered_total = gathered.iter().map(|g| g.3 as u64).sum();
+        let gathered = bounce(&leaf_nodes, &radiance);
+        gathered_total = gathered.iter().map(|g| u64::from(g.1)).sum();
         let mut next = radiance.clone();
-        for (t, i, e, _) in gathered {
+        for (&(t, i), (e, _)) in leaf_nodes.iter().zip(gathered) {
             irradiance[t as usize] = e;
             next[i] = direct[t as usize] + albedo[t as usize] / PI * e;
         }
@@ -368,15 +448,241 @@ pub fn radiosity_over(
     }
 }
 
+/// One cached link: a node of a receiver's cut and its transfer (`links.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Link {
+    /// The node.
+    pub node: u32,
+    /// Its transfer: the node's radiance times it is the receiver's irradiance from it.
+    pub transfer: f32,
+    /// Its bound of unit radiance ([`super::transfer::irradiance_bound`]; 0 for a leaf),
+    /// which the staleness test multiplies by its radiance.
+    pub bound: f32,
+}
+
+/// The radiosity's cached links (`links.wgsl`, issue 49 item 1): every receiver leaf's cut as
+/// the gather walks it, each node of it with its transfer of unit radiance times the
+/// visibility, so that a bounce is a sparse matrix-vector product ([`link_product`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Links {
+    /// Per leaf in leaf order, its cut.
+    pub cuts: Vec<Vec<Link>>,
+    /// Per leaf, its slot's capacity (`links::slot_capacity` of its count at the build).
+    pub capacity: Vec<u32>,
+}
+
+impl Links {
+    /// How many links.
+    pub fn count(&self) -> u64 {
+        self.cuts.iter().map(|c| c.len() as u64).sum()
+    }
+
+    /// Bytes on the GPU: 12 a link's slot (node, transfer, bound), 8 a leaf's table entry.
+    pub fn bytes(&self) -> u64 {
+        let slots: u64 = self.capacity.iter().map(|&c| u64::from(c)).sum();
+        12 * slots + 8 * self.cuts.len() as u64 + 12
+    }
+}
+
+/// `links.wgsl::walk_links` for texel `receiver` (position `p`, normal `n`, largest albedo
+/// channel `rho`): its cut under the oracle reading `cut_radiance`, every node whose
+/// unoccluded transfer is above zero with that transfer for unit radiance times the visibility
+/// (the gather's, [`gather_texel`]).
+#[allow(clippy::too_many_arguments)]
+pub fn receiver_links(
+    scene: &TwinScene,
+    cut_radiance: &[Vec3],
+    traversal: &Traversal,
+    receiver: u32,
+    p: Vec3,
+    n: Vec3,
+    rho: f32,
+) -> Vec<Link> {
+    let (nodes, texels) = (&scene.hierarchy.nodes, &scene.texels);
+    let mut links = Vec::new();
+    let mut s = 0usize;
+    while s < nodes.len() {
+        let node = &nodes[s];
+        let bound = irradiance_bound(p, n, node, cut_radiance[s]) * (rho / PI);
+        if node.count > 1 && tone_mapped(bound, traversal.exposure) > traversal.threshold {
+            s += 1;
+            continue;
+        }
+        let sender = node.representative;
+        if sender != receiver {
+            let y = &texels[sender as usize];
+            let unoccluded = if node.count == 1 {
+                irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, Vec3::ONE).0
+            } else {
+                irradiance_from_cluster(p, n, y.pos(), node, &scene.spreads[s], Vec3::ONE).0
+            }
+            .x;
+            if unoccluded > 0.0 {
+                let sender = visibility_sender(node, &scene.spreads[s], texels, p);
+                let mut none = cssm_formats::visibility::QueryWork::default();
+                let visibility = texel_visibility(scene, (receiver, p, n), sender, &mut none);
+                let bound = if node.count > 1 {
+                    irradiance_bound(p, n, node, Vec3::ONE).x
+                } else {
+                    0.0
+                };
+                links.push(Link {
+                    node: s as u32,
+                    transfer: unoccluded * visibility,
+                    bound,
+                });
+            }
+        }
+        s = node.skip as usize;
+    }
+    links
+}
+
+/// Every leaf's cut for the node radiance `cut_radiance` (texels reflecting `albedo` in the
+/// oracle) where `which` says (leaf order), in parallel: `receiver_links` of each.
+fn cuts_of(
+    scene: &TwinScene,
+    cut_radiance: &[Vec3],
+    albedo: &[Vec3],
+    traversal: &Traversal,
+    which: impl Fn(usize) -> bool + Sync,
+) -> Vec<Option<Vec<Link>>> {
+    leaf_nodes(scene)
+        .par_iter()
+        .enumerate()
+        .map(|(leaf, &(t, _))| {
+            which(leaf).then(|| {
+                let texel = &scene.texels[t as usize];
+                let rho = albedo[t as usize].max_element();
+                receiver_links(
+                    scene,
+                    cut_radiance,
+                    traversal,
+                    t,
+                    texel.pos(),
+                    texel.nrm(),
+                    rho,
+                )
+            })
+        })
+        .collect()
+}
+
+/// Every leaf's links (leaf order) for the node radiance `cut_radiance`, texels reflecting
+/// `albedo` in the oracle: what `radiosity/links.rs` builds on the GPU.
+pub fn build_links(
+    scene: &TwinScene,
+    cut_radiance: &[Vec3],
+    albedo: &[Vec3],
+    traversal: &Traversal,
+) -> Links {
+    let cuts: Vec<Vec<Link>> = cuts_of(scene, cut_radiance, albedo, traversal, |_| true)
+        .into_iter()
+        .flatten()
+        .collect();
+    let capacity = cuts
+        .iter()
+        .map(|c| super::links::slot_capacity(c.len() as u32))
+        .collect();
+    Links { cuts, capacity }
+}
+
+/// `product.wgsl` for leaf `leaf` (leaf order): its irradiance from the node radiance
+/// `radiance` over its links.
+pub fn link_product(links: &Links, leaf: usize, radiance: &[Vec3]) -> Vec3 {
+    links.cuts[leaf]
+        .iter()
+        .map(|link| radiance[link.node as usize] * link.transfer)
+        .sum()
+}
+
+/// `product.wgsl`'s staleness test for leaf `leaf` (largest albedo channel `rho`): whether
+/// the oracle would refine a node of its cut under the node radiance `radiance`, by more than
+/// [`super::links::STALE_MARGIN`].
+pub fn cut_is_stale(
+    links: &Links,
+    leaf: usize,
+    radiance: &[Vec3],
+    rho: f32,
+    traversal: &Traversal,
+) -> bool {
+    let limit = super::links::STALE_MARGIN * traversal.threshold.powf(2.2)
+        / (traversal.exposure * rho / PI).max(1e-30);
+    rho > 0.0
+        && links.cuts[leaf]
+            .iter()
+            .any(|link| radiance[link.node as usize].max_element() * link.bound > limit)
+}
+
+/// The iteration of [`radiosity_over`] with every bounce the product of `links` (what the GPU
+/// runs once its links are built; the cut sizes are the link counts), and per leaf whether a
+/// bounce found its cut stale ([`cut_is_stale`] on each bounce's incoming radiance).
+pub fn radiosity_with_links(
+    scene: &TwinScene,
+    links: &Links,
+    (direct, albedo): (&[Vec3], &[Vec3]),
+    traversal: &Traversal,
+    iterations: impl Into<BouncePlan>,
+) -> (CpuRadiosity, Vec<bool>) {
+    let stale = std::sync::Mutex::new(vec![false; links.cuts.len()]);
+    let solved = iterate(
+        scene,
+        direct,
+        albedo,
+        iterations.into(),
+        |leaf_nodes, radiance| {
+            let mut stale = stale.lock().unwrap_or_else(|e| e.into_inner());
+            leaf_nodes
+                .iter()
+                .enumerate()
+                .map(|(leaf, &(t, _))| {
+                    let rho = albedo[t as usize].max_element();
+                    stale[leaf] |= cut_is_stale(links, leaf, radiance, rho, traversal);
+                    (
+                        link_product(links, leaf, radiance),
+                        links.cuts[leaf].len() as u32,
+                    )
+                })
+                .collect()
+        },
+    );
+    (
+        solved,
+        stale.into_inner().unwrap_or_else(|e| e.into_inner()),
+    )
+}
+
+/// `links.wgsl` with `params.gather` 2: every leaf `stale` flags re-cut for the node radiance
+/// `cut_radiance`, in place where the new cut fits its slot; the rest keep their old cut.
+/// Returns how many overflowed (the GPU then builds everything again).
+pub fn recut_links(
+    scene: &TwinScene,
+    links: &mut Links,
+    stale: &[bool],
+    cut_radiance: &[Vec3],
+    (albedo, traversal): (&[Vec3], &Traversal),
+) -> u32 {
+    let cuts = cuts_of(scene, cut_radiance, albedo, traversal, |leaf| stale[leaf]);
+    let mut overflow = 0;
+    for (leaf, cut) in cuts.into_iter().enumerate() {
+        match cut {
+            Some(cut) if cut.len() as u32 <= links.capacity[leaf] => links.cuts[leaf] = cut,
+            Some(_) => overflow += 1,
+            None => {}
+        }
+    }
+    overflow
+}
+
 /// The far field of every texel (texel order) from the node radiance `radiance`: what
 /// `lightcuts`' far-field pass (`gather.wgsl` with `params.gather` 2) writes, each texel's
-/// [`gather_texel_split`] at `near_radius`, reflecting `albedo` in the oracle.
+/// [`gather_texel_split`] at `split`, reflecting `albedo` in the oracle.
 pub fn far_field(
     scene: &TwinScene,
     radiance: &[Vec3],
     albedo: &[Vec3],
     traversal: &Traversal,
-    near_radius: f32,
+    split: FarSplit,
 ) -> Vec<Vec3> {
     let nodes = &scene.hierarchy.nodes;
     let mut far = vec![Vec3::ZERO; scene.texels.len()];
@@ -395,7 +701,7 @@ pub fn far_field(
                 nodes,
                 radiance,
                 traversal,
-                near_radius,
+                split,
                 t,
                 texel.pos(),
                 texel.nrm(),

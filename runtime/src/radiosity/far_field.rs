@@ -1,7 +1,8 @@
 //! The far-field pass of `lightcuts`' texture-space final gather: the radiosity's gather
 //! (`gather.wgsl` with `params.gather` 2) run once more over every texel from the iteration's
 //! node radiance, every leaf within the near radius weighted out by
-//! [`super::transfer::near_split_weight`], into a per-texel buffer the final gather looks up.
+//! [`super::transfer::near_split_weight`] and, if asked, every emitter left out
+//! ([`super::cpu::FarSplit`]), into a per-texel buffer the final gather looks up.
 //! CPU twin: [`super::cpu::far_field`].
 
 use wgpu::util::DeviceExt;
@@ -19,9 +20,9 @@ pub struct FarField {
 }
 
 impl Radiosity {
-    /// The far-field pass gathering from this iteration's result ([`Self::radiance`]) with the
-    /// near field's reach `near_radius` (world units) left out.
-    pub fn far_field(&self, device: &wgpu::Device, near_radius: f32) -> FarField {
+    /// The far-field pass gathering from this iteration's result ([`Self::radiance`]) with
+    /// what `split` leaves to the pixels left out.
+    pub fn far_field(&self, device: &wgpu::Device, split: super::cpu::FarSplit) -> FarField {
         let texels = 16 * u64::from(self.leaf_count.max(1));
         let irradiance = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("texel far-field irradiance"),
@@ -37,7 +38,8 @@ impl Radiosity {
                 threshold: self.options.threshold,
                 exposure: self.options.exposure,
                 gather: 2,
-                near_radius,
+                near_radius: split.near_radius,
+                emitters: u32::from(split.emitters_apart),
                 ..Default::default()
             }),
             usage: wgpu::BufferUsages::UNIFORM,

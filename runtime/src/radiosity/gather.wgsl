@@ -1,4 +1,4 @@
-#import cssm::types::{Node, TraversalParams}
+#import cssm::types::{NODE_EMITTER, Node, TraversalParams}
 #import cssm::visibility::{cssm_senders_texel, cssm_texels}
 #import cssm::moving::moving_visibility_between
 #import cssm::posed::posed_texel
@@ -14,8 +14,10 @@
 // (posed.wgsl; the nodes' bounds refitted around them, radiosity::MovingTexels, §3.3).
 // With `params.gather` 2 it gathers the far field only, for `lightcuts`' texture-space final
 // gather (lightcuts/mod.rs): every node reaching within `params.near_radius` of the receiver is
-// refined down to its leaves, each leaf sends `1 - near_split_weight` of its light, and the
-// texel's irradiance is all it writes (the pixels gather the rest themselves).
+// refined down to its leaves, each leaf sends `1 - near_split_weight` of its light, with
+// `params.emitters` every emitter's light is left out (the nodes holding one refined, its
+// leaves skipped), and the texel's irradiance is all it writes (the pixels gather the rest
+// themselves).
 // CPU twin: radiosity/cpu.rs::gather_texel.
 // Needs types.wgsl, transfer.wgsl and the CSSM library at group 1.
 
@@ -45,6 +47,11 @@ fn gather_texel(receiver: u32, p: vec3f, n: vec3f, rho: f32) -> vec3f {
         }
         let node = nodes[s];
         let radiance = radiance_in[s].rgb;
+        // The emitters' light, left to the pixels: refine down to it and skip it.
+        if far_only && params.emitters != 0u && (node.flags & NODE_EMITTER) != 0u {
+            s = select(node.skip, s + 1u, node.count > 1u);
+            continue;
+        }
         // Refine: descend into the left child (§4.3, Fig. 10); for the far field, also every
         // node reaching into the near field, whose leaves the split weighs one by one.
         if node.count > 1u && (tone_mapped(irradiance_bound(p, n, node, radiance) * (rho / TRANSFER_PI), params.exposure) > params.threshold || (far_only && length(node.center - p) - node.radius < params.near_radius)) {

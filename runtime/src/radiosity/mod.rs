@@ -22,13 +22,24 @@
 
 pub mod cpu;
 mod far_field;
+pub mod links;
+mod solve;
 pub mod transfer;
 
 pub use far_field::FarField;
+pub use solve::{
+    AtlasRadiosity, LinkedSolve, atlas_radiosity, atlas_radiosity_lights, atlas_radiosity_posed,
+    render_atlas_direct,
+};
 
 /// This folder's WGSL, for the registry ([`crate::shaders`]).
 pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
-    modules: &[GATHER_SHADER, PULL_SHADER],
+    modules: &[
+        GATHER_SHADER,
+        PULL_SHADER,
+        links::LINKS_SHADER,
+        links::PRODUCT_SHADER,
+    ],
     libraries: &[crate::shaders::library!("radiosity/transfer.wgsl")],
 };
 
@@ -42,11 +53,10 @@ use crate::{
     RuntimeError,
     common::{
         converge::{BouncePlan, ConvergeGpu, ConvergeInputs, Convergence},
-        layout, readback,
-        timestamps::PassTimer,
+        layout,
     },
     direct::AtlasDirect,
-    frame::{FrameContext, FrameEncoder, FrameSettings, PassInfo, Slot, Stage},
+    frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
     gpu_types::{GpuHierarchyNode, GpuMaterial, GpuNode, GpuTraversalParams},
     load::{CssmGpu, limit_check, storage_buffer},
     shaders,
@@ -113,7 +123,8 @@ pub struct HierarchyGpu {
 }
 
 impl HierarchyGpu {
-    /// Uploads `hierarchy` (validated with its file) and its nodes' spreads over `texels`.
+    /// Uploads `hierarchy` (validated with its file) and its nodes' spreads over `texels`, the
+    /// nodes holding emitters flagged (`emitting`, per material: [`emitting_materials`]).
     ///
     /// # Errors
     /// [`RuntimeError::TooLarge`] when the node array exceeds the device's binding limit.
@@ -121,6 +132,7 @@ impl HierarchyGpu {
         device: &wgpu::Device,
         hierarchy: &Hierarchy,
         texels: &[Texel],
+        emitting: &[bool],
     ) -> Result<Self, RuntimeError> {
         let nodes = &hierarchy.nodes;
         limit_check(
@@ -150,7 +162,7 @@ impl HierarchyGpu {
         // COPY_DST: moving objects refit the nodes ([`MovingTexels::place`]).
         let nodes_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("hierarchy nodes"),
-            contents: bytemuck::cast_slice(&gpu_nodes(hierarchy, texels)),
+            contents: bytemuck::cast_slice(&gpu_nodes(hierarchy, texels, emitting)),
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
@@ -170,12 +182,17 @@ impl HierarchyGpu {
     }
 }
 
-/// Every node of `hierarchy` as the GPU holds it, with its spread over `texels`.
-pub fn gpu_nodes(hierarchy: &Hierarchy, texels: &[Texel]) -> Vec<GpuHierarchyNode> {
+/// Every node of `hierarchy` as the GPU holds it, with its spread over `texels` and its
+/// emitter flags (`emitting`, per material: [`emitting_materials`]).
+pub fn gpu_nodes(
+    hierarchy: &Hierarchy,
+    texels: &[Texel],
+    emitting: &[bool],
+) -> Vec<GpuHierarchyNode> {
     hierarchy
         .nodes
         .iter()
-        .zip(transfer::node_spreads(hierarchy, texels))
+        .zip(transfer::node_spreads(hierarchy, texels, emitting))
         .map(|(&node, spread)| GpuHierarchyNode { node, spread })
         .collect()
 }
@@ -193,17 +210,20 @@ pub struct MovingTexels {
     hierarchy: Hierarchy,
     /// Each object's motion since loading (the `SceneGpu::motion` matrices).
     motions: Vec<Affine3A>,
+    /// Per material, whether it emits ([`emitting_materials`]).
+    emitting: Vec<bool>,
 }
 
 impl MovingTexels {
     /// The texels and hierarchy of `file` (baked from a scene of `object_count` objects), every
     /// object where it was loaded; `None` for a file without moving objects (no CSM), whose
     /// texels never move.
-    pub fn new(file: &CssmFile, object_count: usize) -> Option<Self> {
+    pub fn new(file: &CssmFile, object_count: usize, emitting: &[bool]) -> Option<Self> {
         (!file.csms.is_empty()).then(|| Self {
             baked: file.texels.clone(),
             hierarchy: file.hierarchy.clone(),
             motions: vec![Affine3A::IDENTITY; object_count],
+            emitting: emitting.to_vec(),
         })
     }
 
@@ -225,7 +245,7 @@ impl MovingTexels {
         queue.write_buffer(
             &gpu.nodes,
             0,
-            bytemuck::cast_slice(&gpu_nodes(&self.hierarchy, &texels)),
+            bytemuck::cast_slice(&gpu_nodes(&self.hierarchy, &texels, &self.emitting)),
         );
     }
 
@@ -269,6 +289,8 @@ pub struct Radiosity {
     tree: [wgpu::Buffer; 2],
     node_count: u32,
     options: RadiosityOptions,
+    /// The cached links, once built the bounces' products.
+    links: links::Links,
 }
 
 impl Radiosity {
@@ -444,7 +466,54 @@ impl Radiosity {
             tree: [hierarchy.nodes.clone(), hierarchy.leaves.clone()],
             node_count: hierarchy.node_count,
             options,
+            links: links::Links::new(device, cssm, moving, hierarchy, options, true),
         })
+    }
+
+    /// Every bounce walks the hierarchy, querying the CSSM (the links are never built: the
+    /// option `links=walk`).
+    pub fn walk_always(&mut self) {
+        self.links.turn_off();
+    }
+
+    /// How many links the bounces multiply, once built ([`links`]); `None` before, or when
+    /// every bounce walks.
+    pub fn link_count(&self) -> Option<u64> {
+        self.links.count()
+    }
+
+    /// Before recording an iteration: builds the cached links for the last recorded
+    /// iteration's result if they are due (an iteration ran and they were never built, or its
+    /// re-cuts overflowed), else records the re-cut of the receivers whose cut its products
+    /// found stale ([`links`]); the counters of the last iteration are read back, so this
+    /// waits for the GPU once a light move.
+    ///
+    /// # Errors
+    /// A failed read-back.
+    pub fn update_links(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        cssm: &crate::frame::CssmResources,
+        frame: &mut FrameEncoder,
+    ) -> Result<(), RuntimeError> {
+        let result = (self.converge.plan().max % 2) as usize;
+        let inputs = links::LinkInputs {
+            tree: &self.tree,
+            texel_direct: &self.texel_direct,
+            albedo: &self.albedo,
+            node_radiance: &self.node_radiance,
+            texel_irradiance: &self.texel_irradiance,
+        };
+        self.links
+            .before_iteration(device, queue, cssm, &inputs, result, frame)
+    }
+
+    /// The receivers whose cut the last iteration's products found stale (each bounce's
+    /// flags counted once a receiver), and the re-cuts that overflowed their slot, as read
+    /// back before the iteration after it ([`Self::update_links`]).
+    pub fn stale_links(&self) -> (u32, u32) {
+        self.links.last_counters
     }
 
     /// The buffer holding the node radiance after the iteration (both do once it converged).
@@ -465,13 +534,16 @@ impl Radiosity {
     }
 
     /// Records the start (direct light into the leaves, pulled) and the plan's bounces: each a
-    /// gather of as many workgroups as the convergence test leaves it (none once converged),
-    /// then the pull and the test on the root.
-    pub fn run(&self, frame: &mut FrameEncoder, cssm: &crate::frame::CssmResources) {
+    /// gather (or, once the links are built, their product) of as many workgroups as the
+    /// convergence test leaves it (none once converged), then the pull and the test on the
+    /// root.
+    pub fn run(&mut self, frame: &mut FrameEncoder, cssm: &crate::frame::CssmResources) {
         for k in 0..=self.converge.plan().max {
             let written = (k % 2) as usize;
             let gather = usize::from(k > 0);
-            {
+            if let Some(product) = self.links.product(written).filter(|_| k > 0) {
+                links::record_product(frame, product, self.converge.bounce_args());
+            } else {
                 let mut pass = frame.compute_pass(if k == 0 {
                     "radiosity: direct into leaves"
                 } else {
@@ -501,13 +573,14 @@ impl Radiosity {
                 self.converge.check(&mut pass, k);
             }
         }
+        self.links.ran();
     }
 }
 
 /// The passes of [`AtlasGi`], the view-independent part of the hierarchical-radiosity methods,
 /// under the names their timestamps carry (`AtlasGi::run`), so that the timings of a frame
 /// find their stage in the schedule.
-pub const PREPARE_PASSES: [PassInfo; 4] = [
+pub const PREPARE_PASSES: [PassInfo; 6] = [
     PassInfo {
         name: "direct light into atlas",
         stage: Stage::Prepare,
@@ -532,7 +605,32 @@ pub const PREPARE_PASSES: [PassInfo; 4] = [
         reads: &[Slot::NodeRadiance],
         writes: &[Slot::NodeRadiance],
     },
+    // Instead of the gather once the cached links are built (links.rs).
+    PassInfo {
+        name: "radiosity: product",
+        stage: Stage::Prepare,
+        reads: &[Slot::TexelRadiance, Slot::NodeRadiance],
+        writes: &[Slot::NodeRadiance, Slot::TexelIrradiance],
+    },
+    // Before the iteration, the receivers whose cut the last one found stale.
+    PassInfo {
+        name: "radiosity: re-cut",
+        stage: Stage::Prepare,
+        reads: &[Slot::Cssm, Slot::NodeRadiance],
+        writes: &[],
+    },
 ];
+
+/// Per material of `scene`, whether it emits (its emission above zero in any channel): the
+/// texels whose light `lightcuts`' texture-space final gather keeps out of the far field and
+/// gathers per pixel ([`crate::gpu_types::NODE_EMITTER`]).
+pub fn emitting_materials(scene: &Scene) -> Vec<bool> {
+    scene
+        .materials
+        .iter()
+        .map(|m| m.emission.iter().any(|&c| c > 0.0))
+        .collect()
+}
 
 /// Bounce albedo of every texel of `file` ([`crate::direct::cpu::bounce_albedo`] of its
 /// material of `materials` ([`crate::load::cpu_materials`]): Kd times its texture's mean, plus
@@ -586,129 +684,22 @@ impl AtlasGi {
         Ok(Self { atlas, radiosity })
     }
 
-    /// Records the direct light into the atlas and the plan's bounces.
-    pub fn run(&self, ctx: &FrameContext, frame: &mut FrameEncoder) {
+    /// Records the direct light into the atlas and the plan's bounces; from the second call
+    /// on, the bounces are the products of the cached links built (once, waiting for the GPU)
+    /// for the first call's result ([`Radiosity::update_links`]; a build that fails
+    /// leaves every bounce walking).
+    pub fn run(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
         let Some(cssm) = &ctx.cssm else { return };
+        if self
+            .radiosity
+            .update_links(&ctx.device, &ctx.queue, cssm, frame)
+            .is_err()
+        {
+            self.radiosity.walk_always();
+        }
         self.atlas.run(frame, &cssm.moving);
         self.radiosity.run(frame, cssm);
     }
-}
-
-/// Direct light in the atlas texels of `file` (baked from `scene`): diffuse radiance leaving
-/// each texel, in texel order.
-///
-/// # Errors
-/// As [`atlas_radiosity`].
-pub fn render_atlas_direct(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    scene: &Scene,
-    file: &CssmFile,
-    shadow_resolution: u32,
-) -> Result<Vec<[f32; 4]>, RuntimeError> {
-    let options = RadiosityOptions::default();
-    let solved = atlas_radiosity(device, queue, scene, file, shadow_resolution, 0, options)?;
-    Ok(solved.direct)
-}
-
-/// The radiosity solution in the atlas, read back (what the view-independent part of a frame
-/// computes).
-#[derive(Clone, Debug)]
-pub struct AtlasRadiosity {
-    /// Direct radiance leaving every texel (texel order, rgb).
-    pub direct: Vec<[f32; 4]>,
-    /// Indirect irradiance of every texel after the iterations (texel order, rgb).
-    pub irradiance: Vec<[f32; 4]>,
-    /// Mean radiance of every hierarchy node after the iterations (rgb).
-    pub node_radiance: Vec<[f32; 4]>,
-    /// How many bounces ran.
-    pub convergence: Convergence,
-    /// GPU milliseconds per pass, empty without timestamps.
-    pub timings: Vec<(&'static str, f64)>,
-}
-
-/// Runs the direct light into the atlas and the radiosity bounces (§4.1-§4.3) of `iterations`
-/// (a count, or [`BouncePlan::converged`]) on `file` (baked from `scene`), and reads the
-/// solution back.
-///
-/// # Errors
-/// Unsupported lights, buffers beyond the device's limits, GPU errors.
-pub fn atlas_radiosity(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    scene: &Scene,
-    file: &CssmFile,
-    shadow_resolution: u32,
-    iterations: impl Into<BouncePlan>,
-    options: RadiosityOptions,
-) -> Result<AtlasRadiosity, RuntimeError> {
-    atlas_radiosity_posed(
-        device,
-        queue,
-        scene,
-        file,
-        shadow_resolution,
-        iterations,
-        options,
-        &[],
-    )
-}
-
-/// [`atlas_radiosity`] with objects moved first: each `(index, transform)` of `placed` puts
-/// object `index` at `transform` (object to world, [`FrameContext::place_object`]), so its
-/// texels receive, send and gather where it stands (§3.3).
-///
-/// # Errors
-/// As [`atlas_radiosity`], and a placement [`FrameContext::place_object`] refuses.
-#[allow(clippy::too_many_arguments)]
-pub fn atlas_radiosity_posed(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    scene: &Scene,
-    file: &CssmFile,
-    shadow_resolution: u32,
-    iterations: impl Into<BouncePlan>,
-    options: RadiosityOptions,
-    placed: &[(usize, Affine3A)],
-) -> Result<AtlasRadiosity, RuntimeError> {
-    let settings = FrameSettings {
-        width: 1,
-        height: 1,
-        exposure: 1.0,
-        shadow_resolution,
-        ..FrameSettings::default()
-    };
-    let mut ctx = FrameContext::new(device, queue, scene, Some(file), settings, false)?;
-    for &(index, transform) in placed {
-        ctx.place_object(index, transform)?;
-    }
-    let gi = AtlasGi::new(&ctx, file, options, iterations.into())?;
-    let mut timer = PassTimer::new(device, queue);
-    let mut encoder = device.create_command_encoder(&Default::default());
-    let mut frame = FrameEncoder {
-        encoder: &mut encoder,
-        timer: &mut timer,
-        index: 0,
-    };
-    ctx.shadows.render(&mut frame, &ctx.scene);
-    gi.run(&ctx, &mut frame);
-    timer.resolve(&mut encoder);
-    queue.submit([encoder.finish()]);
-    let timings = timer.read(device, queue)?;
-    let (atlas, radiosity) = (&gi.atlas, &gi.radiosity);
-    let texels = 16 * atlas.texel_count as u64;
-    let read = |buffer: &wgpu::Buffer, bytes: u64| -> Result<Vec<[f32; 4]>, RuntimeError> {
-        let raw = readback::read_buffer(device, queue, buffer, 0, bytes)?;
-        Ok(bytemuck::cast_slice(&raw).to_vec())
-    };
-    let node_count = ctx.cssm()?.hierarchy.node_count as u64;
-    Ok(AtlasRadiosity {
-        direct: read(&atlas.texel_radiance, texels)?,
-        irradiance: read(&radiosity.texel_irradiance, texels)?,
-        node_radiance: read(radiosity.radiance(), 16 * node_count)?,
-        convergence: radiosity.convergence(device, queue)?,
-        timings,
-    })
 }
 
 #[cfg(test)]

@@ -36,7 +36,7 @@
 use cssm_formats::{hierarchy::Hierarchy, texel::Texel};
 use glam::{DVec3, Vec3};
 
-use crate::gpu_types::{GpuNode, GpuNodeSpread};
+use crate::gpu_types::{GpuNode, GpuNodeSpread, NODE_ALL_EMITTERS, NODE_EMITTER};
 
 const PI: f32 = std::f32::consts::PI;
 
@@ -210,9 +210,15 @@ pub fn visibility_sender(node: &GpuNode, spread: &GpuNodeSpread, texels: &[Texel
 
 /// Every node's [`GpuNodeSpread`] over `texels` (where they stand now: a refitted hierarchy
 /// takes the posed texels): the second moment of its texels' normals, summed in `f64` bottom
-/// up, and its texel whose normal is the most opposite to its representative's (the lowest
-/// texel index among equals, so every build picks the same).
-pub fn node_spreads(hierarchy: &Hierarchy, texels: &[Texel]) -> Vec<GpuNodeSpread> {
+/// up, its texel whose normal is the most opposite to its representative's (the lowest
+/// texel index among equals, so every build picks the same), and whether it holds texels
+/// whose material emits (`emitting`, per material: [`super::emitting_materials`]; a
+/// material past its end emits nothing): [`NODE_EMITTER`], [`NODE_ALL_EMITTERS`].
+pub fn node_spreads(
+    hierarchy: &Hierarchy,
+    texels: &[Texel],
+    emitting: &[bool],
+) -> Vec<GpuNodeSpread> {
     let nodes = &hierarchy.nodes;
     let leaves = &hierarchy.leaf_texels;
     // [xx, yy, zz, xy, xz, yz] per node.
@@ -253,11 +259,23 @@ pub fn node_spreads(hierarchy: &Hierarchy, texels: &[Texel]) -> Vec<GpuNodeSprea
                     da.total_cmp(&db).then(a.cmp(&b))
                 })
                 .unwrap_or(node.representative);
+            let emits = |&t: &u32| {
+                let material = texels[t as usize].material as usize;
+                emitting.get(material).copied().unwrap_or(false)
+            };
+            let range = node.first as usize..(node.first + node.count) as usize;
+            let flags = if leaves[range.clone()].iter().all(emits) {
+                NODE_EMITTER | NODE_ALL_EMITTERS
+            } else if leaves[range].iter().any(emits) {
+                NODE_EMITTER
+            } else {
+                0
+            };
             GpuNodeSpread {
                 moment_a: [m[0] as f32, m[1] as f32, m[2] as f32, m[3] as f32],
                 moment_b: [m[4] as f32, m[5] as f32],
                 other,
-                padding: 0,
+                flags,
             }
         })
         .collect()
@@ -489,7 +507,7 @@ mod tests {
         for (planes, seed) in [(1usize, 1u64), (2, 2), (3, 3), (0, 4)] {
             let texels = texels(200, planes, seed);
             let hierarchy = Hierarchy::build(&texels);
-            let spreads = node_spreads(&hierarchy, &texels);
+            let spreads = node_spreads(&hierarchy, &texels, &[]);
             let mut rng = cssm_raycast::SplitMix64(seed + 100);
             for (i, node) in hierarchy.nodes.iter().enumerate() {
                 let leaves = hierarchy.leaves(i);
@@ -514,12 +532,43 @@ mod tests {
         }
     }
 
+    /// A node is flagged as holding an emitter when one of its texels' material emits, and
+    /// as all emitters when every one's does; a material past `emitting`'s end emits nothing.
+    #[test]
+    fn emitter_flags_follow_the_texels_materials() {
+        let mut texels = texels(96, 3, 11);
+        for (k, t) in texels.iter_mut().enumerate() {
+            // Materials 0 (dark), 1 (emits) and 2 (past the table's end).
+            t.material = [0, 1, 2][(k % 7) % 3];
+        }
+        let hierarchy = Hierarchy::build(&texels);
+        let spreads = node_spreads(&hierarchy, &texels, &[false, true]);
+        let (mut mixed, mut pure) = (0, 0);
+        for (i, spread) in spreads.iter().enumerate() {
+            let emits: Vec<bool> = hierarchy
+                .leaves(i)
+                .iter()
+                .map(|&t| texels[t as usize].material == 1)
+                .collect();
+            let any = emits.iter().any(|&e| e);
+            let all = emits.iter().all(|&e| e);
+            assert_eq!(spread.flags & NODE_EMITTER != 0, any, "node {i}");
+            assert_eq!(spread.flags & NODE_ALL_EMITTERS != 0, all, "node {i}");
+            mixed += usize::from(any && !all);
+            pure += usize::from(all);
+        }
+        assert!(mixed > 0 && pure > 0, "{mixed} mixed, {pure} pure");
+        // No table: nothing emits.
+        let none = node_spreads(&hierarchy, &texels, &[]);
+        assert!(none.iter().all(|s| s.flags == 0));
+    }
+
     /// The other-side texel has the normal most opposite to the representative's.
     #[test]
     fn other_side_texel_faces_away_from_the_representative() {
         let texels = texels(64, 0, 7);
         let hierarchy = Hierarchy::build(&texels);
-        let spreads = node_spreads(&hierarchy, &texels);
+        let spreads = node_spreads(&hierarchy, &texels, &[]);
         for (i, node) in hierarchy.nodes.iter().enumerate() {
             let facing = texels[node.representative as usize].nrm();
             let other = spreads[i].other;

@@ -244,7 +244,7 @@ pub fn final_gather_stats(
     tiles: u32,
 ) -> Result<PassStats, RuntimeError> {
     let query = VisibilityQuery::new(file, Default::default());
-    let twin = TwinScene::baked(&query);
+    let twin = TwinScene::baked(&query, &crate::radiosity::emitting_materials(scene));
     let seen = receivers(scene, file, view)?;
     let ds = downsample.max(1);
     let (lw, lh) = (view.width.div_ceil(ds), view.height.div_ceil(ds));
@@ -295,18 +295,19 @@ pub fn final_gather_stats(
 /// The radiosity gather's stats (`radiosity/gather.wgsl`, one thread a leaf texel in the
 /// hierarchy's leaf order) for one bounce from node radiance `radiance`, texels reflecting
 /// `albedo`, with the oracle's `threshold` and `exposure`: every `step`-th warp of 32
-/// consecutive leaves counted so that about `warps` are. With `near_radius` above 0, the same
-/// kernel as `lightcuts`' far-field pass (the near field within it left out).
+/// consecutive leaves counted so that about `warps` are. With a `split` (its near radius above
+/// 0), the same kernel as `lightcuts`' far-field pass (what it leaves to the pixels left out;
+/// `emitting`, per material, whether it emits: [`crate::radiosity::emitting_materials`]).
 pub fn radiosity_gather_stats(
     file: &CssmFile,
     radiance: &[Vec3],
     albedo: &[Vec3],
     (threshold, exposure): (f32, f32),
-    near_radius: f32,
+    (split, emitting): (crate::radiosity::cpu::FarSplit, &[bool]),
     warps: u32,
 ) -> PassStats {
     let query = VisibilityQuery::new(file, Default::default());
-    let twin = TwinScene::baked(&query);
+    let twin = TwinScene::baked(&query, emitting);
     let nodes = &twin.hierarchy.nodes;
     let leaves: Vec<u32> = nodes
         .iter()
@@ -323,7 +324,7 @@ pub fn radiosity_gather_stats(
         .chunks(WARP_LANES)
         .step_by(step)
         .map(|warp| warp.iter().map(|&t| Some(t)).collect());
-    let pass = if near_radius > 0.0 {
+    let pass = if split.near_radius > 0.0 {
         "lightcuts far field"
     } else {
         "radiosity gather"
@@ -340,7 +341,7 @@ pub fn radiosity_gather_stats(
                 nodes,
                 radiance,
                 &traversal,
-                near_radius,
+                split,
                 texel,
                 t.pos(),
                 t.nrm(),

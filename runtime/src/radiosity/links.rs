@@ -1,0 +1,450 @@
+//! The radiosity's cached links (issue 49, item 1): every receiver leaf's cut, as the gather
+//! walks it, stored once with its transfer (`links.wgsl`), so that every later bounce is a
+//! sparse matrix-vector product (`product.wgsl`) that queries no visibility: a moved light
+//! re-runs the direct light into the atlas and the products.
+//!
+//! The cuts are made for the node radiance of the iteration before (the oracle needs light to
+//! bound, §4.3): the first iteration walks as the gather always did, and the next one builds
+//! the links from its result before it runs (a count pass read back, its prefix sums, a write
+//! pass), then multiplies. Each receiver's slot holds its cut with room to spare
+//! ([`slot_capacity`]). A cut made under one light can go stale under the next: where the new
+//! light makes a coarse node of it bright enough that the oracle would refine it. The product
+//! tests every link's node as it multiplies (its bound of unit radiance stored beside the
+//! link), flags the receivers whose cut went stale ([`STALE_MARGIN`]) and counts them; every
+//! iteration first re-cuts the flagged receivers for the radiance of the one before, in place
+//! where the new cut fits their slot. Where one does not, the old cut stays and the links are built again, slots
+//! and all, at the next iteration (its counters read back then: one wait a light move). A
+//! file with moving objects keeps walking: its visibility changes as they move.
+//!
+//! CPU twin: [`super::cpu::build_links`], [`super::cpu::radiosity_with_links`].
+
+use wgpu::util::DeviceExt;
+
+use crate::{
+    RuntimeError,
+    common::{layout, readback},
+    frame::{CssmResources, FrameEncoder},
+    gpu_types::GpuTraversalParams,
+    load::{CssmGpu, storage_binding_bytes},
+    shaders,
+};
+
+use super::{HierarchyGpu, RadiosityOptions};
+
+/// `radiosity/links.wgsl` with the CSSM library and `radiosity/transfer.wgsl`.
+pub const LINKS_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("radiosity links", "radiosity/links.wgsl");
+
+/// `radiosity/product.wgsl`.
+pub const PRODUCT_SHADER: crate::shaders::Shader =
+    crate::shaders::shader!("radiosity product", "radiosity/product.wgsl");
+
+/// The count word's flag of a receiver whose cut went stale (`links.wgsl`, `product.wgsl`).
+pub const LINK_STALE: u32 = 0x8000_0000;
+
+/// How far past the oracle's threshold a node of a cut must be for the cut to count as
+/// stale: its bound of the node's light above this times the threshold's (linear; 2 is the
+/// tone-mapped threshold times 1.37). Closer, a light moved by a twentieth of the scene flags
+/// nearly every cut of the Cornell box, whose answer moves by about a tenth of a percent
+/// (reports/final-gather.md).
+pub const STALE_MARGIN: f32 = 16.0;
+
+/// The slot of a receiver with `count` links: a quarter more and 8, so that the cut of a
+/// light a little brighter at the receiver is re-cut in place.
+pub fn slot_capacity(count: u32) -> u32 {
+    count + count / 4 + 8
+}
+
+/// Where the links stand.
+enum State {
+    /// Never: the iteration always walks (moving objects, or `links=walk`).
+    Off,
+    /// Not built yet; `ran` once an iteration has been recorded whose result they can be
+    /// built for.
+    Unbuilt { ran: bool },
+    /// Built: each bounce multiplies (`[written buffer]` bind groups), each iteration first
+    /// re-cuts the stale receivers (`recut_group`).
+    Built {
+        product_groups: [wgpu::BindGroup; 2],
+        recut_group: wgpu::BindGroup,
+        count: u64,
+    },
+    /// Beyond the device's binding limit: the iteration walks.
+    TooLarge { count: u64 },
+}
+
+/// The links of a [`super::Radiosity`] and the passes that build and multiply them.
+pub(super) struct Links {
+    state: State,
+    build_pipeline: wgpu::ComputePipeline,
+    build_layout: wgpu::BindGroupLayout,
+    product_pipeline: wgpu::ComputePipeline,
+    product_layout: wgpu::BindGroupLayout,
+    /// The node radiance the cuts are made for (a copy of the iteration's result).
+    cut_radiance: wgpu::Buffer,
+    /// The link table: per leaf its slot's start and its link count (with [`LINK_STALE`]),
+    /// then the slots' total, the receivers the products flagged this iteration and the
+    /// re-cuts that overflowed their slot.
+    table: wgpu::Buffer,
+    /// The build's and the products' constants (threshold, exposure, counts; `gather` 0
+    /// counts, 1 writes, 2 re-cuts).
+    params: [wgpu::Buffer; 3],
+    leaf_count: u32,
+    /// The receivers the last iteration's products flagged, and its re-cuts' overflows, as
+    /// read back at the start of this one.
+    pub(super) last_counters: (u32, u32),
+}
+
+/// What the link passes read from the iteration.
+pub(super) struct LinkInputs<'a> {
+    /// The hierarchy's nodes and leaves.
+    pub tree: &'a [wgpu::Buffer; 2],
+    /// Per texel, its direct radiance.
+    pub texel_direct: &'a wgpu::Buffer,
+    /// Per texel, its albedo.
+    pub albedo: &'a wgpu::Buffer,
+    /// The iteration's two node-radiance buffers.
+    pub node_radiance: &'a [wgpu::Buffer; 2],
+    /// Per texel, its irradiance of the last bounce.
+    pub texel_irradiance: &'a wgpu::Buffer,
+}
+
+impl Links {
+    /// The passes over `cssm`'s texels and `hierarchy`; `enabled` false (or a file with moving
+    /// objects) keeps them off.
+    pub(super) fn new(
+        device: &wgpu::Device,
+        cssm: &CssmGpu,
+        moving: &crate::visibility::moving::MovingGpu,
+        hierarchy: &HierarchyGpu,
+        options: RadiosityOptions,
+        enabled: bool,
+    ) -> Self {
+        let c = wgpu::ShaderStages::COMPUTE;
+        let module = LINKS_SHADER.create_for_scene(device, cssm.shape(), moving.csm_count);
+        let build_layout = layout::bind_group_layout(
+            device,
+            "radiosity links",
+            &[
+                layout::uniform(0, c),
+                layout::storage(1, true, c),
+                layout::storage(2, true, c),
+                layout::storage(3, true, c),
+                layout::storage(4, true, c),
+                layout::storage(5, false, c),
+                layout::storage(6, false, c),
+                layout::storage(7, false, c),
+            ],
+        );
+        let build_pipeline = layout::compute_pipeline(
+            device,
+            "radiosity links",
+            &module,
+            &moving.with_layout(&[&build_layout, &cssm.bind_group_layout]),
+        );
+        let product_layout = layout::bind_group_layout(
+            device,
+            "radiosity product",
+            &[
+                layout::uniform(0, c),
+                layout::storage(1, true, c),
+                layout::storage(2, true, c),
+                layout::storage(3, true, c),
+                layout::storage(4, true, c),
+                layout::storage(5, false, c),
+                layout::storage(6, false, c),
+                layout::storage(7, false, c),
+                layout::storage(8, true, c),
+                layout::storage(9, true, c),
+            ],
+        );
+        let product_pipeline = layout::compute_pipeline(
+            device,
+            "radiosity product",
+            &PRODUCT_SHADER.create(device),
+            &[&product_layout],
+        );
+        let params = [0, 1, 2].map(|gather| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("radiosity links params"),
+                contents: bytemuck::bytes_of(&GpuTraversalParams {
+                    receiver_count: hierarchy.leaf_count,
+                    node_count: hierarchy.node_count,
+                    threshold: options.threshold,
+                    exposure: options.exposure,
+                    gather,
+                    ..Default::default()
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        });
+        let cut_radiance = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("radiosity cut radiance"),
+            size: 16 * u64::from(hierarchy.node_count.max(1)),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let table = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("radiosity link table"),
+            size: 4 * (2 * u64::from(hierarchy.leaf_count) + 3),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let state = if enabled && moving.csm_count == 0 {
+            State::Unbuilt { ran: false }
+        } else {
+            State::Off
+        };
+        Self {
+            state,
+            build_pipeline,
+            build_layout,
+            product_pipeline,
+            product_layout,
+            cut_radiance,
+            table,
+            params,
+            leaf_count: hierarchy.leaf_count,
+            last_counters: (0, 0),
+        }
+    }
+
+    /// Never builds them: every bounce walks.
+    pub(super) fn turn_off(&mut self) {
+        self.state = State::Off;
+    }
+
+    /// The links' count once built (also when over the binding limit and left out).
+    pub(super) fn count(&self) -> Option<u64> {
+        match self.state {
+            State::Built { count, .. } | State::TooLarge { count } => Some(count),
+            _ => None,
+        }
+    }
+
+    /// The product's bind group writing `written`, once the links are built.
+    pub(super) fn product(
+        &self,
+        written: usize,
+    ) -> Option<(&wgpu::ComputePipeline, &wgpu::BindGroup)> {
+        match &self.state {
+            State::Built { product_groups, .. } => {
+                Some((&self.product_pipeline, &product_groups[written]))
+            }
+            _ => None,
+        }
+    }
+
+    /// An iteration was recorded: the next call of [`Self::build_if_due`] builds the links for
+    /// its result.
+    pub(super) fn ran(&mut self) {
+        if let State::Unbuilt { ran } = &mut self.state {
+            *ran = true;
+        }
+    }
+
+    /// Before an iteration: builds the links for the node radiance `inputs.node_radiance[result]`
+    /// holds if an iteration ran since they were due, or again if the last iteration's re-cuts
+    /// overflowed their slots (its counters read back: submitting and waiting for the GPU);
+    /// else, once built, records into `frame` the re-cut of the receivers the last
+    /// iteration's products flagged, for that same radiance, and zeroes the counters.
+    ///
+    /// # Errors
+    /// A failed read-back.
+    pub(super) fn before_iteration(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        cssm: &CssmResources,
+        inputs: &LinkInputs,
+        result: usize,
+        frame: &mut FrameEncoder,
+    ) -> Result<(), RuntimeError> {
+        let radiance = &inputs.node_radiance[result];
+        match &self.state {
+            State::Off | State::TooLarge { .. } | State::Unbuilt { ran: false } => return Ok(()),
+            State::Unbuilt { ran: true } => {
+                return self.build(device, queue, cssm, inputs, radiance);
+            }
+            State::Built { .. } => {}
+        }
+        let counters_at = 4 * 2 * u64::from(self.leaf_count) + 4;
+        let bytes = readback::read_buffer(device, queue, &self.table, counters_at, 8)?;
+        let counters: &[u32] = bytemuck::cast_slice(&bytes);
+        self.last_counters = (counters[0], counters[1]);
+        if counters[1] > 0 {
+            return self.build(device, queue, cssm, inputs, radiance);
+        }
+        queue.write_buffer(&self.table, counters_at, bytemuck::cast_slice(&[0u32; 2]));
+        if counters[0] == 0 {
+            return Ok(());
+        }
+        let State::Built { recut_group, .. } = &self.state else {
+            return Ok(());
+        };
+        frame
+            .encoder
+            .copy_buffer_to_buffer(radiance, 0, &self.cut_radiance, 0, radiance.size());
+        let mut pass = frame.compute_pass("radiosity: re-cut");
+        self.record_build_pass(&mut pass, cssm, recut_group);
+        Ok(())
+    }
+
+    /// Builds every receiver's links for the node radiance `radiance` (submitting and waiting
+    /// for the GPU): its count read back, slots of [`slot_capacity`], then the links written.
+    fn build(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        cssm: &CssmResources,
+        inputs: &LinkInputs,
+        radiance: &wgpu::Buffer,
+    ) -> Result<(), RuntimeError> {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(radiance, 0, &self.cut_radiance, 0, radiance.size());
+        // Counting writes no link, but the layout has the bindings.
+        let none = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 8,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let count_group = self.build_group(
+            device,
+            inputs,
+            0,
+            (
+                &none("radiosity links: none"),
+                &none("radiosity link bounds: none"),
+            ),
+        );
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            self.record_build_pass(&mut pass, cssm, &count_group);
+        }
+        queue.submit([encoder.finish()]);
+        let bytes = readback::read_buffer(
+            device,
+            queue,
+            &self.table,
+            0,
+            4 * 2 * u64::from(self.leaf_count),
+        )?;
+        let words: &[u32] = bytemuck::cast_slice(&bytes);
+        let mut table = Vec::with_capacity(words.len() + 3);
+        let (mut slots, mut count) = (0u64, 0u64);
+        for leaf in words.chunks(2) {
+            table.extend([slots as u32, leaf[1]]);
+            slots += u64::from(slot_capacity(leaf[1]));
+            count += u64::from(leaf[1]);
+        }
+        table.extend([slots as u32, 0, 0]);
+        let binding = storage_binding_bytes(&device.limits());
+        if 8 * slots > binding || slots > u64::from(LINK_STALE) {
+            self.state = State::TooLarge { count };
+            return Ok(());
+        }
+        queue.write_buffer(&self.table, 0, bytemuck::cast_slice(&table));
+        let buffer = |label, bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(8),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let links = (
+            buffer("radiosity links", 8 * slots),
+            buffer("radiosity link bounds", 4 * slots),
+        );
+        let write_group = self.build_group(device, inputs, 1, (&links.0, &links.1));
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            self.record_build_pass(&mut pass, cssm, &write_group);
+        }
+        queue.submit([encoder.finish()]);
+        let product_groups = [0, 1].map(|written| {
+            layout::bind_group(
+                device,
+                "radiosity product",
+                &self.product_layout,
+                &[
+                    self.params[1].as_entire_binding(),
+                    inputs.tree[1].as_entire_binding(),
+                    inputs.texel_direct.as_entire_binding(),
+                    inputs.albedo.as_entire_binding(),
+                    inputs.node_radiance[1 - written].as_entire_binding(),
+                    inputs.node_radiance[written].as_entire_binding(),
+                    inputs.texel_irradiance.as_entire_binding(),
+                    self.table.as_entire_binding(),
+                    links.0.as_entire_binding(),
+                    links.1.as_entire_binding(),
+                ],
+            )
+        });
+        self.state = State::Built {
+            product_groups,
+            recut_group: self.build_group(device, inputs, 2, (&links.0, &links.1)),
+            count,
+        };
+        Ok(())
+    }
+
+    /// The build pass's bind group: counting (`gather` 0), writing (1) or re-cutting (2) into
+    /// `links` and their bounds.
+    fn build_group(
+        &self,
+        device: &wgpu::Device,
+        inputs: &LinkInputs,
+        gather: usize,
+        (links, bounds): (&wgpu::Buffer, &wgpu::Buffer),
+    ) -> wgpu::BindGroup {
+        layout::bind_group(
+            device,
+            "radiosity links",
+            &self.build_layout,
+            &[
+                self.params[gather].as_entire_binding(),
+                inputs.tree[0].as_entire_binding(),
+                inputs.tree[1].as_entire_binding(),
+                inputs.albedo.as_entire_binding(),
+                self.cut_radiance.as_entire_binding(),
+                self.table.as_entire_binding(),
+                links.as_entire_binding(),
+                bounds.as_entire_binding(),
+            ],
+        )
+    }
+
+    /// Records the build pass of `group` into `pass`.
+    fn record_build_pass(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        cssm: &CssmResources,
+        group: &wgpu::BindGroup,
+    ) {
+        pass.set_pipeline(&self.build_pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.set_bind_group(1, &cssm.query.bind_group, &[]);
+        cssm.moving.bind(pass, 2);
+        pass.dispatch_workgroups(shaders::groups_1d(self.leaf_count), 1, 1);
+    }
+}
+
+/// Records one product bounce into `frame`: as many workgroups as the convergence test's
+/// `args` leave it.
+pub(super) fn record_product(
+    frame: &mut FrameEncoder,
+    (pipeline, group): (&wgpu::ComputePipeline, &wgpu::BindGroup),
+    args: &wgpu::Buffer,
+) {
+    let mut pass = frame.compute_pass("radiosity: product");
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups_indirect(args, 0);
+}
