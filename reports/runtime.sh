@@ -53,6 +53,7 @@ if [ $small = 1 ]; then
     # the frame-time step still runs the one-shot path.
     one_shots_all=0
     frame_size=32x24
+    links_bake="--atlas 32 --cube 8"
     view_sizes="32x24 48x32"
     wide=32x24
     shadow="--shadow-resolution 256"
@@ -80,6 +81,8 @@ else
     one_shots=5
     one_shots_all=1
     frame_size=640x480
+    # Table 1's bake (the links at atlas 128: 267 MB, reports/final-gather.md).
+    links_bake="--atlas 128 --cube 32"
     view_sizes="640x480 1280x720"
     wide=1280x720
     shadow=""
@@ -280,6 +283,13 @@ measure() {
         --method lightcuts:gather=walk,bounces=1 --method lightcuts:bounces=1 \
         --method lightcuts:downsample=1,bounces=1 --method lightcuts:gather=walk,downsample=1,bounces=1 \
         --out "$out/runtime-frame-time-gather.md"
+    # The radiosity's cached links against the walk with the light moved before every frame
+    # (issue 49, item 1; reports/final-gather.md, "Radiosity with cached links").
+    # shellcheck disable=SC2086
+    run frame-time-links "$c/frame_time" --size $frame_size --frames $frames --one-shots 0 \
+        $links_bake --moving-light --method lightmap --method lightmap:links=walk \
+        --method lightcuts --method lightcuts:links=walk \
+        --out "$out/runtime-frame-time-links.md"
     # Every method of the table in one persistent renderer at 1280x720: the frame time a window
     # of that size shows (issue 26), without the presentation.
     run frame-time-all "$c/frame_time" --size $wide --frames $frames --one-shots $one_shots_all \

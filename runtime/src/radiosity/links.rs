@@ -12,9 +12,10 @@
 //! tests every link's node as it multiplies (its bound of unit radiance stored beside the
 //! link), flags the receivers whose cut went stale ([`STALE_MARGIN`]) and counts them; every
 //! iteration first re-cuts the flagged receivers for the radiance of the one before, in place
-//! where the new cut fits their slot. Where one does not, the old cut stays and the links are built again, slots
-//! and all, at the next iteration (its counters read back then: one wait a light move). A
-//! file with moving objects keeps walking: its visibility changes as they move.
+//! where the new cut fits their slot. Where one does not, the old cut stays and the links are
+//! built again, slots and all, at the next iteration (its counters read back then: one wait a
+//! light move). A file with moving objects keeps walking: its visibility changes as they
+//! move, and so does a device whose binding limit the links exceed.
 //!
 //! CPU twin: [`super::cpu::build_links`], [`super::cpu::radiosity_with_links`].
 
@@ -43,10 +44,11 @@ pub const PRODUCT_SHADER: crate::shaders::Shader =
 pub const LINK_STALE: u32 = 0x8000_0000;
 
 /// How far past the oracle's threshold a node of a cut must be for the cut to count as
-/// stale: its bound of the node's light above this times the threshold's (linear; 2 is the
-/// tone-mapped threshold times 1.37). Closer, a light moved by a twentieth of the scene flags
-/// nearly every cut of the Cornell box, whose answer moves by about a tenth of a percent
-/// (reports/final-gather.md).
+/// stale: its bound of the node's light above this times the threshold's, on the linear
+/// bound (16 is the oracle at `16^(1/2.2)`, 3.5 times its tone-mapped threshold). Chosen by
+/// measurement (reports/final-gather.md, "Radiosity with cached links"): closer margins
+/// re-cut almost every receiver after a small light move for an answer hardly closer to the
+/// walk's.
 pub const STALE_MARGIN: f32 = 16.0;
 
 /// The slot of a receiver with `count` links: a quarter more and 8, so that the cut of a
