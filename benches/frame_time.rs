@@ -12,7 +12,8 @@
 //!
 //! `--methods all` names every GPU method of the method table at its defaults; `--method SPEC`
 //! (repeatable, instead of `--methods`) a variant with options, as `cssm render --method` takes
-//! it (`lightcuts:gather=walk`); `--one-shots 0` times the
+//! it (`lightcuts:gather=walk`), and beside `--methods all` replaces that method's defaults;
+//! `--one-shots 0` times the
 //! persistent renderer alone. `--moving-light` adds a row per method whose light is set again
 //! before every frame, as a dragged light is: the prepare passes (shadow maps, and the
 //! radiosity of the CSSM methods) run in every frame (issue 49's "light moving" frame).
@@ -53,14 +54,22 @@ fn main() {
         .filter(|w| w[0] == "--method")
         .map(|w| w[1].as_str())
         .collect();
-    let methods: Vec<&str> = if !specs.is_empty() {
-        specs
-    } else if methods == "all" {
+    let methods: Vec<&str> = if methods == "all" {
+        // A `--method NAME:OPTIONS` beside `--methods all` stands in for NAME's defaults (the
+        // smoke run's `vct:resolution=16`, whose default voxel grid takes minutes on lavapipe).
         runtime::METHODS
             .iter()
             .filter(|m| m.on_gpu())
-            .map(|m| m.name)
+            .map(|m| {
+                specs
+                    .iter()
+                    .copied()
+                    .find(|s| s.split(':').next() == Some(m.name))
+                    .unwrap_or(m.name)
+            })
             .collect()
+    } else if !specs.is_empty() {
+        specs
     } else {
         methods.split(',').map(str::trim).collect()
     };

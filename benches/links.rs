@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo bench --bench links -- [--scene DIR] [--atlas 128] [--cube 32] [--bounces 2]
-//!     [--moves 4] [--step 0.05] [--threshold 0.02]
+//!     [--moves 4] [--step 0.05] [--threshold 0.02] [--far]
 //! ```
 //!
 //! One radiosity (`radiosity::atlas_radiosity_lights`, as a renderer keeps it) solved for the
@@ -14,7 +14,9 @@
 //! Per solve: wall-clock milliseconds (recorded, submitted, waited for, read back; on
 //! lavapipe a CPU emulation, so only the ratio of the two columns says anything), the links,
 //! the receivers the solve before found stale and the re-cuts that overflowed, and the
-//! relative RMSE of the texels' irradiance against the walk's.
+//! relative RMSE of the texels' irradiance against the walk's. With `--far`, `lightcuts`'
+//! far field after each solve (its default near field, the emitters apart) with its own
+//! links, or walking: its links, stale receivers and error against its walk beside.
 
 use cssm::runtime;
 use runtime::radiosity::{self, RadiosityOptions};
@@ -31,6 +33,13 @@ fn main() {
     let step = parsed(&args, "--step", 0.05f32);
     let threshold = parsed(&args, "--threshold", radiosity::DEFAULT_THRESHOLD);
     let (dir, scene, file) = baked_scene(&args);
+    let far = args
+        .iter()
+        .any(|a| a == "--far")
+        .then(|| radiosity::cpu::FarSplit {
+            near_radius: runtime::lightcuts::near_radius(&file.hierarchy, 4.0),
+            emitters_apart: true,
+        });
     let gpu = runtime::Gpu::new_headless().unwrap_or_else(|e| panic!("{e}"));
     println!(
         "{}: atlas {}, cube {}, {} texels, {} nodes, {bounces} bounce(s), threshold \
@@ -67,7 +76,7 @@ fn main() {
             &file,
             runtime::common::shadow_map::DEFAULT_RESOLUTION,
             bounces,
-            (options, links),
+            (options, links, far),
             &lights,
         )
         .unwrap_or_else(|e| panic!("radiosity: {e}"))
@@ -75,9 +84,28 @@ fn main() {
     let (cached, walked) = (solve(true), solve(false));
     println!(
         "\n| solve | light moved | cached ms | walk ms | links | stale before | overflowed \
-         before | cached against walk |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+         before | cached against walk |{}\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |{}",
+        if far.is_some() {
+            " far-field links | far stale before | far field against walk |"
+        } else {
+            ""
+        },
+        if far.is_some() {
+            " ---: | ---: | ---: |"
+        } else {
+            ""
+        },
     );
     for (k, (c, w)) in cached.iter().zip(&walked).enumerate() {
+        let far_cells = match (&c.far, &w.far) {
+            (Some(cf), Some(wf)) => format!(
+                " {} | {} | {:.4}% |",
+                cf.links.map_or("-".to_string(), |n| n.to_string()),
+                cf.stale_before.0,
+                100.0 * relative_rmse(&cf.irradiance, &wf.irradiance)
+            ),
+            _ => String::new(),
+        };
         let links = c.links.map_or("-".to_string(), |n| {
             format!(
                 "{n} ({:.0} a texel, {:.1} MB)",
@@ -89,7 +117,7 @@ fn main() {
             )
         });
         println!(
-            "| {k} | {:.3} | {:.1} | {:.1} | {links} | {} | {} | {:.4}% |",
+            "| {k} | {:.3} | {:.1} | {:.1} | {links} | {} | {} | {:.4}% |{far_cells}",
             k.saturating_sub(1) as f32 * step,
             c.wall_ms,
             w.wall_ms,

@@ -53,15 +53,20 @@ if [ $small = 1 ]; then
     # the frame-time step still runs the one-shot path.
     one_shots_all=0
     frame_size=32x24
+    # The frame-time steps' own bake of the Cornell box (the full run: the bench's atlas 64,
+    # cube 32), and vct's voxel grid in the every-method row: at its default resolution its
+    # prepare alone takes minutes on lavapipe.
+    frame_bake="--atlas 32 --cube 8"
+    all_overrides="--method vct:resolution=16"
     links_bake="--atlas 32 --cube 8"
     view_sizes="32x24 48x32"
     wide=32x24
     shadow="--shadow-resolution 256"
     # --sweep per method and scene (bash names: sweep_METHOD_SCENE), the rows' one varied
     # option; a method without one runs its rows as its table entry names them.
-    sweep_vct_cornell="resolution=32,64"
+    sweep_vct_cornell="resolution=16,32"
     sweep_vct_sibenik="resolution=32"
-    compare="--size 32x24 --samples 2"
+    compare="--size 32x24 --samples 2 --atlas 32 --cube 8 --shadow-resolution 256"
     gi_size=32x24
 else
     bake_cornell="--atlas 128 --cube 32"
@@ -81,6 +86,8 @@ else
     one_shots=5
     one_shots_all=1
     frame_size=640x480
+    frame_bake=""
+    all_overrides=""
     # Table 1's bake (the links at atlas 128: 267 MB, reports/final-gather.md).
     links_bake="--atlas 128 --cube 32"
     view_sizes="640x480 1280x720"
@@ -273,14 +280,16 @@ measure() {
     # The persistent renderer's frame against a one-shot render (issue 16), with GPU ms per pass.
     # With the light moved before every frame too (issue 49: the CSSM methods' radiosity runs
     # in every frame then).
+    # shellcheck disable=SC2086
     run frame-time "$c/frame_time" --size $frame_size --frames $frames --one-shots $one_shots \
-        --moving-light \
+        $frame_bake --moving-light \
         --out "$out/runtime-frame-time.md"
     # lightcuts' final gather in texture space against the walk it replaced (issue 49, item 2;
     # reports/final-gather.md), one bounce so that the builds' prepare passes stay short: the
     # frame is the final gather either way.
+    # shellcheck disable=SC2086
     run frame-time-gather "$c/frame_time" --size $frame_size --frames $frames --one-shots 0 \
-        --method lightcuts:gather=walk,bounces=1 --method lightcuts:bounces=1 \
+        $frame_bake --method lightcuts:gather=walk,bounces=1 --method lightcuts:bounces=1 \
         --method lightcuts:downsample=1,bounces=1 --method lightcuts:gather=walk,downsample=1,bounces=1 \
         --out "$out/runtime-frame-time-gather.md"
     # The radiosity's cached links against the walk with the light moved before every frame
@@ -292,8 +301,9 @@ measure() {
         --out "$out/runtime-frame-time-links.md"
     # Every method of the table in one persistent renderer at 1280x720: the frame time a window
     # of that size shows (issue 26), without the presentation.
+    # shellcheck disable=SC2086
     run frame-time-all "$c/frame_time" --size $wide --frames $frames --one-shots $one_shots_all \
-        --methods all --out "$out/runtime-frame-time-all.md"
+        $frame_bake --methods all $all_overrides --out "$out/runtime-frame-time-all.md"
     for size in $view_sizes; do
         run "direct-$size" "$c/cssm" render --method direct --size "$size" --timings \
             --out "$out/direct-$size.png"

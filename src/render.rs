@@ -279,10 +279,16 @@ fn print_stats(
         .iter()
         .map(|a| glam::Vec3::new(a[0], a[1], a[2]))
         .collect();
+    let links_cached = config.resolved.choice("links") == "cached";
+    let traversal = runtime::radiosity::cpu::Traversal {
+        threshold,
+        exposure,
+    };
     if radiosity_plan.max > 0 {
+        let direct = radiance(BouncePlan::exactly(0))?;
         let stats = runtime::work::passes::radiosity_gather_stats(
             file,
-            &radiance(BouncePlan::exactly(0))?,
+            &direct,
             &albedo,
             (threshold, exposure),
             (runtime::radiosity::cpu::FarSplit::WHOLE, &[]),
@@ -293,6 +299,10 @@ fn print_stats(
              twin:\n{stats}",
             stats.pass
         );
+        if links_cached {
+            let twin = (file, &[][..], &direct[..], &albedo[..]);
+            print_product_stats(twin, &traversal, runtime::radiosity::cpu::FarSplit::WHOLE);
+        }
     }
     if method == "lightcuts" {
         use runtime::lightcuts::{GatherForm, cpu::TwinGather};
@@ -320,6 +330,10 @@ fn print_stats(
                     (split, &emitting),
                     STATS_WARPS,
                 );
+                if links_cached {
+                    let twin = (file, &emitting[..], &radiance[..], &albedo[..]);
+                    print_product_stats(twin, &traversal, split);
+                }
                 println!(
                     "{} (the last bounce over the atlas, the near field of {} texel sizes{} \
                      left to the pixels), counted by its CPU twin:\n{stats}",
@@ -357,6 +371,39 @@ fn print_stats(
         );
     }
     Ok(())
+}
+
+/// `--stats` of the product over cached links (`runtime::work::passes::link_product_stats`)
+/// made for the node radiance of `twin` (the file, its materials' emission, the radiance, the
+/// texels' albedo) with the oracle of `traversal` and the cuts of `split`: what a moved light
+/// runs instead of the walk counted before it.
+fn print_product_stats(
+    (file, emitting, radiance, albedo): (&CssmFile, &[bool], &[glam::Vec3], &[glam::Vec3]),
+    traversal: &runtime::radiosity::cpu::Traversal,
+    split: runtime::radiosity::cpu::FarSplit,
+) {
+    use runtime::radiosity::cpu;
+    let query = formats::visibility::VisibilityQuery::new(file, Default::default());
+    let twin = cpu::TwinScene::baked(&query, emitting);
+    let leaves: Vec<u32> = (file.hierarchy.nodes.iter())
+        .filter(|n| n.count == 1)
+        .map(|n| file.hierarchy.leaf_texels[n.first as usize])
+        .collect();
+    let cut = |leaf: usize| {
+        let t = leaves[leaf];
+        let texel = &file.texels[t as usize];
+        let rho = albedo[t as usize].max_element();
+        let (p, n) = (texel.pos(), texel.nrm());
+        cpu::receiver_links(&twin, radiance, traversal, split, t, p, n, rho)
+    };
+    let far = split.near_radius > 0.0;
+    let sizes = (leaves.len(), file.hierarchy.nodes.len());
+    let stats = runtime::work::passes::link_product_stats(sizes, cut, far, STATS_WARPS);
+    println!(
+        "{} (links=cached: what a moved light runs instead, its cuts made for that light), \
+         counted by its CPU twin:\n{stats}",
+        stats.pass
+    );
 }
 
 /// Warps of the radiosity gather `--stats` counts.

@@ -123,10 +123,11 @@ fn renderer_updates_match_a_fresh_renderer() {
     }
 }
 
-/// A light moved under `lightmap` runs the radiosity again. With `links=walk` the image equals
-/// a renderer built with the light there (same `.cssm`, the geometry did not move); with the
-/// cached links (the default), whose cuts were made for the first light, it stays within 1% of
-/// it (reports/final-gather.md, "Radiosity with cached links"), and a second move follows too.
+/// A light moved under `lightmap` or `lightcuts` runs the radiosity (and `lightcuts`' far field)
+/// again. With `links=walk` the image equals a renderer built with the light there (same
+/// `.cssm`, the geometry did not move); with the cached links (the default), whose cuts were
+/// made for the first light, it stays within 1% of it (reports/final-gather.md, "Radiosity
+/// with cached links"), and a second move follows too.
 #[test]
 fn moving_a_light_runs_the_radiosity_again() {
     let gpu = gpu();
@@ -135,7 +136,6 @@ fn moving_a_light_runs_the_radiosity_again() {
     moved.lights[0].position += glam::Vec3::new(-80.0, -40.0, 30.0);
     let mut again = moved.clone();
     again.lights[0].position += glam::Vec3::new(60.0, 0.0, -50.0);
-    let lightmap = method::find("lightmap").unwrap();
     let settings = RendererSettings {
         frame: FrameSettings {
             width: 40,
@@ -146,9 +146,16 @@ fn moving_a_light_runs_the_radiosity_again() {
         component: Component::Indirect,
         ..Default::default()
     };
-    for links in ["walk", "cached"] {
-        let options = lightmap
-            .parse_options(&format!("links={links}"))
+    for (name, links) in [
+        ("lightmap", "walk"),
+        ("lightmap", "cached"),
+        // Its walk's bounces are lightmap's: the cached far field is what it adds.
+        ("lightcuts", "cached"),
+    ] {
+        let method = method::find(name).unwrap();
+        let options = method
+            // Two bounces: the converged default walks some eight at the first light.
+            .parse_options(&format!("links={links},bounces=2"))
             .expect("options");
         let new = |scene: &Scene| {
             Renderer::new(
@@ -156,7 +163,7 @@ fn moving_a_light_runs_the_radiosity_again() {
                 &gpu.queue,
                 scene,
                 Some(file),
-                lightmap,
+                method,
                 &options,
                 &settings,
             )
@@ -174,16 +181,22 @@ fn moving_a_light_runs_the_radiosity_again() {
         let (same_again, _) = image_difference(&twice, &fresh_again);
         let (changed, _) = image_difference(&before, &fresh);
         eprintln!(
-            "links={links}: moved light {same:.2e} from a fresh renderer, moved again \
+            "{name}, links={links}: moved light {same:.2e} from a fresh renderer, moved again \
              {same_again:.2e}, {changed:.2e} before the move"
         );
         if links == "walk" {
             assert_eq!(same, 0.0, "the indirect light follows the light exactly");
             assert_eq!(same_again, 0.0, "and again");
         } else {
-            assert!(same < 0.01 && same_again < 0.01, "{same} {same_again}");
+            assert!(
+                same < 0.01 && same_again < 0.01,
+                "{name}: {same} {same_again}"
+            );
         }
-        assert!(changed > 0.05, "the indirect light changed: {changed}");
+        assert!(
+            changed > 0.05,
+            "{name}: the indirect light changed: {changed}"
+        );
     }
 }
 

@@ -444,11 +444,24 @@ pub const METHOD: MethodEntry = MethodEntry {
         radiosity::PREPARE_PASSES[3],
         radiosity::PREPARE_PASSES[4],
         radiosity::PREPARE_PASSES[5],
-        // With `gather=atlas` only.
+        // With `gather=atlas` only: the far field walked, then (its links cached,
+        // radiosity/links.rs) re-cut where stale and multiplied.
         PassInfo {
             name: "lightcuts: far field",
             stage: Stage::Prepare,
             reads: &[Slot::Cssm, Slot::TexelRadiance, Slot::NodeRadiance],
+            writes: &[Slot::TexelIrradiance],
+        },
+        PassInfo {
+            name: "lightcuts: far-field re-cut",
+            stage: Stage::Prepare,
+            reads: &[Slot::Cssm, Slot::NodeRadiance],
+            writes: &[],
+        },
+        PassInfo {
+            name: "lightcuts: far-field product",
+            stage: Stage::Prepare,
+            reads: &[Slot::TexelRadiance, Slot::NodeRadiance],
             writes: &[Slot::TexelIrradiance],
         },
         PassInfo {
@@ -571,7 +584,7 @@ impl Lightcuts {
                     near_radius: radius,
                     emitters_apart: options.emitters_apart,
                 };
-                let far = gi.radiosity.far_field(&ctx.device, split);
+                let far = gi.radiosity.far_field(&ctx.device, ctx.cssm()?, split);
                 (radius, Some(far), near_lists(file, options.near))
             }
             GatherForm::Walk => (0.0, None, None),
@@ -614,8 +627,13 @@ impl Lightcuts {
 
 impl GiMethod for Lightcuts {
     fn prepare(&mut self, ctx: &FrameContext, frame: &mut FrameEncoder) {
+        // The far field's links are made for the radiance its last pass read: before the
+        // iteration that writes the next.
+        if let (Some(far), Some(cssm)) = (&mut self.far, &ctx.cssm) {
+            far.update_links(&ctx.device, &ctx.queue, cssm, frame);
+        }
         self.gi.run(ctx, frame);
-        if let (Some(far), Some(cssm)) = (&self.far, &ctx.cssm) {
+        if let (Some(far), Some(cssm)) = (&mut self.far, &ctx.cssm) {
             far.run(frame, cssm);
         }
     }

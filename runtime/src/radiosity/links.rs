@@ -17,7 +17,12 @@
 //! light move). A file with moving objects keeps walking: its visibility changes as they
 //! move, and so does a device whose binding limit the links exceed.
 //!
-//! CPU twin: [`super::cpu::build_links`], [`super::cpu::radiosity_with_links`].
+//! `lightcuts`' far field ([`super::FarField`]) caches its own cuts the same way
+//! ([`LINKS_FAR`]: the near field and the emitters left out, as `gather.wgsl` with `gather` 2
+//! walks them): its pass becomes one product over the radiosity's result.
+//!
+//! CPU twin: [`super::cpu::build_links`], [`super::cpu::radiosity_with_links`],
+//! [`super::cpu::far_field_with_links`].
 
 use wgpu::util::DeviceExt;
 
@@ -43,6 +48,10 @@ pub const PRODUCT_SHADER: crate::shaders::Shader =
 /// The count word's flag of a receiver whose cut went stale (`links.wgsl`, `product.wgsl`).
 pub const LINK_STALE: u32 = 0x8000_0000;
 
+/// `params.gather`'s flag of the far field's cuts (`links.wgsl`, `product.wgsl`): the cuts of
+/// [`super::cpu::FarSplit`], the product writing the texels' irradiance alone.
+pub const LINKS_FAR: u32 = 4;
+
 /// How far past the oracle's threshold a node of a cut must be for the cut to count as
 /// stale: its bound of the node's light above this times the threshold's, on the linear
 /// bound (16 is the oracle at `16^(1/2.2)`, 3.5 times its tone-mapped threshold). Chosen by
@@ -64,10 +73,10 @@ enum State {
     /// Not built yet; `ran` once an iteration has been recorded whose result they can be
     /// built for.
     Unbuilt { ran: bool },
-    /// Built: each bounce multiplies (`[written buffer]` bind groups), each iteration first
-    /// re-cuts the stale receivers (`recut_group`).
+    /// Built: each bounce multiplies (a bind group per [`LinkInputs::products`] entry), each
+    /// iteration first re-cuts the stale receivers (`recut_group`).
     Built {
-        product_groups: [wgpu::BindGroup; 2],
+        product_groups: Vec<wgpu::BindGroup>,
         recut_group: wgpu::BindGroup,
         count: u64,
     },
@@ -75,9 +84,12 @@ enum State {
     TooLarge { count: u64 },
 }
 
-/// The links of a [`super::Radiosity`] and the passes that build and multiply them.
+/// The links of a [`super::Radiosity`] (or of its far field) and the passes that build and
+/// multiply them.
 pub(super) struct Links {
     state: State,
+    /// The re-cut's and the product's pass names.
+    names: [&'static str; 2],
     build_pipeline: wgpu::ComputePipeline,
     build_layout: wgpu::BindGroupLayout,
     product_pipeline: wgpu::ComputePipeline,
@@ -97,7 +109,7 @@ pub(super) struct Links {
     pub(super) last_counters: (u32, u32),
 }
 
-/// What the link passes read from the iteration.
+/// What the link passes read and write.
 pub(super) struct LinkInputs<'a> {
     /// The hierarchy's nodes and leaves.
     pub tree: &'a [wgpu::Buffer; 2],
@@ -105,22 +117,25 @@ pub(super) struct LinkInputs<'a> {
     pub texel_direct: &'a wgpu::Buffer,
     /// Per texel, its albedo.
     pub albedo: &'a wgpu::Buffer,
-    /// The iteration's two node-radiance buffers.
-    pub node_radiance: &'a [wgpu::Buffer; 2],
-    /// Per texel, its irradiance of the last bounce.
-    pub texel_irradiance: &'a wgpu::Buffer,
+    /// The node radiance the cuts are made for: the last recorded iteration's result.
+    pub radiance: &'a wgpu::Buffer,
+    /// Per product bind group ([`Links::product`]'s index): the node radiance it multiplies,
+    /// the node radiance it writes the leaves of (the far field's: unused), and the per-texel
+    /// irradiance it writes.
+    pub products: [Option<[&'a wgpu::Buffer; 3]>; 2],
 }
 
 impl Links {
-    /// The passes over `cssm`'s texels and `hierarchy`; `enabled` false (or a file with moving
-    /// objects) keeps them off.
+    /// The passes over `cssm`'s texels and `hierarchy`, for the radiosity's cuts (`far`
+    /// `None`) or for the far field's of that split; a file with moving objects keeps them
+    /// off.
     pub(super) fn new(
         device: &wgpu::Device,
         cssm: &CssmGpu,
         moving: &crate::visibility::moving::MovingGpu,
         hierarchy: &HierarchyGpu,
         options: RadiosityOptions,
-        enabled: bool,
+        far: Option<super::cpu::FarSplit>,
     ) -> Self {
         let c = wgpu::ShaderStages::COMPUTE;
         let module = LINKS_SHADER.create_for_scene(device, cssm.shape(), moving.csm_count);
@@ -166,6 +181,12 @@ impl Links {
             &PRODUCT_SHADER.create(device),
             &[&product_layout],
         );
+        let split = far.unwrap_or(super::cpu::FarSplit::WHOLE);
+        let far_flag = if split.near_radius > 0.0 {
+            LINKS_FAR
+        } else {
+            0
+        };
         let params = [0, 1, 2].map(|gather| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("radiosity links params"),
@@ -174,7 +195,9 @@ impl Links {
                     node_count: hierarchy.node_count,
                     threshold: options.threshold,
                     exposure: options.exposure,
-                    gather,
+                    gather: gather | far_flag,
+                    near_radius: split.near_radius,
+                    emitters: u32::from(split.emitters_apart),
                     ..Default::default()
                 }),
                 usage: wgpu::BufferUsages::UNIFORM,
@@ -194,13 +217,21 @@ impl Links {
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let state = if enabled && moving.csm_count == 0 {
+        let state = if moving.csm_count == 0 {
             State::Unbuilt { ran: false }
         } else {
             State::Off
         };
         Self {
             state,
+            names: if far.is_some() {
+                [
+                    "lightcuts: far-field re-cut",
+                    "lightcuts: far-field product",
+                ]
+            } else {
+                ["radiosity: re-cut", "radiosity: product"]
+            },
             build_pipeline,
             build_layout,
             product_pipeline,
@@ -218,6 +249,11 @@ impl Links {
         self.state = State::Off;
     }
 
+    /// Whether they are never built ([`Self::turn_off`], or a file with moving objects).
+    pub(super) fn is_off(&self) -> bool {
+        matches!(self.state, State::Off)
+    }
+
     /// The links' count once built (also when over the binding limit and left out).
     pub(super) fn count(&self) -> Option<u64> {
         match self.state {
@@ -226,15 +262,15 @@ impl Links {
         }
     }
 
-    /// The product's bind group writing `written`, once the links are built.
-    pub(super) fn product(
-        &self,
-        written: usize,
-    ) -> Option<(&wgpu::ComputePipeline, &wgpu::BindGroup)> {
+    /// The product of [`LinkInputs::products`]' entry `which` (the radiosity's: the buffer
+    /// it writes), once the links are built: its pass name, pipeline and bind group.
+    pub(super) fn product(&self, which: usize) -> Option<Product<'_>> {
         match &self.state {
-            State::Built { product_groups, .. } => {
-                Some((&self.product_pipeline, &product_groups[written]))
-            }
+            State::Built { product_groups, .. } => Some(Product {
+                name: self.names[1],
+                pipeline: &self.product_pipeline,
+                group: product_groups.get(which)?,
+            }),
             _ => None,
         }
     }
@@ -247,8 +283,8 @@ impl Links {
         }
     }
 
-    /// Before an iteration: builds the links for the node radiance `inputs.node_radiance[result]`
-    /// holds if an iteration ran since they were due, or again if the last iteration's re-cuts
+    /// Before an iteration: builds the links for the node radiance `inputs.radiance` holds
+    /// if an iteration ran since they were due, or again if the last iteration's re-cuts
     /// overflowed their slots (its counters read back: submitting and waiting for the GPU);
     /// else, once built, records into `frame` the re-cut of the receivers the last
     /// iteration's products flagged, for that same radiance, and zeroes the counters.
@@ -261,10 +297,9 @@ impl Links {
         queue: &wgpu::Queue,
         cssm: &CssmResources,
         inputs: &LinkInputs,
-        result: usize,
         frame: &mut FrameEncoder,
     ) -> Result<(), RuntimeError> {
-        let radiance = &inputs.node_radiance[result];
+        let radiance = inputs.radiance;
         match &self.state {
             State::Off | State::TooLarge { .. } | State::Unbuilt { ran: false } => return Ok(()),
             State::Unbuilt { ran: true } => {
@@ -289,7 +324,7 @@ impl Links {
         frame
             .encoder
             .copy_buffer_to_buffer(radiance, 0, &self.cut_radiance, 0, radiance.size());
-        let mut pass = frame.compute_pass("radiosity: re-cut");
+        let mut pass = frame.compute_pass(self.names[0]);
         self.record_build_pass(&mut pass, cssm, recut_group);
         Ok(())
     }
@@ -370,25 +405,30 @@ impl Links {
             self.record_build_pass(&mut pass, cssm, &write_group);
         }
         queue.submit([encoder.finish()]);
-        let product_groups = [0, 1].map(|written| {
-            layout::bind_group(
-                device,
-                "radiosity product",
-                &self.product_layout,
-                &[
-                    self.params[1].as_entire_binding(),
-                    inputs.tree[1].as_entire_binding(),
-                    inputs.texel_direct.as_entire_binding(),
-                    inputs.albedo.as_entire_binding(),
-                    inputs.node_radiance[1 - written].as_entire_binding(),
-                    inputs.node_radiance[written].as_entire_binding(),
-                    inputs.texel_irradiance.as_entire_binding(),
-                    self.table.as_entire_binding(),
-                    links.0.as_entire_binding(),
-                    links.1.as_entire_binding(),
-                ],
-            )
-        });
+        let product_groups = inputs
+            .products
+            .iter()
+            .flatten()
+            .map(|[radiance_in, radiance_out, irradiance]| {
+                layout::bind_group(
+                    device,
+                    "radiosity product",
+                    &self.product_layout,
+                    &[
+                        self.params[1].as_entire_binding(),
+                        inputs.tree[1].as_entire_binding(),
+                        inputs.texel_direct.as_entire_binding(),
+                        inputs.albedo.as_entire_binding(),
+                        radiance_in.as_entire_binding(),
+                        radiance_out.as_entire_binding(),
+                        irradiance.as_entire_binding(),
+                        self.table.as_entire_binding(),
+                        links.0.as_entire_binding(),
+                        links.1.as_entire_binding(),
+                    ],
+                )
+            })
+            .collect();
         self.state = State::Built {
             product_groups,
             recut_group: self.build_group(device, inputs, 2, (&links.0, &links.1)),
@@ -438,15 +478,33 @@ impl Links {
     }
 }
 
-/// Records one product bounce into `frame`: as many workgroups as the convergence test's
-/// `args` leave it.
-pub(super) fn record_product(
-    frame: &mut FrameEncoder,
-    (pipeline, group): (&wgpu::ComputePipeline, &wgpu::BindGroup),
-    args: &wgpu::Buffer,
-) {
-    let mut pass = frame.compute_pass("radiosity: product");
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups_indirect(args, 0);
+/// One product pass of built links ([`Links::product`]).
+pub(super) struct Product<'a> {
+    name: &'static str,
+    pipeline: &'a wgpu::ComputePipeline,
+    group: &'a wgpu::BindGroup,
+}
+
+impl Product<'_> {
+    /// Records the pass into `frame`: as many workgroups as the convergence test's `args`
+    /// leave a bounce, or one thread a receiver leaf (`leaf_count`).
+    pub(super) fn record(&self, frame: &mut FrameEncoder, groups: Dispatch) {
+        let mut pass = frame.compute_pass(self.name);
+        pass.set_pipeline(self.pipeline);
+        pass.set_bind_group(0, self.group, &[]);
+        match groups {
+            Dispatch::Indirect(args) => pass.dispatch_workgroups_indirect(args, 0),
+            Dispatch::Leaves(count) => {
+                pass.dispatch_workgroups(shaders::groups_1d(count), 1, 1);
+            }
+        }
+    }
+}
+
+/// How many workgroups a [`Product`] runs.
+pub(super) enum Dispatch<'a> {
+    /// As many as the convergence test's arguments say (a bounce).
+    Indirect(&'a wgpu::Buffer),
+    /// One thread each of this many receiver leaves.
+    Leaves(u32),
 }

@@ -21,6 +21,7 @@
 //! `radiosity_matches_brute_force`).
 
 pub mod cpu;
+mod cpu_links;
 mod far_field;
 pub mod links;
 mod solve;
@@ -28,8 +29,8 @@ pub mod transfer;
 
 pub use far_field::FarField;
 pub use solve::{
-    AtlasRadiosity, LinkedSolve, atlas_radiosity, atlas_radiosity_lights, atlas_radiosity_posed,
-    render_atlas_direct,
+    AtlasRadiosity, FarSolve, LinkedSolve, atlas_radiosity, atlas_radiosity_lights,
+    atlas_radiosity_posed, render_atlas_direct,
 };
 
 /// This folder's WGSL, for the registry ([`crate::shaders`]).
@@ -466,7 +467,14 @@ impl Radiosity {
             tree: [hierarchy.nodes.clone(), hierarchy.leaves.clone()],
             node_count: hierarchy.node_count,
             options,
-            links: links::Links::new(device, cssm, moving, hierarchy, options, true),
+            links: {
+                let mut links = links::Links::new(device, cssm, moving, hierarchy, options, None);
+                // No bounce to multiply (`lightcuts` at one bounce: the final gather is it).
+                if plan.max == 0 {
+                    links.turn_off();
+                }
+                links
+            },
         })
     }
 
@@ -497,16 +505,21 @@ impl Radiosity {
         cssm: &crate::frame::CssmResources,
         frame: &mut FrameEncoder,
     ) -> Result<(), RuntimeError> {
-        let result = (self.converge.plan().max % 2) as usize;
+        let [a, b] = &self.node_radiance;
         let inputs = links::LinkInputs {
             tree: &self.tree,
             texel_direct: &self.texel_direct,
             albedo: &self.albedo,
-            node_radiance: &self.node_radiance,
-            texel_irradiance: &self.texel_irradiance,
+            // The cuts made for the result ([`Self::radiance`]).
+            radiance: &self.node_radiance[(self.converge.plan().max % 2) as usize],
+            // Bounce k writes buffer k % 2 from the other.
+            products: [
+                Some([b, a, &self.texel_irradiance]),
+                Some([a, b, &self.texel_irradiance]),
+            ],
         };
         self.links
-            .before_iteration(device, queue, cssm, &inputs, result, frame)
+            .before_iteration(device, queue, cssm, &inputs, frame)
     }
 
     /// The receivers whose cut the last iteration's products found stale (each bounce's
@@ -542,7 +555,10 @@ impl Radiosity {
             let written = (k % 2) as usize;
             let gather = usize::from(k > 0);
             if let Some(product) = self.links.product(written).filter(|_| k > 0) {
-                links::record_product(frame, product, self.converge.bounce_args());
+                product.record(
+                    frame,
+                    links::Dispatch::Indirect(self.converge.bounce_args()),
+                );
             } else {
                 let mut pass = frame.compute_pass(if k == 0 {
                     "radiosity: direct into leaves"

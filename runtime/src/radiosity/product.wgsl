@@ -8,8 +8,10 @@
 // hold it. Beside the product, the oracle's test on every link's node under the radiance it
 // multiplies: where it would refine one (§4.3: the tone-mapped bound above the threshold) by a
 // margin (its bound above STALE_MARGIN times the threshold's, linear), the receiver's cut went
-// stale, and it is flagged for links.wgsl to re-cut and counted.
-// CPU twin: radiosity/cpu.rs::link_product and stale_receivers.
+// stale, and it is flagged for links.wgsl to re-cut and counted. With LINKS_FAR in
+// `params.gather` the links are `lightcuts`' far field's: the product writes the texel's
+// far-field irradiance alone (radiosity/far_field.rs).
+// CPU twin: radiosity/cpu_links.rs::link_product and cut_is_stale.
 
 @group(0) @binding(0) var<uniform> params: TraversalParams;
 // Per leaf in leaf order: (texel, node index).
@@ -35,6 +37,8 @@
 const LINK_STALE: u32 = 0x80000000u;
 // links.rs::STALE_MARGIN.
 const STALE_MARGIN: f32 = 16.0;
+// links.rs::LINKS_FAR.
+const LINKS_FAR: u32 = 4u;
 
 @compute @workgroup_size(#{WORKGROUP_1D})
 fn main(@builtin(global_invocation_id) id: vec3u) {
@@ -65,5 +69,8 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         atomicAdd(&link_table[2u * params.receiver_count + 1u], 1u);
     }
     texel_irradiance[texel] = vec4f(e, 1.0);
+    if (params.gather & LINKS_FAR) != 0u {
+        return;
+    }
     radiance_out[ln.y] = vec4f(texel_direct[texel].rgb + albedo / 3.14159265358979 * e, 1.0);
 }

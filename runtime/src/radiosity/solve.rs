@@ -4,7 +4,7 @@
 use cssm_formats::{CssmFile, Scene};
 use glam::Affine3A;
 
-use super::{AtlasGi, RadiosityOptions};
+use super::{AtlasGi, FarField, RadiosityOptions, cpu::FarSplit};
 use crate::{
     RuntimeError,
     common::{converge::BouncePlan, converge::Convergence, readback, timestamps::PassTimer},
@@ -107,13 +107,26 @@ pub struct LinkedSolve {
     pub stale_before: (u32, u32),
     /// Wall-clock milliseconds of the solve: recorded, submitted, waited for and read back.
     pub wall_ms: f64,
+    /// `lightcuts`' far field after the solve, where asked.
+    pub far: Option<FarSolve>,
+}
+
+/// The far field of one [`LinkedSolve`] ([`super::FarField`], as `lightcuts` runs it).
+pub struct FarSolve {
+    /// Per texel, its far-field irradiance (texel order, rgb).
+    pub irradiance: Vec<[f32; 4]>,
+    /// How many links its product multiplied (`None`: it walked).
+    pub links: Option<u64>,
+    /// The receivers its pass before found stale, and the re-cuts that overflowed.
+    pub stale_before: (u32, u32),
 }
 
 /// [`atlas_radiosity`] once per entry of `lights` (the scene's spot lights each time: a
 /// light moved between solves), all with one [`AtlasGi`] as a renderer keeps it: the first
 /// solve walks, the second builds the cached links for the first one's result and
 /// multiplies them, the later ones re-cut where the products before found the cuts stale
-/// ([`super::Radiosity::update_links`]). With `links` false every bounce walks.
+/// ([`super::Radiosity::update_links`]). With `links` false every bounce walks. With `far`,
+/// each solve ends with `lightcuts`' far field of that split, its links cached the same way.
 ///
 /// # Errors
 /// As [`atlas_radiosity`], and a light the shadow maps cannot hold.
@@ -125,7 +138,7 @@ pub fn atlas_radiosity_lights(
     file: &CssmFile,
     shadow_resolution: u32,
     iterations: impl Into<BouncePlan>,
-    (options, links): (RadiosityOptions, bool),
+    (options, links, far): (RadiosityOptions, bool, Option<FarSplit>),
     lights: &[Vec<cssm_formats::scene::SpotLight>],
 ) -> Result<Vec<LinkedSolve>, RuntimeError> {
     let ctx = solve_context(device, queue, scene, file, shadow_resolution)?;
@@ -133,6 +146,10 @@ pub fn atlas_radiosity_lights(
     if !links {
         gi.radiosity.walk_always();
     }
+    let mut far = match far {
+        Some(split) => Some(gi.radiosity.far_field(device, ctx.cssm()?, split)),
+        None => None,
+    };
     let mut solves = Vec::with_capacity(lights.len());
     for set in lights {
         let gpu: Result<Vec<_>, _> = set
@@ -148,12 +165,25 @@ pub fn atlas_radiosity_lights(
             .collect();
         ctx.shadows.update(queue, &gpu?);
         let start = std::time::Instant::now();
-        let solved = solve_once(&ctx, &mut gi)?;
+        let solved = solve_with(&ctx, &mut gi, far.as_mut())?;
+        let far = match &far {
+            Some(far) => Some(FarSolve {
+                irradiance: read_vec4s(
+                    &ctx,
+                    &far.irradiance,
+                    16 * u64::from(gi.atlas.texel_count),
+                )?,
+                links: far.link_count(),
+                stale_before: far.stale_links(),
+            }),
+            None => None,
+        };
         solves.push(LinkedSolve {
             solved,
             links: gi.radiosity.link_count(),
             stale_before: gi.radiosity.stale_links(),
             wall_ms: start.elapsed().as_secs_f64() * 1e3,
+            far,
         });
     }
     Ok(solves)
@@ -180,6 +210,26 @@ fn solve_context(
 
 /// Records the shadow maps and `gi`'s passes, submits them and reads the solution back.
 fn solve_once(ctx: &FrameContext, gi: &mut AtlasGi) -> Result<AtlasRadiosity, RuntimeError> {
+    solve_with(ctx, gi, None)
+}
+
+/// `bytes` bytes of `buffer` read back as `vec4f`s.
+fn read_vec4s(
+    ctx: &FrameContext,
+    buffer: &wgpu::Buffer,
+    bytes: u64,
+) -> Result<Vec<[f32; 4]>, RuntimeError> {
+    let raw = readback::read_buffer(&ctx.device, &ctx.queue, buffer, 0, bytes)?;
+    Ok(bytemuck::cast_slice(&raw).to_vec())
+}
+
+/// [`solve_once`], then `far`'s pass as `lightcuts` records it (its links updated before the
+/// iteration).
+fn solve_with(
+    ctx: &FrameContext,
+    gi: &mut AtlasGi,
+    mut far: Option<&mut FarField>,
+) -> Result<AtlasRadiosity, RuntimeError> {
     let (device, queue) = (&ctx.device, &ctx.queue);
     let mut timer = PassTimer::new(device, queue);
     let mut encoder = device.create_command_encoder(&Default::default());
@@ -189,16 +239,20 @@ fn solve_once(ctx: &FrameContext, gi: &mut AtlasGi) -> Result<AtlasRadiosity, Ru
         index: 0,
     };
     ctx.shadows.render(&mut frame, &ctx.scene);
+    let cssm = ctx.cssm()?;
+    if let Some(far) = far.as_deref_mut() {
+        far.update_links(device, queue, cssm, &mut frame);
+    }
     gi.run(ctx, &mut frame);
+    if let Some(far) = far {
+        far.run(&mut frame, cssm);
+    }
     timer.resolve(&mut encoder);
     queue.submit([encoder.finish()]);
     let timings = timer.read(device, queue)?;
     let (atlas, radiosity) = (&gi.atlas, &gi.radiosity);
     let texels = 16 * atlas.texel_count as u64;
-    let read = |buffer: &wgpu::Buffer, bytes: u64| -> Result<Vec<[f32; 4]>, RuntimeError> {
-        let raw = readback::read_buffer(device, queue, buffer, 0, bytes)?;
-        Ok(bytemuck::cast_slice(&raw).to_vec())
-    };
+    let read = |buffer: &wgpu::Buffer, bytes: u64| read_vec4s(ctx, buffer, bytes);
     let node_count = ctx.cssm()?.hierarchy.node_count as u64;
     Ok(AtlasRadiosity {
         direct: read(&atlas.texel_radiance, texels)?,

@@ -175,7 +175,7 @@ impl GatherTally for GatherLane {
 /// `threads` threads over `file` priced by the cost model.
 fn count_warps<R>(
     pass: &'static str,
-    file: &CssmFile,
+    data: u64,
     threads: u64,
     warps: impl Iterator<Item = Vec<Option<R>>>,
     mut walk: impl FnMut(&R, &mut GatherLane),
@@ -209,16 +209,20 @@ fn count_warps<R>(
     }
     stats.visited = Spread::of(visited);
     stats.queried = Spread::of(queried);
-    // The query's data and the hierarchy the walk reads: a node (96 bytes) and its radiance (16).
-    let data = file.runs.gpu_bytes()
-        + super::cost::query_table_bytes(file)
-        + 112 * file.hierarchy.nodes.len() as u64;
     stats.predicted_ms = CostModel::H200.predict_ms(&Launch {
         stats: stats.warps.scaled(threads.div_ceil(WARP_LANES as u64)),
         threads,
         data_bytes: data,
     });
     stats
+}
+
+/// The bytes a walk over `file` reads: the query's data and the hierarchy, a node (96 bytes)
+/// and its radiance (16).
+fn walk_data_bytes(file: &CssmFile) -> u64 {
+    file.runs.gpu_bytes()
+        + super::cost::query_table_bytes(file)
+        + 112 * file.hierarchy.nodes.len() as u64
 }
 
 /// The final gather's stats (`lightcuts/final_gather.wgsl`) at `width` x `height`, gathering at
@@ -273,7 +277,7 @@ pub fn final_gather_stats(
         });
     Ok(count_warps(
         "final gather",
-        file,
+        walk_data_bytes(file),
         u64::from(lw) * u64::from(lh),
         warps,
         |&(r, triangle): &(Receiver, u32), lane| {
@@ -331,7 +335,7 @@ pub fn radiosity_gather_stats(
     };
     count_warps(
         pass,
-        file,
+        walk_data_bytes(file),
         leaves.len() as u64,
         sampled,
         |&texel: &u32, lane| {
@@ -350,4 +354,105 @@ pub fn radiosity_gather_stats(
             );
         },
     )
+}
+
+/// A lane of [`link_product_stats`]: its leaf, the leaf's links and their slot's start.
+type ProductLane = (usize, Vec<crate::radiosity::cpu::Link>, u64);
+
+/// The stats of a product over cached links (`radiosity/product.wgsl`: one thread a leaf
+/// texel in leaf order, summing its links times the node radiance; the radiosity's bounce or,
+/// with `far`, `lightcuts`' far field) over `leaf_count` leaves and `node_count` nodes, `cut`
+/// giving a leaf's links (`radiosity::cpu::receiver_links`): every `step`-th warp of 32
+/// consecutive leaves counted so that about `warps` are, each warp's slots laid out from its
+/// first leaf's as `radiosity::links::slot_capacity` lays them (the buffer's size, for the
+/// cost model, from the sampled slots' mean). No CSSM query: nodes visited are the links, and
+/// the loads are the leaf's table entry (8 bytes), then a link (8), its bound (4) and its
+/// node's radiance (16) per link.
+pub fn link_product_stats(
+    (leaf_count, node_count): (usize, usize),
+    cut: impl Fn(usize) -> Vec<crate::radiosity::cpu::Link>,
+    far: bool,
+    warps: u32,
+) -> PassStats {
+    let all = leaf_count.div_ceil(WARP_LANES);
+    let step = (all / warps.max(1) as usize).max(1);
+    // Per sampled warp, each lane's leaf, cut and slot start.
+    let mut slots = (0u64, 0u64);
+    let sampled: Vec<Vec<Option<ProductLane>>> = (0..all)
+        .step_by(step)
+        .map(|w| {
+            let mut start = 0u64;
+            (w * WARP_LANES..((w + 1) * WARP_LANES).min(leaf_count))
+                .map(|leaf| {
+                    let links = cut(leaf);
+                    let at = start;
+                    let capacity = crate::radiosity::links::slot_capacity(links.len() as u32);
+                    start += u64::from(capacity);
+                    slots = (slots.0 + u64::from(capacity), slots.1 + 1);
+                    Some((leaf, links, at))
+                })
+                .collect()
+        })
+        .collect();
+    let mean_slots = slots.0 as f64 / slots.1.max(1) as f64;
+    let own = |iteration, kind| {
+        (
+            iteration,
+            Site {
+                finding: 3,
+                ..Site::default()
+            },
+            kind,
+        )
+    };
+    count_warps(
+        if far {
+            "lightcuts far-field product"
+        } else {
+            "radiosity product"
+        },
+        // The links and their bounds, the table, the node radiance.
+        (12.0 * mean_slots * leaf_count as f64) as u64
+            + 8 * leaf_count as u64
+            + 16 * node_count as u64,
+        leaf_count as u64,
+        sampled.into_iter(),
+        |(leaf, links, start): &ProductLane, lane| {
+            lane.trace
+                .push(own(0, 22), Buffer::Kernel(7), 8 * *leaf as u64, 8);
+            for (i, link) in links.iter().enumerate() {
+                let (k, at) = (i as u32 + 1, start + i as u64);
+                lane.visited += 1;
+                lane.trace.push(own(k, 23), Buffer::Kernel(8), 8 * at, 8);
+                lane.trace.push(own(k, 24), Buffer::Kernel(9), 4 * at, 4);
+                let node = u64::from(link.node);
+                lane.trace
+                    .push(own(k, 25), Buffer::Kernel(4), 16 * node, 16);
+            }
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One warp of 32 leaves, each with 4 links to node 0 in its own slot (13 links apart):
+    /// the table entries read together (8 sectors), then per link each lane its own link and
+    /// bound (32 sectors each) and all lanes the one node's radiance (1 sector).
+    #[test]
+    fn a_product_warp_reads_its_own_slots_and_shares_the_nodes() {
+        let link = crate::radiosity::cpu::Link {
+            node: 0,
+            transfer: 1.0,
+            bound: 0.0,
+        };
+        let stats = link_product_stats((32, 1), |_| vec![link; 4], false, 1);
+        assert_eq!((stats.threads, stats.sampled), (32, 32));
+        assert_eq!(stats.visited.mean, 4.0);
+        assert_eq!(stats.warps.load_instructions, 1 + 4 * 3);
+        assert_eq!(stats.warps.sectors, 8 + 4 * (32 + 32 + 1));
+        assert_eq!(stats.warps.lane_efficiency(), 1.0);
+        assert_eq!(stats.work, QueryWork::default());
+    }
 }
