@@ -25,11 +25,11 @@ pub struct FarField {
     bind_group: wgpu::BindGroup,
     leaf_count: u32,
     /// Its cached cuts, and what their passes bind: the hierarchy's nodes and leaves, the
-    /// texels' direct light and albedo, the radiosity's result and the product's unused node
-    /// radiance.
+    /// texels' direct light and albedo, the radiosity's result, the product's unused node
+    /// radiance and its convergence word.
     links: links::Links,
     tree: [wgpu::Buffer; 2],
-    link_buffers: [wgpu::Buffer; 4],
+    link_buffers: [wgpu::Buffer; 5],
 }
 
 impl Radiosity {
@@ -107,6 +107,12 @@ impl Radiosity {
                 self.albedo.clone(),
                 self.radiance().clone(),
                 unused,
+                // The product's convergence word: never converged.
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("far-field product: not converged"),
+                    contents: bytemuck::cast_slice(&[0u32; 4]),
+                    usage: wgpu::BufferUsages::STORAGE,
+                }),
             ],
             irradiance,
         }
@@ -125,13 +131,14 @@ impl FarField {
         cssm: &CssmResources,
         frame: &mut FrameEncoder,
     ) {
-        let [direct, albedo, radiance, unused] = &self.link_buffers;
+        let [direct, albedo, radiance, unused, zero] = &self.link_buffers;
         let inputs = links::LinkInputs {
             tree: &self.tree,
             texel_direct: direct,
             albedo,
             radiance,
             products: [Some([radiance, unused, &self.irradiance]), None],
+            converged: zero,
         };
         if self
             .links
@@ -146,7 +153,7 @@ impl FarField {
     /// built, else the walk.
     pub fn run(&mut self, frame: &mut FrameEncoder, cssm: &CssmResources) {
         if let Some(product) = self.links.product(0) {
-            product.record(frame, links::Dispatch::Leaves(self.leaf_count));
+            product.record(frame);
         } else {
             let mut pass = frame.compute_pass("lightcuts: far field");
             pass.set_pipeline(&self.pipeline);

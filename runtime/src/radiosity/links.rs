@@ -123,6 +123,9 @@ pub(super) struct LinkInputs<'a> {
     /// the node radiance it writes the leaves of (the far field's: unused), and the per-texel
     /// irradiance it writes.
     pub products: [Option<[&'a wgpu::Buffer; 3]>; 2],
+    /// The convergence test's state, whose first word the product reads (1: converged, the
+    /// bounce does nothing); the far field's: a zero.
+    pub converged: &'a wgpu::Buffer,
 }
 
 impl Links {
@@ -173,6 +176,7 @@ impl Links {
                 layout::storage(7, false, c),
                 layout::storage(8, true, c),
                 layout::storage(9, true, c),
+                layout::storage(10, true, c),
             ],
         );
         let product_pipeline = layout::compute_pipeline(
@@ -270,6 +274,7 @@ impl Links {
                 name: self.names[1],
                 pipeline: &self.product_pipeline,
                 group: product_groups.get(which)?,
+                leaf_count: self.leaf_count,
             }),
             _ => None,
         }
@@ -425,6 +430,7 @@ impl Links {
                         self.table.as_entire_binding(),
                         links.0.as_entire_binding(),
                         links.1.as_entire_binding(),
+                        inputs.converged.as_entire_binding(),
                     ],
                 )
             })
@@ -483,28 +489,23 @@ pub(super) struct Product<'a> {
     name: &'static str,
     pipeline: &'a wgpu::ComputePipeline,
     group: &'a wgpu::BindGroup,
+    leaf_count: u32,
 }
 
 impl Product<'_> {
-    /// Records the pass into `frame`: as many workgroups as the convergence test's `args`
-    /// leave a bounce, or one thread a receiver leaf (`leaf_count`).
-    pub(super) fn record(&self, frame: &mut FrameEncoder, groups: Dispatch) {
+    /// Records the pass into `frame`: a workgroup a receiver leaf ([`product_groups`]).
+    pub(super) fn record(&self, frame: &mut FrameEncoder) {
         let mut pass = frame.compute_pass(self.name);
         pass.set_pipeline(self.pipeline);
         pass.set_bind_group(0, self.group, &[]);
-        match groups {
-            Dispatch::Indirect(args) => pass.dispatch_workgroups_indirect(args, 0),
-            Dispatch::Leaves(count) => {
-                pass.dispatch_workgroups(shaders::groups_1d(count), 1, 1);
-            }
-        }
+        let (x, y) = product_groups(self.leaf_count);
+        pass.dispatch_workgroups(x, y, 1);
     }
 }
 
-/// How many workgroups a [`Product`] runs.
-pub(super) enum Dispatch<'a> {
-    /// As many as the convergence test's arguments say (a bounce).
-    Indirect(&'a wgpu::Buffer),
-    /// One thread each of this many receiver leaves.
-    Leaves(u32),
+/// The product's workgroups for `leaves` receiver leaves, one each (`product.wgsl`: leaf
+/// `x + y * width`), at most 65,535 across, the limit of a dispatch's dimension.
+pub fn product_groups(leaves: u32) -> (u32, u32) {
+    let x = leaves.clamp(1, 65_535);
+    (x, leaves.div_ceil(x).max(1))
 }

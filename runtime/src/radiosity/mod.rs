@@ -517,6 +517,7 @@ impl Radiosity {
                 Some([b, a, &self.texel_irradiance]),
                 Some([a, b, &self.texel_irradiance]),
             ],
+            converged: self.converge.state(),
         };
         self.links
             .before_iteration(device, queue, cssm, &inputs, frame)
@@ -555,10 +556,7 @@ impl Radiosity {
             let written = (k % 2) as usize;
             let gather = usize::from(k > 0);
             if let Some(product) = self.links.product(written).filter(|_| k > 0) {
-                product.record(
-                    frame,
-                    links::Dispatch::Indirect(self.converge.bounce_args()),
-                );
+                product.record(frame);
             } else {
                 let mut pass = frame.compute_pass(if k == 0 {
                     "radiosity: direct into leaves"

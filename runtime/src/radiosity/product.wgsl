@@ -11,7 +11,13 @@
 // stale, and it is flagged for links.wgsl to re-cut and counted. With LINKS_FAR in
 // `params.gather` the links are `lightcuts`' far field's: the product writes the texel's
 // far-field irradiance alone (radiosity/far_field.rs).
-// CPU twin: radiosity/cpu_links.rs::link_product and cut_is_stale.
+// One workgroup a receiver leaf: its lanes stride over the leaf's links together (a warp's
+// load reads consecutive links: a few sectors, where a thread a leaf read a sector a lane),
+// then sum their parts in workgroup memory; so a launch is WORKGROUP_1D threads a leaf, not
+// one (the H200 holds 270,336 resident: a thread a leaf left them idle). A bounce after the
+// iteration converged does nothing (common/converge.wgsl's `done`).
+// CPU twin: radiosity/cpu_links.rs::link_product and cut_is_stale (summed in link order: the
+// lanes' order rounds otherwise, within float precision).
 
 @group(0) @binding(0) var<uniform> params: TraversalParams;
 // Per leaf in leaf order: (texel, node index).
@@ -32,6 +38,9 @@
 @group(0) @binding(8) var<storage, read> links: array<vec2u>;
 // Per link, its node's bound of unit radiance (0 for a leaf).
 @group(0) @binding(9) var<storage, read> link_bounds: array<f32>;
+// common/converge.wgsl's state: its first word 1 once the iteration converged (the far
+// field's product binds a zero).
+@group(0) @binding(10) var<storage, read> converged: array<u32>;
 
 // links.rs::LINK_STALE.
 const LINK_STALE: u32 = 0x80000000u;
@@ -40,10 +49,16 @@ const STALE_MARGIN: f32 = 16.0;
 // links.rs::LINKS_FAR.
 const LINKS_FAR: u32 = 4u;
 
+const LANES: u32 = #{WORKGROUP_1D}u;
+
+// Each lane's part: rgb irradiance, and 1 in w where one of its links went stale.
+var<workgroup> parts: array<vec4f, #{WORKGROUP_1D}>;
+
 @compute @workgroup_size(#{WORKGROUP_1D})
-fn main(@builtin(global_invocation_id) id: vec3u) {
-    let leaf = id.x;
-    if leaf >= params.receiver_count {
+fn main(@builtin(workgroup_id) group: vec3u, @builtin(num_workgroups) groups: vec3u, @builtin(local_invocation_index) lane: u32) {
+    // Uniform across the workgroup, so its barriers stay in uniform control flow.
+    let leaf = group.x + group.y * groups.x;
+    if leaf >= params.receiver_count || converged[0] != 0u {
         return;
     }
     let ln = leaves[leaf];
@@ -58,19 +73,32 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     let count = word & ~LINK_STALE;
     var e = vec3f(0.0);
     var stale = false;
-    for (var i = first; i < first + count; i++) {
+    for (var i = first + lane; i < first + count; i += LANES) {
         let link = links[i];
         let l = radiance_in[link.x].rgb;
         e += l * bitcast<f32>(link.y);
         stale = stale || (rho > 0.0 && max(l.x, max(l.y, l.z)) * link_bounds[i] > limit);
     }
-    if stale && (word & LINK_STALE) == 0u {
+    parts[lane] = vec4f(e, select(0.0, 1.0, stale));
+    workgroupBarrier();
+    for (var half = LANES / 2u; half > 0u; half /= 2u) {
+        if lane < half {
+            let other = parts[lane + half];
+            parts[lane] = vec4f(parts[lane].rgb + other.rgb, max(parts[lane].w, other.w));
+        }
+        workgroupBarrier();
+    }
+    if lane != 0u {
+        return;
+    }
+    let sum = parts[0];
+    if sum.w > 0.0 && (word & LINK_STALE) == 0u {
         atomicStore(&link_table[2u * leaf + 1u], word | LINK_STALE);
         atomicAdd(&link_table[2u * params.receiver_count + 1u], 1u);
     }
-    texel_irradiance[texel] = vec4f(e, 1.0);
+    texel_irradiance[texel] = vec4f(sum.rgb, 1.0);
     if (params.gather & LINKS_FAR) != 0u {
         return;
     }
-    radiance_out[ln.y] = vec4f(texel_direct[texel].rgb + albedo / 3.14159265358979 * e, 1.0);
+    radiance_out[ln.y] = vec4f(texel_direct[texel].rgb + albedo / 3.14159265358979 * sum.rgb, 1.0);
 }

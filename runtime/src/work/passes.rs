@@ -356,45 +356,54 @@ pub fn radiosity_gather_stats(
     )
 }
 
-/// A lane of [`link_product_stats`]: its leaf, the leaf's links and their slot's start.
-type ProductLane = (usize, Vec<crate::radiosity::cpu::Link>, u64);
+/// A lane of [`link_product_stats`]: its lane in the workgroup, its receiver's table entry
+/// (leaf), links and slot start.
+type ProductLane<'a> = (usize, usize, &'a [crate::radiosity::cpu::Link], u64);
 
-/// The stats of a product over cached links (`radiosity/product.wgsl`: one thread a leaf
-/// texel in leaf order, summing its links times the node radiance; the radiosity's bounce or,
-/// with `far`, `lightcuts`' far field) over `leaf_count` leaves and `node_count` nodes, `cut`
-/// giving a leaf's links (`radiosity::cpu::receiver_links`): every `step`-th warp of 32
-/// consecutive leaves counted so that about `warps` are, each warp's slots laid out from its
-/// first leaf's as `radiosity::links::slot_capacity` lays them (the buffer's size, for the
-/// cost model, from the sampled slots' mean). No CSSM query: nodes visited are the links, and
-/// the loads are the leaf's table entry (8 bytes), then a link (8), its bound (4) and its
-/// node's radiance (16) per link.
+/// The stats of a product over cached links (`radiosity/product.wgsl`: a workgroup of
+/// [`crate::shaders::WORKGROUP_1D`] lanes a leaf texel, in leaf order, its lanes striding over
+/// the leaf's links together; the radiosity's bounce or, with `far`, `lightcuts`' far field)
+/// over `leaf_count` leaves and `node_count` nodes, `cut` giving a leaf's links
+/// (`radiosity::cpu::receiver_links`): runs of 32 consecutive leaves, every `step`-th, counted
+/// so that about `warps` runs are, each leaf's slot laid out from its run's first as
+/// `radiosity::links::slot_capacity` lays them (the buffer's size, for the cost model, from
+/// the sampled slots' mean). No CSSM query: the nodes visited a receiver are its links; a
+/// warp's loads are the leaf's table entry (8 bytes, the same for every lane), then per
+/// stride a link (8), its bound (4) and its node's radiance (16) a lane. The workgroup's sum
+/// in shared memory is not counted.
 pub fn link_product_stats(
     (leaf_count, node_count): (usize, usize),
     cut: impl Fn(usize) -> Vec<crate::radiosity::cpu::Link>,
     far: bool,
     warps: u32,
 ) -> PassStats {
-    let all = leaf_count.div_ceil(WARP_LANES);
-    let step = (all / warps.max(1) as usize).max(1);
-    // Per sampled warp, each lane's leaf, cut and slot start.
-    let mut slots = (0u64, 0u64);
-    let sampled: Vec<Vec<Option<ProductLane>>> = (0..all)
-        .step_by(step)
-        .map(|w| {
-            let mut start = 0u64;
-            (w * WARP_LANES..((w + 1) * WARP_LANES).min(leaf_count))
-                .map(|leaf| {
-                    let links = cut(leaf);
-                    let at = start;
-                    let capacity = crate::radiosity::links::slot_capacity(links.len() as u32);
-                    start += u64::from(capacity);
-                    slots = (slots.0 + u64::from(capacity), slots.1 + 1);
-                    Some((leaf, links, at))
-                })
-                .collect()
+    let group = crate::shaders::WORKGROUP_1D as usize;
+    let runs = leaf_count.div_ceil(WARP_LANES);
+    let step = (runs / warps.max(1) as usize).max(1);
+    // The sampled leaves: (leaf, links, slot start).
+    let mut sampled = Vec::new();
+    for run in (0..runs).step_by(step) {
+        let mut start = 0u64;
+        for leaf in run * WARP_LANES..((run + 1) * WARP_LANES).min(leaf_count) {
+            let links = cut(leaf);
+            let capacity = crate::radiosity::links::slot_capacity(links.len() as u32);
+            sampled.push((leaf, links, start));
+            start += u64::from(capacity);
+        }
+    }
+    let slots: u64 = sampled
+        .iter()
+        .map(|(_, l, _)| u64::from(crate::radiosity::links::slot_capacity(l.len() as u32)))
+        .sum();
+    let mean_slots = slots as f64 / sampled.len().max(1) as f64;
+    // Each leaf's workgroup in warps of 32 of its lanes.
+    let lanes = sampled.iter().flat_map(|(leaf, links, start)| {
+        (0..group).step_by(WARP_LANES).map(move |first| {
+            (first..first + WARP_LANES)
+                .map(|lane| Some((lane, *leaf, &links[..], *start)))
+                .collect::<Vec<_>>()
         })
-        .collect();
-    let mean_slots = slots.0 as f64 / slots.1.max(1) as f64;
+    });
     let own = |iteration, kind| {
         (
             iteration,
@@ -405,7 +414,7 @@ pub fn link_product_stats(
             kind,
         )
     };
-    count_warps(
+    let mut stats = count_warps(
         if far {
             "lightcuts far-field product"
         } else {
@@ -415,44 +424,53 @@ pub fn link_product_stats(
         (12.0 * mean_slots * leaf_count as f64) as u64
             + 8 * leaf_count as u64
             + 16 * node_count as u64,
-        leaf_count as u64,
-        sampled.into_iter(),
-        |(leaf, links, start): &ProductLane, lane| {
-            lane.trace
-                .push(own(0, 22), Buffer::Kernel(7), 8 * *leaf as u64, 8);
-            for (i, link) in links.iter().enumerate() {
-                let (k, at) = (i as u32 + 1, start + i as u64);
-                lane.visited += 1;
-                lane.trace.push(own(k, 23), Buffer::Kernel(8), 8 * at, 8);
-                lane.trace.push(own(k, 24), Buffer::Kernel(9), 4 * at, 4);
-                let node = u64::from(link.node);
-                lane.trace
+        (group * leaf_count) as u64,
+        lanes,
+        |&(lane, leaf, links, start): &ProductLane, trace| {
+            trace
+                .trace
+                .push(own(0, 22), Buffer::Kernel(7), 8 * leaf as u64, 8);
+            for (k, i) in (lane..links.len()).step_by(group).enumerate() {
+                let (k, at) = (k as u32 + 1, start + i as u64);
+                trace.trace.push(own(k, 23), Buffer::Kernel(8), 8 * at, 8);
+                trace.trace.push(own(k, 24), Buffer::Kernel(9), 4 * at, 4);
+                let node = u64::from(links[i].node);
+                trace
+                    .trace
                     .push(own(k, 25), Buffer::Kernel(4), 16 * node, 16);
             }
         },
-    )
+    );
+    // Per receiver, not per lane.
+    stats.sampled = sampled.len();
+    stats.visited = Spread::of(sampled.iter().map(|(_, l, _)| l.len() as u32).collect());
+    stats
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// One warp of 32 leaves, each with 4 links to node 0 in its own slot (13 links apart):
-    /// the table entries read together (8 sectors), then per link each lane its own link and
-    /// bound (32 sectors each) and all lanes the one node's radiance (1 sector).
+    /// 32 leaves, each with 100 links to node 0: each leaf's workgroup is two warps, whose
+    /// lanes read the table entry together (1 sector), then per stride 32 consecutive links (8
+    /// sectors), bounds (4) and the one node's radiance (1); the lanes past the links idle.
     #[test]
-    fn a_product_warp_reads_its_own_slots_and_shares_the_nodes() {
+    fn a_product_warp_strides_over_one_receivers_links() {
         let link = crate::radiosity::cpu::Link {
             node: 0,
             transfer: 1.0,
             bound: 0.0,
         };
-        let stats = link_product_stats((32, 1), |_| vec![link; 4], false, 1);
-        assert_eq!((stats.threads, stats.sampled), (32, 32));
-        assert_eq!(stats.visited.mean, 4.0);
-        assert_eq!(stats.warps.load_instructions, 1 + 4 * 3);
-        assert_eq!(stats.warps.sectors, 8 + 4 * (32 + 32 + 1));
-        assert_eq!(stats.warps.lane_efficiency(), 1.0);
+        let stats = link_product_stats((32, 1), |_| vec![link; 100], false, 1);
+        let group = crate::shaders::WORKGROUP_1D as u64;
+        assert_eq!((stats.threads, stats.sampled), (32 * group, 32));
+        assert_eq!(stats.visited.mean, 100.0);
+        // 100 links over 64 lanes: two strides, the second with 36 lanes (the first warp full,
+        // the second's 4 lanes); each warp: the entry, then its strides' three loads.
+        let warps = 32 * 2;
+        assert_eq!(stats.warps.warps, warps);
+        assert_eq!(stats.warps.load_instructions, 32 * (1 + 2 * 3 + 1 + 2 * 3));
+        assert!(stats.warps.sectors_per_load() < 5.0, "{:?}", stats.warps);
         assert_eq!(stats.work, QueryWork::default());
     }
 }
