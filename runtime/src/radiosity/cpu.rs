@@ -214,6 +214,47 @@ impl FarSplit {
         near_radius: 0.0,
         emitters_apart: false,
     };
+
+    /// Where the walk of receiver `(p, n)` (largest albedo channel `rho`) goes from node `s`
+    /// of `scene`'s hierarchy, whose radiance the oracle reads as `l`, when it does not gather
+    /// from it: the next node (its first child: refined by the oracle, §4.3, or reaching into
+    /// the near field; past it: a skipped emitter leaf), or `None` to gather from it. The
+    /// gather's, the far field's and the links' ([`gather_texel_split`],
+    /// [`super::cpu_links::receiver_links`]).
+    pub(super) fn step(
+        self,
+        scene: &TwinScene,
+        s: usize,
+        (p, n, rho): (Vec3, Vec3, f32),
+        l: Vec3,
+        traversal: &Traversal,
+    ) -> Option<usize> {
+        let node = &scene.hierarchy.nodes[s];
+        let far_only = self.near_radius > 0.0;
+        // The emitters' light, left to the pixels: refine down to it and skip it.
+        if far_only && self.emitters_apart && scene.spreads[s].flags & NODE_EMITTER != 0 {
+            return Some(if node.count > 1 {
+                s + 1
+            } else {
+                node.skip as usize
+            });
+        }
+        let bound = irradiance_bound(p, n, node, l) * (rho / PI);
+        let near = (Vec3::from(node.center) - p).length() - node.radius < self.near_radius;
+        (node.count > 1
+            && (tone_mapped(bound, traversal.exposure) > traversal.threshold || (far_only && near)))
+            .then_some(s + 1)
+    }
+
+    /// The share of a leaf at `y` of its light the far field takes at `p` (1 without a
+    /// split): `1 - near_split_weight`.
+    pub(super) fn leaf_share(self, y: Vec3, p: Vec3) -> f32 {
+        if self.near_radius > 0.0 {
+            1.0 - near_split_weight(y.distance(p), self.near_radius)
+        } else {
+            1.0
+        }
+    }
 }
 
 /// `gather.wgsl::gather_texel` with `params.gather` 2 (`split.near_radius` above 0): the far
@@ -234,8 +275,6 @@ pub fn gather_texel_split(
     rho: f32,
     tally: &mut impl crate::work::GatherTally,
 ) -> (Vec3, u32) {
-    let near_radius = split.near_radius;
-    let far_only = near_radius > 0.0;
     let texels = &scene.texels;
     let mut e = Vec3::ZERO;
     let mut cut = 0;
@@ -246,23 +285,8 @@ pub fn gather_texel_split(
         iteration += 1;
         let node = &nodes[s];
         let l = radiance[s];
-        // The emitters' light, left to the pixels: refine down to it and skip it.
-        if far_only && split.emitters_apart && scene.spreads[s].flags & NODE_EMITTER != 0 {
-            s = if node.count > 1 {
-                s + 1
-            } else {
-                node.skip as usize
-            };
-            continue;
-        }
-        if node.count > 1
-            && (tone_mapped(
-                irradiance_bound(p, n, node, l) * (rho / PI),
-                traversal.exposure,
-            ) > traversal.threshold
-                || (far_only && (Vec3::from(node.center) - p).length() - node.radius < near_radius))
-        {
-            s += 1;
+        if let Some(next) = split.step(scene, s, (p, n, rho), l, traversal) {
+            s = next;
             continue;
         }
         cut += 1;
@@ -273,12 +297,7 @@ pub fn gather_texel_split(
             // A single texel's footprint is integrated in its near field.
             let (unoccluded, _) = if node.count == 1 {
                 let (e, w) = irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, l);
-                let far = if far_only {
-                    1.0 - near_split_weight(y.pos().distance(p), near_radius)
-                } else {
-                    1.0
-                };
-                (e * far, w)
+                (e * split.leaf_share(y.pos(), p), w)
             } else {
                 irradiance_from_cluster(p, n, y.pos(), node, spread, l)
             };

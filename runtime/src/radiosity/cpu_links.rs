@@ -9,10 +9,9 @@ use super::cpu::{
     CpuRadiosity, FarSplit, Traversal, TwinScene, iterate, leaf_nodes, texel_visibility,
 };
 use super::transfer::{
-    irradiance_bound, irradiance_from_cluster, irradiance_from_texel, near_split_weight,
-    tone_mapped, visibility_sender,
+    irradiance_bound, irradiance_from_cluster, irradiance_from_texel, visibility_sender,
 };
-use crate::{common::converge::BouncePlan, gpu_types::NODE_EMITTER};
+use crate::common::converge::BouncePlan;
 
 const PI: f32 = std::f32::consts::PI;
 
@@ -71,38 +70,20 @@ pub fn receiver_links(
     rho: f32,
 ) -> Vec<Link> {
     let (nodes, texels) = (&scene.hierarchy.nodes, &scene.texels);
-    let far_only = split.near_radius > 0.0;
     let mut links = Vec::new();
     let mut s = 0usize;
     while s < nodes.len() {
         let node = &nodes[s];
-        if far_only && split.emitters_apart && scene.spreads[s].flags & NODE_EMITTER != 0 {
-            s = if node.count > 1 {
-                s + 1
-            } else {
-                node.skip as usize
-            };
-            continue;
-        }
-        let bound = irradiance_bound(p, n, node, cut_radiance[s]) * (rho / PI);
-        if node.count > 1
-            && (tone_mapped(bound, traversal.exposure) > traversal.threshold
-                || (far_only
-                    && (Vec3::from(node.center) - p).length() - node.radius < split.near_radius))
-        {
-            s += 1;
+        if let Some(next) = split.step(scene, s, (p, n, rho), cut_radiance[s], traversal) {
+            s = next;
             continue;
         }
         let sender = node.representative;
         if sender != receiver {
             let y = &texels[sender as usize];
             let unoccluded = if node.count == 1 {
-                let far = if far_only {
-                    1.0 - near_split_weight(y.pos().distance(p), split.near_radius)
-                } else {
-                    1.0
-                };
-                irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, Vec3::ONE).0 * far
+                let share = split.leaf_share(y.pos(), p);
+                irradiance_from_texel(p, n, y.pos(), y.nrm(), node.area, Vec3::ONE).0 * share
             } else {
                 irradiance_from_cluster(p, n, y.pos(), node, &scene.spreads[s], Vec3::ONE).0
             }
