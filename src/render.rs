@@ -400,8 +400,9 @@ fn print_product_stats(
     let sizes = (leaves.len(), file.hierarchy.nodes.len());
     let stats = runtime::work::passes::link_product_stats(sizes, cut, far, STATS_WARPS);
     println!(
-        "{} (links=cached: what a moved light runs instead, its cuts made for that light), \
-         counted by its CPU twin:\n{stats}",
+        "{} (links=cached: what a moved light runs instead; its cuts made here for the \
+         radiance the walk above read, on the GPU for the solve before), counted by its CPU \
+         twin:\n{stats}",
         stats.pass
     );
 }
