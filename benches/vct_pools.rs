@@ -8,7 +8,7 @@
 
 use cssm::runtime::{
     self,
-    vct::{SparseVoxels, VctOptions, trace::TraceParams},
+    vct::{SparseVoxels, VctOptions},
 };
 
 #[path = "common/mod.rs"]
@@ -39,11 +39,7 @@ fn main() {
     let defaults = VctOptions::default();
     for &resolution in &resolutions {
         // The pools as the method sizes them at its defaults (the bounces size nothing).
-        let cones = TraceParams::new(
-            defaults.cones,
-            defaults.aperture.to_radians(),
-            defaults.offset,
-        );
+        let cones = defaults.bounce_params();
         let voxels = SparseVoxels::new(
             renderer.context(),
             bench.scene.bounds(),

@@ -362,8 +362,9 @@ fn cones(anisotropic: bool, correct: bool) {
 }
 
 /// The per-pixel pass on the glossy Cornell box (diffuse cones and the mirror cone of the
-/// glossy floor), and its ambient occlusion view, against `cpu::shade` on the G-buffer read
-/// back.
+/// glossy floor) at every pixel and, the spiral turned per pixel, at every other pixel per side,
+/// against `cpu::trace_planes` on the G-buffer read back; and its ambient occlusion view against
+/// `cpu::occlusion_view`.
 #[test]
 fn cone_tracing_matches_cpu_twin() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-glossy");
@@ -371,9 +372,11 @@ fn cone_tracing_matches_cpu_twin() {
     let size = (24, 18);
     let (renderer, voxels) = voxelised(&scene, size, true, false, 1);
     let trace = TraceParams::new(12, 10f32.to_radians(), 2.0);
-    for occlusion_radius in [0.0, 8.0] {
+    for (occlusion_radius, factor, turn) in [(0.0, 1, 0), (0.0, 2, 1), (8.0, 1, 0)] {
         let params = TraceParams {
             occlusion_radius,
+            factor,
+            turn,
             ..trace
         };
         trace_pixels(&scene, &renderer, &voxels, size, params);
@@ -389,7 +392,15 @@ fn trace_pixels(
 ) {
     let gpu = gpu();
     let ctx = renderer.context();
-    let pass = ConeTrace::new(ctx, &voxels.svo, trace);
+    let low = cssm::runtime::common::filters::low_size(size, trace.factor);
+    let low_pixels = u64::from(low.0 * low.1);
+    let planes = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("vct planes"),
+        size: 2 * 16 * low_pixels,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let pass = ConeTrace::new(ctx, &voxels.svo, trace, &planes);
     let mut timer = PassTimer::new(&gpu.device, &gpu.queue);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     pass.run(
@@ -409,7 +420,12 @@ fn trace_pixels(
             .map(|&v| Vec4::from(v))
             .collect()
     };
-    let got = vec4s(read_buffer(&gpu.device, &gpu.queue, &pass.indirect, 0, 16 * pixels).unwrap());
+    let occlusion_view = trace.occlusion_radius > 0.0;
+    let got = if occlusion_view {
+        vec4s(read_buffer(&gpu.device, &gpu.queue, &pass.occlusion, 0, 16 * pixels).unwrap())
+    } else {
+        vec4s(read_buffer(&gpu.device, &gpu.queue, &planes, 0, 2 * 16 * low_pixels).unwrap())
+    };
     let texture = |t| vec4s(read_texture(&gpu.device, &gpu.queue, t, 16).unwrap());
     let (position, normal, albedo) = (
         texture(&ctx.gbuffer.position),
@@ -429,11 +445,15 @@ fn trace_pixels(
     )
     .to_vec();
     let pyramid = gpu_pyramid(voxels);
-    let mut want = Vec::new();
+    let mut want = vec![Vec3::ZERO; got.len()];
     let mut glossy = 0;
-    for i in 0..pixels as usize {
+    for (l, (lx, ly)) in (0..low.1)
+        .flat_map(|y| (0..low.0).map(move |x| (x, y)))
+        .enumerate()
+    {
+        let pixel = cssm::runtime::common::filters::representative((lx, ly), trace.factor, size);
+        let i = (pixel.1 * size.0 + pixel.0) as usize;
         if position[i].w <= 0.0 {
-            want.push(Vec3::ZERO);
             continue;
         }
         let m = materials[normal[i].w as usize];
@@ -446,13 +466,23 @@ fn trace_pixels(
             ns: m.ns,
             eye: ctx.camera.eye,
         };
-        want.push(cpu::shade(&pyramid, &voxels.svo.params, &trace, &receiver));
+        if occlusion_view {
+            want[l] = Vec3::splat(cpu::occlusion_view(
+                &pyramid,
+                &voxels.svo.params,
+                &trace,
+                &receiver,
+            ));
+        } else {
+            let [d, g] = cpu::trace_planes(&pyramid, &voxels.svo.params, &trace, &receiver, pixel);
+            want[l] = d;
+            want[low_pixels as usize + l] = g;
+        }
     }
     assert!(glossy > 0, "the glossy floor is in view");
-    let view = if trace.occlusion_radius > 0.0 {
-        "ambient occlusion"
-    } else {
-        "indirect"
+    let view = match (occlusion_view, trace.factor, trace.turn) {
+        (true, ..) => "ambient occlusion".to_string(),
+        (false, f, t) => format!("indirect, 1/{f}, turned {t}"),
     };
     let peak = want.iter().map(|w| w.max_element()).fold(0.0f32, f32::max);
     let least = want
@@ -472,7 +502,7 @@ fn trace_pixels(
     eprintln!(
         "cone tracing {}x{} ({view}): {glossy} glossy pixels, values {least:.3} to {peak:.3}, \
          worst off by {worst:.2e}",
-        size.0, size.1
+        low.0, low.1
     );
 }
 

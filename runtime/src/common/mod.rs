@@ -12,6 +12,7 @@ pub mod gbuffer;
 pub mod history;
 pub mod layout;
 pub mod pyramid;
+pub mod random;
 pub mod readback;
 pub mod resolve;
 pub mod shadow_map;

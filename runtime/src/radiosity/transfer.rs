@@ -407,13 +407,8 @@ pub fn irradiance_from_texel(
     }
 }
 
-/// PCG hash (Jarzynski and Olano 2020), the jitter's random numbers on both sides.
-/// `transfer.wgsl`: `pcg_hash`.
-pub fn pcg_hash(x: u32) -> u32 {
-    let state = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
-    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
-    (word >> 22) ^ word
-}
+/// The jitter's random numbers on both sides (`transfer.wgsl`: `pcg_hash`).
+pub use crate::common::random::pcg_hash;
 
 /// The jitter's random word for (`seed`, `receiver`, `node_index`): one draw per frame,
 /// receiver and node. `transfer.wgsl`: `jitter_hash`.

@@ -15,17 +15,7 @@ const PI: f32 = std::f32::consts::PI;
 /// Most steps of a visibility march (`gather.wgsl`: `MAX_MARCH`).
 const MAX_MARCH: u32 = 256;
 
-/// PCG hash (`gather.wgsl`: `hash`).
-pub fn hash(v: u32) -> u32 {
-    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
-    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
-    (word >> 22) ^ word
-}
-
-/// A hash as a number in [0, 1).
-fn unit(v: u32) -> f32 {
-    (v >> 8) as f32 / 16_777_216.0
-}
+pub use crate::common::random::{hash_unit as unit, pcg_hash as hash};
 
 /// `sender.wgsl`: the light the G-buffer pixel (`position`, `normal` turned towards the eye,
 /// `albedo`, `emission` as the G-buffer holds them) sends to the others, its diffuse direct
@@ -630,11 +620,5 @@ mod tests {
             &[0, shared, 0, 0]
         );
         assert_eq!(&coarse[0..4], &[0; 4]);
-    }
-
-    #[test]
-    fn the_hash_is_pcg() {
-        assert_eq!(hash(0), 129_708_002);
-        assert!(unit(u32::MAX) < 1.0);
     }
 }

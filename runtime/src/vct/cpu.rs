@@ -357,12 +357,12 @@ pub fn basis(n: Vec3) -> [Vec3; 3] {
 }
 
 /// Cone `k` of `cones` in the normal's frame (z the normal): equal areas of the unit disc
-/// projected up onto the hemisphere, cosine-distributed, along a Fibonacci spiral
-/// (`trace.wgsl::cone_direction`).
-pub fn cone_direction(k: u32, cones: u32) -> Vec3 {
+/// projected up onto the hemisphere, cosine-distributed, along a Fibonacci spiral turned `turn`
+/// of a full turn about the normal (`svo.wgsl::svo_cone_direction`).
+pub fn cone_direction(k: u32, cones: u32, turn: f32) -> Vec3 {
     let u = (k as f32 + 0.5) / cones as f32;
     let r = u.sqrt();
-    let phi = GOLDEN_ANGLE * k as f32;
+    let phi = GOLDEN_ANGLE * k as f32 + std::f32::consts::TAU * turn;
     Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u).sqrt())
 }
 
@@ -374,18 +374,19 @@ pub fn glossy_tan_half(ns: f32, half_angle: f32) -> f32 {
 }
 
 /// The mean radiance of `trace.cones` cosine-distributed diffuse cones around the unit `n`
-/// from `origin` (leaf voxels): the irradiance over pi (`svo.wgsl::svo_diffuse`).
+/// from `origin` (leaf voxels), their spiral turned `turn` of a full turn: the irradiance over
+/// pi (`svo.wgsl::svo_diffuse`).
 pub fn diffuse(
     pyramid: &Pyramid,
     origin: Vec3,
     n: Vec3,
-    trace: &TraceParams,
+    (trace, turn): (&TraceParams, f32),
     correct_opacity: bool,
 ) -> Vec3 {
     let [t, u, _] = basis(n);
     let mut sum = Vec3::ZERO;
     for k in 0..trace.cones {
-        let d = cone_direction(k, trace.cones);
+        let d = cone_direction(k, trace.cones, turn);
         let dir = t * d.x + u * d.y + n * d.z;
         let cone = trace_cone(
             pyramid,
@@ -414,7 +415,7 @@ pub fn occlusion(
     let reach = (trace.tan_half, trace.start, trace.start + radius);
     let mut sum = 0.0;
     for k in 0..trace.cones {
-        let d = cone_direction(k, trace.cones);
+        let d = cone_direction(k, trace.cones, 0.0);
         let dir = t * d.x + u * d.y + n * d.z;
         sum += trace_cone_to(pyramid, origin, dir, reach, correct_opacity).w;
     }
@@ -467,7 +468,7 @@ pub fn bounce(
             let albedo = Vec3::new(s[0] as f32, s[1] as f32, s[2] as f32) / (255.0 * count);
             let n = normal.normalize();
             let origin = Vec3::from(cell.map(|c| c as f32)) + 0.5 + n * trace.offset;
-            let gathered = diffuse(pyramid, origin, n, trace, correct_opacity);
+            let gathered = diffuse(pyramid, origin, n, (trace, 0.0), correct_opacity);
             (*cell, light + albedo * gathered)
         })
         .collect()
@@ -490,30 +491,55 @@ pub struct Receiver {
     pub eye: Vec3,
 }
 
-/// The indirect radiance towards the eye at `r` (`trace.wgsl::main`): the mean of the diffuse
-/// cones times the albedo, and for a glossy material the mirror cone times Ks and the
-/// normalised lobe's integral; in the ambient occlusion view one minus the [`occlusion`].
-pub fn shade(pyramid: &Pyramid, svo: &SvoParams, trace: &TraceParams, r: &Receiver) -> Vec3 {
+/// The diffuse cones' turn at full-resolution pixel `pixel` (`trace.wgsl::pixel_turn`): a hash
+/// of the pixel in [0, 1) when `trace.turn` is set, else 0.
+pub fn pixel_turn(trace: &TraceParams, pixel: (u32, u32)) -> f32 {
+    if trace.turn == 0 {
+        return 0.0;
+    }
+    use crate::common::random::{hash_unit, pcg_hash};
+    hash_unit(pcg_hash(pixel.0.wrapping_add(pixel.1.wrapping_mul(65536))))
+}
+
+/// The two planes `trace.wgsl::main` writes for receiver `r` at full-resolution pixel `pixel`:
+/// the diffuse irradiance (pi times the mean of the diffuse cones, turned by [`pixel_turn`])
+/// and, for a glossy material, the mirror cone times the normalised lobe's integral, without
+/// Ks. `common/resolve.wgsl` reflects them: albedo / pi times the first plus Ks times the
+/// second.
+pub fn trace_planes(
+    pyramid: &Pyramid,
+    svo: &SvoParams,
+    trace: &TraceParams,
+    r: &Receiver,
+    pixel: (u32, u32),
+) -> [Vec3; 2] {
     let n = r.normal;
     let corrected = svo.correct_opacity != 0;
     let origin = (r.position - Vec3::from(svo.origin)) * svo.inv_voxel + n * trace.offset;
-    if trace.occlusion_radius > 0.0 {
-        let radius = trace.occlusion_radius;
-        return Vec3::splat(1.0 - occlusion(pyramid, origin, n, trace, radius, corrected));
-    }
-    let mut radiance = r.albedo * diffuse(pyramid, origin, n, trace, corrected);
+    let turn = pixel_turn(trace, pixel);
+    let irradiance =
+        std::f32::consts::PI * diffuse(pyramid, origin, n, (trace, turn), corrected);
+    let mut glossy = Vec3::ZERO;
     if r.ks.cmpgt(Vec3::ZERO).any() {
         let v = (r.eye - r.position).normalize();
         let mirror = -v - 2.0 * (-v).dot(n) * n;
         let cos_r = n.dot(mirror);
         if cos_r > 0.0 {
             let tan_half = glossy_tan_half(r.ns, trace.half_angle);
-            let glossy = trace_cone(pyramid, origin, mirror, tan_half, trace.start, corrected);
-            let glossy = glossy.truncate();
-            radiance += r.ks * glossy * ((r.ns + 2.0) / (r.ns + 1.0) * cos_r);
+            let lobe = trace_cone(pyramid, origin, mirror, tan_half, trace.start, corrected);
+            glossy = lobe.truncate() * ((r.ns + 2.0) / (r.ns + 1.0) * cos_r);
         }
     }
-    radiance
+    [irradiance, glossy]
+}
+
+/// The ambient occlusion view's grey at `r` (`trace.wgsl::main` with `occlusion_radius` above
+/// 0): one minus the [`occlusion`] of the diffuse cones within that reach.
+pub fn occlusion_view(pyramid: &Pyramid, svo: &SvoParams, trace: &TraceParams, r: &Receiver) -> f32 {
+    let n = r.normal;
+    let corrected = svo.correct_opacity != 0;
+    let origin = (r.position - Vec3::from(svo.origin)) * svo.inv_voxel + n * trace.offset;
+    1.0 - occlusion(pyramid, origin, n, trace, trace.occlusion_radius, corrected)
 }
 
 #[cfg(test)]
@@ -638,7 +664,7 @@ mod tests {
     #[test]
     fn cones_are_cosine_distributed_over_the_hemisphere() {
         let cones = 64;
-        let dirs: Vec<Vec3> = (0..cones).map(|k| cone_direction(k, cones)).collect();
+        let dirs: Vec<Vec3> = (0..cones).map(|k| cone_direction(k, cones, 0.0)).collect();
         assert!(
             dirs.iter()
                 .all(|d| (d.length() - 1.0).abs() < 1e-5 && d.z > 0.0)

@@ -267,7 +267,7 @@ fn bounce(
         let packed = node_cells[node];
         let cell = vec3f(vec3u(packed & 1023u, (packed >> 10u) & 1023u, packed >> 20u));
         let origin = cell + 0.5 + n * params.offset;
-        radiance += albedo * svo_diffuse(origin, n, params.cones, params.tan_half, params.start);
+        radiance += albedo * svo_diffuse(origin, n, params.cones, params.tan_half, params.start, 0.0);
     }
     for (var face = 0u; face < svo.faces; face++) {
         values[node * svo.faces + face] = vec4f(radiance, 1.0);

@@ -205,11 +205,12 @@ fn svo_basis(n: vec3f) -> mat3x3f {
 }
 
 // Cone `k` of `cones` in the normal's frame: equal areas of the unit disc projected up onto the
-// hemisphere (cosine-distributed), along a Fibonacci spiral (`cpu::cone_direction`).
-fn svo_cone_direction(k: u32, cones: u32) -> vec3f {
+// hemisphere (cosine-distributed), along a Fibonacci spiral turned `turn` of a full turn about
+// the normal (`cpu::cone_direction`).
+fn svo_cone_direction(k: u32, cones: u32, turn: f32) -> vec3f {
     let u = (f32(k) + 0.5) / f32(cones);
     let r = sqrt(u);
-    let phi = SVO_GOLDEN_ANGLE * f32(k);
+    let phi = SVO_GOLDEN_ANGLE * f32(k) + 6.28318531 * turn;
     return vec3f(r * cos(phi), r * sin(phi), sqrt(1.0 - u));
 }
 
@@ -219,19 +220,20 @@ fn svo_occlusion(origin: vec3f, n: vec3f, cones: u32, tan_half: f32, start: f32,
     let frame = svo_basis(n);
     var sum = 0.0;
     for (var k = 0u; k < cones; k++) {
-        let dir = frame * svo_cone_direction(k, cones);
+        let dir = frame * svo_cone_direction(k, cones, 0.0);
         sum += svo_cone_to(origin, dir, tan_half, start, start + radius).a;
     }
     return sum / f32(cones);
 }
 
-// The mean radiance of `cones` cosine-distributed diffuse cones around `n` from `origin`: the
-// irradiance over pi (a uniform sky of radiance L gives L).
-fn svo_diffuse(origin: vec3f, n: vec3f, cones: u32, tan_half: f32, start: f32) -> vec3f {
+// The mean radiance of `cones` cosine-distributed diffuse cones around `n` from `origin`, their
+// spiral turned `turn` of a full turn: the irradiance over pi (a uniform sky of radiance L
+// gives L).
+fn svo_diffuse(origin: vec3f, n: vec3f, cones: u32, tan_half: f32, start: f32, turn: f32) -> vec3f {
     let frame = svo_basis(n);
     var sum = vec3f(0.0);
     for (var k = 0u; k < cones; k++) {
-        sum += svo_cone(origin, frame * svo_cone_direction(k, cones), tan_half, start).rgb;
+        sum += svo_cone(origin, frame * svo_cone_direction(k, cones, turn), tan_half, start).rgb;
     }
     return sum / f32(cones);
 }

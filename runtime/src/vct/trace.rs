@@ -1,6 +1,7 @@
-//! The cone tracing pass (`trace.wgsl`, Crassin et al. 2011 §5, §7): per pixel, diffuse cones
-//! around the normal and a glossy cone along the mirror direction through the octree's bricks;
-//! and [`ConeProbe`], the same accumulation for given cones, which the test holds to
+//! The cone tracing pass (`trace.wgsl`, Crassin et al. 2011 §5, §7): per pixel of the reduced
+//! image, diffuse cones around the normal (their spiral turned per pixel) and a glossy cone along
+//! the mirror direction through the octree's bricks, into the shared filters' two planes; and
+//! [`ConeProbe`], the same accumulation for given cones, which the test holds to
 //! [`super::cpu::trace_cone`].
 
 use glam::{Vec3, Vec4};
@@ -8,7 +9,7 @@ use wgpu::util::DeviceExt;
 
 use crate::{
     RuntimeError,
-    common::{layout, readback::read_buffer},
+    common::{filters, layout, readback::read_buffer},
     frame::{FrameContext, FrameEncoder},
     shaders,
 };
@@ -32,40 +33,42 @@ pub struct TraceParams {
     pub tan_half: f32,
     /// Above 0: the ambient occlusion view (§6), the cones' reach in leaf voxels.
     pub occlusion_radius: f32,
-    /// Unused.
-    pub padding_a: u32,
+    /// Reduction per side of the traced image (1 in the ambient occlusion view).
+    pub factor: u32,
     /// [`START`].
     pub start: f32,
     /// How far off the surface along its normal the cones start, leaf voxels.
     pub offset: f32,
     /// The diffuse half angle, radians.
     pub half_angle: f32,
-    /// Unused.
-    pub padding_b: u32,
+    /// Nonzero: the diffuse cones' spiral turned per pixel ([`super::cpu::pixel_turn`]).
+    pub turn: u32,
 }
 
 impl TraceParams {
     /// `cones` diffuse cones of half angle `half_angle` (radians), their apex `offset` leaf
-    /// voxels off the surface.
+    /// voxels off the surface, at every pixel, the spiral not turned.
     pub fn new(cones: u32, half_angle: f32, offset: f32) -> Self {
         Self {
             cones,
             tan_half: half_angle.tan(),
             occlusion_radius: 0.0,
-            padding_a: 0,
+            factor: 1,
             start: START,
             offset,
             half_angle,
-            padding_b: 0,
+            turn: 0,
         }
     }
 }
 
-/// The per-pixel pass into the indirect radiance buffer.
+/// The pass per pixel of the reduced image into the filters' planes (or, in the ambient
+/// occlusion view, per pixel into its grey).
 pub struct ConeTrace {
-    /// Indirect radiance per pixel, `vec4f`.
-    pub indirect: wgpu::Buffer,
+    /// The ambient occlusion view's grey per pixel, `vec4f` (untouched in the indirect view).
+    pub occlusion: wgpu::Buffer,
     params: wgpu::Buffer,
+    factor: u32,
     pipeline: wgpu::ComputePipeline,
     bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
@@ -81,15 +84,22 @@ fn trace_entries() -> [wgpu::BindGroupLayoutEntry; 7] {
         layout::storage(2, true, c),
         layout::texture(3, d2, c),
         layout::texture(4, d2, c),
-        layout::texture(5, d2, c),
+        layout::storage(5, false, c),
         layout::storage(6, false, c),
     ]
 }
 
 impl ConeTrace {
-    /// The pass with `params` over `ctx`'s G-buffer.
-    pub fn new(ctx: &FrameContext, svo: &Svo, params: TraceParams) -> Self {
+    /// The pass with `params` over `ctx`'s G-buffer, writing `planes` (two planes of `vec4f` of
+    /// the image reduced `params.factor` times: the filters' input).
+    pub fn new(
+        ctx: &FrameContext,
+        svo: &Svo,
+        params: TraceParams,
+        planes: &wgpu::Buffer,
+    ) -> Self {
         let device = &ctx.device;
+        let factor = params.factor;
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vct trace params"),
             contents: bytemuck::bytes_of(&params),
@@ -103,10 +113,11 @@ impl ConeTrace {
             &module,
             &[&bind_layout, &svo.sample_layout],
         );
-        let (indirect, bind_group) = Self::bind(ctx, &bind_layout, &params);
+        let (occlusion, bind_group) = Self::bind(ctx, &bind_layout, &params, planes);
         Self {
-            indirect,
+            occlusion,
             params,
+            factor,
             pipeline,
             bind_layout,
             bind_group,
@@ -118,28 +129,27 @@ impl ConeTrace {
         ctx: &FrameContext,
         bind_layout: &wgpu::BindGroupLayout,
         params: &wgpu::Buffer,
+        planes: &wgpu::Buffer,
     ) -> (wgpu::Buffer, wgpu::BindGroup) {
-        let indirect = ctx.pixel_buffer("vct indirect");
-        let views = [
-            &ctx.gbuffer.position,
-            &ctx.gbuffer.normal,
-            &ctx.gbuffer.albedo,
-        ]
-        .map(|t| t.create_view(&Default::default()));
+        let occlusion = ctx.pixel_buffer("vct occlusion");
+        let views = [&ctx.gbuffer.position, &ctx.gbuffer.normal]
+            .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![
             params.as_entire_binding(),
             ctx.view.as_entire_binding(),
             ctx.scene.materials.as_entire_binding(),
         ];
         resources.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        resources.push(indirect.as_entire_binding());
+        resources.push(occlusion.as_entire_binding());
+        resources.push(planes.as_entire_binding());
         let bind_group = layout::bind_group(&ctx.device, "vct trace", bind_layout, &resources);
-        (indirect, bind_group)
+        (occlusion, bind_group)
     }
 
-    /// Rebuilds the output for `ctx`'s new size.
-    pub fn resize(&mut self, ctx: &FrameContext) {
-        (self.indirect, self.bind_group) = Self::bind(ctx, &self.bind_layout, &self.params);
+    /// Rebuilds the output for `ctx`'s new size, writing the filters' new `planes`.
+    pub fn resize(&mut self, ctx: &FrameContext, planes: &wgpu::Buffer) {
+        (self.occlusion, self.bind_group) =
+            Self::bind(ctx, &self.bind_layout, &self.params, planes);
         self.size = ctx.size();
     }
 
@@ -149,7 +159,7 @@ impl ConeTrace {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_bind_group(1, &svo.sample_group, &[]);
-        let (x, y) = shaders::groups_2d(self.size);
+        let (x, y) = shaders::groups_2d(filters::low_size(self.size, self.factor));
         pass.dispatch_workgroups(x, y, 1);
     }
 }
@@ -277,9 +287,11 @@ mod tests {
                     "occlusion_radius",
                     offset_of!(TraceParams, occlusion_radius),
                 ),
+                ("factor", offset_of!(TraceParams, factor)),
                 ("start", offset_of!(TraceParams, start)),
                 ("offset", offset_of!(TraceParams, offset)),
                 ("half_angle", offset_of!(TraceParams, half_angle)),
+                ("turn", offset_of!(TraceParams, turn)),
             ],
         );
         crate::shaders::tests::check_struct(
