@@ -1,7 +1,9 @@
 //! What screen space cannot see: the one-bounce indirect light the pixels on screen send each
 //! other with exact visibility (every pair of covered pixels, Eq. 1 over the G-buffer, a ray
 //! cast per pair), against the path tracer's one bounce, which gathers from every surface, and
-//! `ssil`'s own one bounce with and without its voxel visibility.
+//! `ssil`'s own one bounce with and without its voxel visibility; and the path tracer's one
+//! bounce split by where its bounce lands: on a surface the camera sees, on one facing the eye
+//! but hidden (behind another, or outside the frustum), or on one facing away from the eye.
 //!
 //! ```text
 //! cargo bench --bench ssil_screen -- [--scene DIR]... [--size 80x60] [--samples 1024]
@@ -18,7 +20,7 @@
 use std::path::PathBuf;
 
 use cssm::{formats, raycast, runtime};
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec4, Vec4Swizzles};
 use rayon::prelude::*;
 use runtime::{
     Gpu, Renderer, RendererSettings,
@@ -65,6 +67,13 @@ fn main() {
          visibility / path tracer | ssil / path tracer | ssil / on-screen, exact | \
          ssil:visibility=none / on-screen, none |\n| --- | ---: | ---: | ---: | ---: | ---: |\n",
         gpu.describe()
+    );
+    let mut split_table = format!(
+        "\nThe path tracer's one bounce ({samples} paths per pixel, diffuse) split by where its \
+         bounce lands: the share of the light sent by surfaces the camera sees, by surfaces \
+         facing the eye but hidden behind others or outside the image, and by surfaces facing \
+         away from the eye.\n\n\
+         | scene | seen | facing the eye, hidden | facing away |\n| --- | ---: | ---: | ---: |\n"
     );
     for dir in &dirs {
         let scene = formats::Scene::load(dir).unwrap_or_else(|e| panic!("{e}"));
@@ -188,6 +197,92 @@ fn main() {
         );
         print!("{row}");
         report += &row;
+        let [seen, hidden, away] = traced_split(&scene, &bvh, (width, height), samples);
+        let total = (seen + hidden + away).max(f64::MIN_POSITIVE);
+        let row = format!(
+            "| {} | {:.3} | {:.3} | {:.3} |\n",
+            scene.name,
+            seen / total,
+            hidden / total,
+            away / total
+        );
+        print!("{row}");
+        split_table += &row;
     }
+    report += &split_table;
     write_report(out.as_deref(), &report);
+}
+
+/// The path tracer's one diffuse bounce over the covered pixels of the scene's camera, as sums
+/// of luminance split by where the bounce lands: `[seen by the camera, facing the eye but
+/// hidden, facing away]`. Per pixel `samples` cosine-distributed directions from the first hit
+/// (the reference's estimator: albedo times the radiance the landing point sends back, the
+/// spot lights' exactly shadowed). A landing point is seen when the side the bounce leaves
+/// from faces the eye, the eye's ray towards it meets it first and it projects inside the
+/// image.
+fn traced_split(
+    scene: &formats::Scene,
+    bvh: &raycast::SceneBvh,
+    (width, height): (u32, u32),
+    samples: u32,
+) -> [f64; 3] {
+    use runtime::direct::cpu::{albedo_at, direct_radiance, facing_normal, ray_epsilon};
+    let (materials, textures) = runtime::load::cpu_materials(scene).expect("materials");
+    let view = View::of_scene(scene, width, height);
+    let eps = ray_epsilon(scene);
+    let material = |t: u32| &materials[scene.triangle_materials[t as usize] as usize];
+    let seen = |y: Vec3| {
+        let clip = view.view_proj * y.extend(1.0);
+        let ndc = clip.xyz() / clip.w;
+        if clip.w <= 0.0 || ndc.x.abs() > 1.0 || ndc.y.abs() > 1.0 {
+            return false;
+        }
+        let to = y - view.eye;
+        let dist = to.length();
+        bvh.closest_hit(view.eye, to / dist, 0.0, f32::INFINITY)
+            .is_some_and(|(t, _)| t > dist - 4.0 * eps)
+    };
+    (0..width * height)
+        .into_par_iter()
+        .map(|pixel| {
+            let (px, py) = (pixel % width, pixel / width);
+            let d = view.primary_ray(px, py);
+            let mut sums = [0.0f64; 3];
+            let Some((t, triangle)) = bvh.closest_hit(view.eye, d, 0.0, f32::INFINITY) else {
+                return sums;
+            };
+            let x = view.eye + d * t;
+            let n = facing_normal(scene, triangle, -d);
+            let rho = albedo_at(scene, material(triangle), &textures, triangle, x);
+            let a = if n.x.abs() > 0.9 { Vec3::Y } else { Vec3::X };
+            let t1 = n.cross(a).normalize();
+            let t2 = n.cross(t1);
+            let mut rng = raycast::SplitMix64(u64::from(pixel) * 0x9e37_79b9 + 1);
+            for _ in 0..samples {
+                let (u1, u2) = (rng.next_f64() as f32, rng.next_f64() as f32);
+                let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+                let wi = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - u1).sqrt();
+                let origin = x + n * eps;
+                let Some((s, hit)) = bvh.closest_hit(origin, wi, 0.0, f32::INFINITY) else {
+                    continue;
+                };
+                let y = origin + wi * s;
+                let ny = facing_normal(scene, hit, -wi);
+                let m = material(hit);
+                let albedo_y = albedo_at(scene, m, &textures, hit, y);
+                let sent = direct_radiance(scene, bvh, eps, y, ny, ny, -wi, albedo_y, m).0;
+                let light = luminance(rho * sent) / f64::from(samples);
+                // The side the bounce leaves from must be the side the eye sees.
+                let class = if ny.dot(view.eye - y) <= 0.0 {
+                    2
+                } else if seen(y) {
+                    0
+                } else {
+                    1
+                };
+                sums[class] += light;
+            }
+            sums
+        })
+        .reduce(|| [0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
 }

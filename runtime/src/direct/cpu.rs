@@ -72,7 +72,7 @@ pub(crate) fn shaded_spot_irradiance(
 }
 
 /// The offset that lifts ray origins off a surface of `scene` (shadow rays, path continuations).
-pub(crate) fn ray_epsilon(scene: &Scene) -> f32 {
+pub fn ray_epsilon(scene: &Scene) -> f32 {
     1e-4 * scene.diameter()
 }
 
@@ -133,7 +133,7 @@ pub fn shading_normal(
 
 /// Albedo at `p` on `triangle`: the material's Kd times its albedo texture, sampled as the
 /// G-buffer pass does.
-pub(crate) fn albedo_at(
+pub fn albedo_at(
     scene: &Scene,
     m: &GpuMaterial,
     textures: &[AlbedoTexture],
@@ -203,7 +203,7 @@ pub(crate) fn brdf(albedo: Vec3, m: &GpuMaterial, l: Vec3, n: Vec3, v: Vec3) -> 
 /// reach `p` as a bit set (bit `min(i, 31)`). The cosine and the BRDF take the shading normal,
 /// the side and the shadow ray the geometric one ([`shaded_spot_irradiance`]).
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn direct_radiance(
+pub fn direct_radiance(
     scene: &Scene,
     bvh: &SceneBvh,
     eps: f32,
