@@ -5,6 +5,8 @@
 //! its proxies (its range of the sorted proxies), and the first voxel with a disc it hits ends
 //! it. The pixel's visible-voxel list is its rays' voxels ([`NO_VOXEL`] for a ray that leaves
 //! the grid), which the visibility filter (Eq. 4) then unions across neighbours.
+//! One invocation per ray, not per pixel: the pixels of a reduced image are too few to fill a
+//! GPU (14,400 at 1280x720), their rays are not.
 //!
 //! CPU twin: [`march_cpu`]; test `tests/gpu/vf.rs::shadow_rays_match_cpu_twin`.
 
@@ -157,8 +159,9 @@ impl SparseRays {
         let mut pass = frame.compute_pass("shadow rays");
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        let (x, y) = shaders::groups_2d((self.params.low_size[0], self.params.low_size[1]));
-        pass.dispatch_workgroups(x, y, 1);
+        // One invocation per ray, a row of the low-res image's rays per row of workgroups.
+        let [width, height] = self.params.low_size;
+        pass.dispatch_workgroups(shaders::groups_1d(width * self.params.rays), height, 1);
     }
 }
 
