@@ -74,9 +74,16 @@ fn renderer_updates_match_a_fresh_renderer() {
         },
         ..Default::default()
     };
-    // `direct` (the shared passes) and `rsm` (the RSM raster, reduced-resolution buffers and
-    // filters that follow a resize, a light and an object).
-    for name in ["direct", "rsm"] {
+    // `direct` (the shared passes), `rsm` (the RSM raster, reduced-resolution buffers and
+    // filters that follow a resize, a light and an object) and `vct` (its octree rebuilt for the
+    // light and the object, its cones' filters resized; a coarse grid, for time).
+    let mut coarse = method::OptionValues::default();
+    coarse.set("resolution", method::OptionValue::Count(32));
+    for (name, options) in [
+        ("direct", Default::default()),
+        ("rsm", Default::default()),
+        ("vct", coarse),
+    ] {
         let entry = method::find(name).unwrap();
         let new = |scene: &Scene, w, h| {
             Renderer::new(
@@ -85,7 +92,7 @@ fn renderer_updates_match_a_fresh_renderer() {
                 scene,
                 None,
                 entry,
-                &Default::default(),
+                &options,
                 &settings(w, h),
             )
             .expect("renderer")

@@ -28,7 +28,7 @@ use crate::{
     RuntimeError,
     common::converge::{BouncePlan, Convergence},
     common::{
-        filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
+        filters::{self, EdgeAwareFilter, FilterOptions},
         layout,
         resolve::PlaneResolve,
     },
@@ -322,13 +322,9 @@ impl Planes {
         if options.downsample <= 1 {
             return Ok(Planes::Full(Self::full(ctx)));
         }
-        Ok(Planes::Reduced(EdgeAwareFilter::new(
-            &ctx.device,
-            &ctx.gbuffer,
-            &ctx.view,
-            2,
+        Ok(Planes::Reduced(EdgeAwareFilter::two_planes(
+            ctx,
             options.filter(),
-            LowGuide::Representative,
         )?))
     }
 
@@ -368,12 +364,7 @@ impl Planes {
     fn resize(&mut self, ctx: &FrameContext) {
         match self {
             Planes::Full(planes) => *planes = Self::full(ctx),
-            Planes::Reduced(filter) => filter.resize(
-                &ctx.device,
-                &ctx.gbuffer,
-                &ctx.view,
-                LowGuide::Representative,
-            ),
+            Planes::Reduced(filter) => filter.resize_two_planes(ctx),
         }
     }
 }

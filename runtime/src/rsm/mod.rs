@@ -48,7 +48,7 @@ use wgpu::util::DeviceExt;
 use crate::{
     RuntimeError,
     common::{
-        filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
+        filters::{self, EdgeAwareFilter, FilterOptions},
         layout,
         resolve::PlaneResolve,
     },
@@ -386,14 +386,7 @@ impl RsmMethod {
     fn build(setup: &MethodSetup) -> Result<Box<dyn GiMethod>, RuntimeError> {
         let ctx = setup.ctx;
         let options = RsmOptions::from_resolved(setup.options);
-        let filter = EdgeAwareFilter::new(
-            &ctx.device,
-            &ctx.gbuffer,
-            &ctx.view,
-            2,
-            options.filter(),
-            LowGuide::Representative,
-        )?;
+        let filter = EdgeAwareFilter::two_planes(ctx, options.filter())?;
         let sampling = Sampling::new(ctx, &options, &filter)?;
         let resolve = PlaneResolve::new(ctx, "rsm resolve", filter.output());
         Ok(Box::new(Self {
@@ -416,12 +409,7 @@ impl GiMethod for RsmMethod {
     }
 
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
-        self.filter.resize(
-            &ctx.device,
-            &ctx.gbuffer,
-            &ctx.view,
-            LowGuide::Representative,
-        );
+        self.filter.resize_two_planes(ctx);
         self.sampling.resize(ctx, &self.filter)?;
         self.resolve.resize(ctx, self.filter.output());
         Ok(())

@@ -62,7 +62,7 @@ use crate::{
     RuntimeError,
     common::{
         converge::{BouncePlan, Convergence},
-        filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
+        filters::{self, EdgeAwareFilter, FilterOptions},
         resolve::PlaneResolve,
         readback::read_buffer,
         voxelize::{self, VoxelFragment, VoxelGrid, Voxelizer},
@@ -390,14 +390,7 @@ impl VctMethod {
             // The cones' gather is the last bounce.
             BouncePlan::from_option(options.bounces).one_fewer(),
         )?;
-        let filter = EdgeAwareFilter::new(
-            &ctx.device,
-            &ctx.gbuffer,
-            &ctx.view,
-            2,
-            options.filter(),
-            LowGuide::Representative,
-        )?;
+        let filter = EdgeAwareFilter::two_planes(ctx, options.filter())?;
         let trace = ConeTrace::new(ctx, &voxels.svo, params, filter.input());
         let resolve = PlaneResolve::new(ctx, "vct resolve", filter.output());
         Ok(Box::new(Self {
@@ -432,12 +425,7 @@ impl GiMethod for VctMethod {
     }
 
     fn resize(&mut self, ctx: &FrameContext) -> Result<(), RuntimeError> {
-        self.filter.resize(
-            &ctx.device,
-            &ctx.gbuffer,
-            &ctx.view,
-            LowGuide::Representative,
-        );
+        self.filter.resize_two_planes(ctx);
         self.trace.resize(ctx, self.filter.input());
         self.resolve.resize(ctx, self.filter.output());
         Ok(())

@@ -62,7 +62,7 @@ pub const SHADERS: crate::shaders::ShaderSet = crate::shaders::ShaderSet {
 use crate::{
     RuntimeError,
     common::{
-        filters::{self, EdgeAwareFilter, FilterOptions, LowGuide},
+        filters::{self, EdgeAwareFilter, FilterOptions},
         resolve::PlaneResolve,
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},
@@ -424,14 +424,7 @@ impl Screen {
             },
         );
         let filter = VisibilityFilter::new(ctx, &rays, grid.grid.cells(), &options.filter_shape())?;
-        let upsampling = EdgeAwareFilter::new(
-            &ctx.device,
-            &ctx.gbuffer,
-            &ctx.view,
-            2,
-            options.upsampling(),
-            LowGuide::Representative,
-        )?;
+        let upsampling = EdgeAwareFilter::two_planes(ctx, options.upsampling())?;
         let up = options.upsampling();
         let gathering = Gathering::new(
             ctx,

@@ -8,7 +8,7 @@ use super::{FilterOptions, SHADER, low_size};
 use crate::{
     RuntimeError,
     common::{gbuffer::GBuffer, layout},
-    frame::FrameEncoder,
+    frame::{FrameContext, FrameEncoder},
     shaders,
 };
 
@@ -249,6 +249,34 @@ impl EdgeAwareFilter {
     /// The options the filter was built with.
     pub fn options(&self) -> FilterOptions {
         self.options
+    }
+
+    /// The filter of a technique that gathers two planes (the diffuse and the lobe-weighted
+    /// irradiance, for `common::resolve`) at the reduced image's representative pixels (rsm,
+    /// vct, vf, lightcuts), over `ctx`'s G-buffer and view.
+    ///
+    /// # Errors
+    /// As [`Self::new`].
+    pub fn two_planes(ctx: &FrameContext, options: FilterOptions) -> Result<Self, RuntimeError> {
+        Self::new(
+            &ctx.device,
+            &ctx.gbuffer,
+            &ctx.view,
+            2,
+            options,
+            LowGuide::Representative,
+        )
+    }
+
+    /// [`Self::resize`] for a filter of [`Self::two_planes`], after `ctx`'s G-buffer was
+    /// resized.
+    pub fn resize_two_planes(&mut self, ctx: &FrameContext) {
+        self.resize(
+            &ctx.device,
+            &ctx.gbuffer,
+            &ctx.view,
+            LowGuide::Representative,
+        );
     }
 
     /// New buffers and bind groups after the G-buffer was resized (pipelines stay), the
