@@ -517,8 +517,7 @@ pub fn trace_planes(
     let corrected = svo.correct_opacity != 0;
     let origin = (r.position - Vec3::from(svo.origin)) * svo.inv_voxel + n * trace.offset;
     let turn = pixel_turn(trace, pixel);
-    let irradiance =
-        std::f32::consts::PI * diffuse(pyramid, origin, n, (trace, turn), corrected);
+    let irradiance = std::f32::consts::PI * diffuse(pyramid, origin, n, (trace, turn), corrected);
     let mut glossy = Vec3::ZERO;
     if r.ks.cmpgt(Vec3::ZERO).any() {
         let v = (r.eye - r.position).normalize();
@@ -535,7 +534,12 @@ pub fn trace_planes(
 
 /// The ambient occlusion view's grey at `r` (`trace.wgsl::main` with `occlusion_radius` above
 /// 0): one minus the [`occlusion`] of the diffuse cones within that reach.
-pub fn occlusion_view(pyramid: &Pyramid, svo: &SvoParams, trace: &TraceParams, r: &Receiver) -> f32 {
+pub fn occlusion_view(
+    pyramid: &Pyramid,
+    svo: &SvoParams,
+    trace: &TraceParams,
+    r: &Receiver,
+) -> f32 {
     let n = r.normal;
     let corrected = svo.correct_opacity != 0;
     let origin = (r.position - Vec3::from(svo.origin)) * svo.inv_voxel + n * trace.offset;

@@ -63,8 +63,8 @@ use crate::{
     common::{
         converge::{BouncePlan, Convergence},
         filters::{self, EdgeAwareFilter, FilterOptions},
-        resolve::PlaneResolve,
         readback::read_buffer,
+        resolve::PlaneResolve,
         voxelize::{self, VoxelFragment, VoxelGrid, Voxelizer},
     },
     frame::{FrameContext, FrameEncoder, PassInfo, Slot, Stage},

@@ -92,12 +92,7 @@ fn trace_entries() -> [wgpu::BindGroupLayoutEntry; 7] {
 impl ConeTrace {
     /// The pass with `params` over `ctx`'s G-buffer, writing `planes` (two planes of `vec4f` of
     /// the image reduced `params.factor` times: the filters' input).
-    pub fn new(
-        ctx: &FrameContext,
-        svo: &Svo,
-        params: TraceParams,
-        planes: &wgpu::Buffer,
-    ) -> Self {
+    pub fn new(ctx: &FrameContext, svo: &Svo, params: TraceParams, planes: &wgpu::Buffer) -> Self {
         let device = &ctx.device;
         let factor = params.factor;
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
