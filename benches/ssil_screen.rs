@@ -254,9 +254,7 @@ fn traced_split(
             let x = view.eye + d * t;
             let n = facing_normal(scene, triangle, -d);
             let rho = albedo_at(scene, material(triangle), &textures, triangle, x);
-            let a = if n.x.abs() > 0.9 { Vec3::Y } else { Vec3::X };
-            let t1 = n.cross(a).normalize();
-            let t2 = n.cross(t1);
+            let (t1, t2) = runtime::radiosity::transfer::tangent_frame(n);
             let mut rng = raycast::SplitMix64(u64::from(pixel) * 0x9e37_79b9 + 1);
             for _ in 0..samples {
                 let (u1, u2) = (rng.next_f64() as f32, rng.next_f64() as f32);

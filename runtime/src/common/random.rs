@@ -1,6 +1,7 @@
 //! The CPU twin of `common/random.wgsl`: the PCG hash (Jarzynski and Olano 2020) behind every
 //! per-pixel and per-frame sample pattern of the GPU passes (ssil's rings, vf's shadow rays,
-//! vct's turned cones, the radiosity's jitter), and a hash as a number in [0, 1).
+//! vct's turned cones, the radiosity's jitter), and a hash as a number in [0, 1) (also rsm's,
+//! over its own lowbias32 hash).
 
 /// `random.wgsl`: `pcg_hash`.
 pub fn pcg_hash(v: u32) -> u32 {

@@ -659,7 +659,7 @@ impl GiMethod for Lightcuts {
 
 /// The seed of frame `frame`'s jitter (what [`FinalGather::run`] uploads).
 pub fn frame_seed(frame: u32) -> u32 {
-    crate::radiosity::transfer::pcg_hash(frame.wrapping_add(0x9e37_79b9))
+    crate::common::random::pcg_hash(frame.wrapping_add(0x9e37_79b9))
 }
 
 #[cfg(test)]

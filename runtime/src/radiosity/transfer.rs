@@ -407,8 +407,8 @@ pub fn irradiance_from_texel(
     }
 }
 
-/// The jitter's random numbers on both sides (`transfer.wgsl`: `pcg_hash`).
-pub use crate::common::random::pcg_hash;
+// The jitter's random numbers on both sides (`transfer.wgsl` imports `cssm::random`).
+use crate::common::random::pcg_hash;
 
 /// The jitter's random word for (`seed`, `receiver`, `node_index`): one draw per frame,
 /// receiver and node. `transfer.wgsl`: `jitter_hash`.

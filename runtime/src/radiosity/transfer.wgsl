@@ -1,6 +1,7 @@
 #define_import_path cssm::transfer
 
 #import cssm::types::{Node, Texel}
+#import cssm::random::pcg_hash
 
 // Light transfer from a hierarchy node to a receiver point and the oracle's upper bound of it
 // (§4.3, §4.4). Twin of radiosity/transfer.rs, function by function; read its docs for the
@@ -171,13 +172,6 @@ fn irradiance_from_texel(p: vec3f, n: vec3f, y: vec3f, sender_normal: vec3f, are
         return irradiance_from_footprint(p, n, y, sender_normal, area, radiance);
     }
     return irradiance_from(p, n, y, sender_normal, area, radiance);
-}
-
-// transfer::pcg_hash.
-fn pcg_hash(x: u32) -> u32 {
-    let state = x * 747796405u + 2891336453u;
-    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
 }
 
 // transfer::jitter_hash.

@@ -5,7 +5,10 @@
 
 use glam::{Vec2, Vec3, Vec4};
 
-use crate::gpu_types::{GpuMaterial, GpuSpotLight};
+use crate::{
+    common::random::hash_unit,
+    gpu_types::{GpuMaterial, GpuSpotLight},
+};
 
 use super::{RsmOptions, Visibility};
 
@@ -47,18 +50,13 @@ pub fn hash(mut x: u32) -> u32 {
     x
 }
 
-/// `sample.wgsl::unit`: a hash as a number in [0, 1) (24 bits, exact in f32).
-pub fn unit(h: u32) -> f32 {
-    (h >> 8) as f32 / 16_777_216.0
-}
-
 /// The receiver's per-pixel rotation (a fraction of a sector) and radius scale (§3.2: one
 /// base pattern, slightly rotated and scaled per pixel).
 pub fn pixel_variation(pixel: (u32, u32)) -> (f32, f32) {
     let key = pixel.0.wrapping_add(pixel.1.wrapping_mul(65_536));
     (
-        unit(hash(key ^ 0x1b87_3593)),
-        0.9 + 0.2 * unit(hash(key ^ 0x5bd1_e995)),
+        hash_unit(hash(key ^ 0x1b87_3593)),
+        0.9 + 0.2 * hash_unit(hash(key ^ 0x5bd1_e995)),
     )
 }
 
@@ -66,7 +64,10 @@ pub fn pixel_variation(pixel: (u32, u32)) -> (f32, f32) {
 /// a quarter sector and the radius' stratum offset in [0, 1) (Algorithm 1, lines 4-5).
 pub fn base_jitter(j: u32, k: u32) -> (f32, f32) {
     let key = j * 1024 + k;
-    (unit(hash(key)) - 0.5, unit(hash(key ^ 0x68e3_1da4)))
+    (
+        hash_unit(hash(key)) - 0.5,
+        hash_unit(hash(key ^ 0x68e3_1da4)),
+    )
 }
 
 /// Gathers the indirect light at `r` from `rsms` (one per light in `lights`): rgb diffuse

@@ -8,6 +8,7 @@
 
 #import cssm::types::{Material, SpotLight, View}
 #import cssm::lowres::lowres_representative
+#import cssm::random::hash_unit
 
 struct SamplingParams {
     paths: u32,
@@ -48,10 +49,6 @@ fn hash(v: u32) -> u32 {
     return x;
 }
 
-fn unit(h: u32) -> f32 {
-    return f32(h >> 8u) / 16777216.0;
-}
-
 // §3.3: the slot of an elevation angle in [-pi/2, pi/2] (`rsm::slot_of`).
 fn slot_of(elevation: f32, slots: u32) -> u32 {
     let at = floor((elevation / PI + 0.5) * f32(slots));
@@ -77,8 +74,8 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         let v = normalize(view.eye - x);
         // §3.2: one base pattern for every pixel, slightly rotated and scaled per pixel.
         let key = pixel.x + pixel.y * 65536u;
-        let rotation = unit(hash(key ^ 0x1b873593u));
-        let scale = 0.9 + 0.2 * unit(hash(key ^ 0x5bd1e995u));
+        let rotation = hash_unit(hash(key ^ 0x1b873593u));
+        let scale = 0.9 + 0.2 * hash_unit(hash(key ^ 0x5bd1e995u));
         let sector = TAU / f32(params.paths);
         let radius = params.radius * scale;
         let samples = f32(params.path_samples);
@@ -105,8 +102,8 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
                 for (var k = 0u; k < params.path_samples; k++) {
                     // Algorithm 5, lines 4-8: jittered angle and radius along the path.
                     let jkey = j * 1024u + k;
-                    let jitter_angle = unit(hash(jkey)) - 0.5;
-                    let jitter_radius = unit(hash(jkey ^ 0x68e31da4u));
+                    let jitter_angle = hash_unit(hash(jkey)) - 0.5;
+                    let jitter_radius = hash_unit(hash(jkey ^ 0x68e31da4u));
                     let theta = sector * (rotation + f32(j) + 0.5 + 0.5 * jitter_angle);
                     let u = (f32(k) + jitter_radius) / samples;
                     let rho = radius * u * u;

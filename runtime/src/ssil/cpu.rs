@@ -15,7 +15,7 @@ const PI: f32 = std::f32::consts::PI;
 /// Most steps of a visibility march (`gather.wgsl`: `MAX_MARCH`).
 const MAX_MARCH: u32 = 256;
 
-pub use crate::common::random::{hash_unit as unit, pcg_hash as hash};
+use crate::common::random::{hash_unit, pcg_hash};
 
 /// `sender.wgsl`: the light the G-buffer pixel (`position`, `normal` turned towards the eye,
 /// `albedo`, `emission` as the G-buffer holds them) sends to the others, its diffuse direct
@@ -190,9 +190,9 @@ pub fn gather_pixel(
     let n4 = inputs.normal[i];
     let n = n4.truncate();
     let m = inputs.materials[n4.w as usize];
-    let key = hash(px ^ hash(py ^ hash(params.level ^ hash(inputs.frame.seed))));
-    let rotation = unit(key);
-    let jitter = unit(hash(key));
+    let key = pcg_hash(px ^ pcg_hash(py ^ pcg_hash(params.level ^ pcg_hash(inputs.frame.seed))));
+    let rotation = hash_unit(key);
+    let jitter = hash_unit(pcg_hash(key));
     let r1 = if params.disc == 1 {
         0.0
     } else {
@@ -237,7 +237,7 @@ pub fn gather_pixel(
         }
         let sigma = (PI / m.ns.max(1e-3)).sqrt();
         let lobe_scale = (m.ns + 2.0) / (2.0 * PI);
-        let jitter_b = unit(hash(key ^ 0x9e37_79b9));
+        let jitter_b = hash_unit(pcg_hash(key ^ 0x9e37_79b9));
         for k in 0..params.samples {
             let a = (k as f32 + rotation) / count;
             let theta = if a < p_uniform {

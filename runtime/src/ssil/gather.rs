@@ -7,7 +7,7 @@
 
 use glam::{Mat4, Vec3};
 
-use super::{Levels, SsilOptions, cpu, uniform_buffer};
+use super::{Levels, SsilOptions, uniform_buffer};
 use crate::{
     common::{
         converge::ConvergeGpu,
@@ -102,7 +102,7 @@ impl FrameParams {
         let z_near = near.max(extent * 1e-4);
         let z_far = far.max(z_near + extent * 1e-3);
         Self {
-            seed: cpu::hash(seed),
+            seed: crate::common::random::pcg_hash(seed),
             z_near,
             z_far,
             pixel_area: pixel_area(&view_proj, (view.size[0], view.size[1])),

@@ -65,10 +65,12 @@ impl TraceParams {
 /// The pass per pixel of the reduced image into the filters' planes (or, in the ambient
 /// occlusion view, per pixel into its grey).
 pub struct ConeTrace {
-    /// The ambient occlusion view's grey per pixel, `vec4f` (untouched in the indirect view).
+    /// The ambient occlusion view's grey per pixel, `vec4f` (in the indirect view one unused
+    /// `vec4f`, the binding's placeholder).
     pub occlusion: wgpu::Buffer,
     params: wgpu::Buffer,
     factor: u32,
+    occlusion_view: bool,
     pipeline: wgpu::ComputePipeline,
     bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
@@ -94,7 +96,7 @@ impl ConeTrace {
     /// the image reduced `params.factor` times: the filters' input).
     pub fn new(ctx: &FrameContext, svo: &Svo, params: TraceParams, planes: &wgpu::Buffer) -> Self {
         let device = &ctx.device;
-        let factor = params.factor;
+        let (factor, occlusion_view) = (params.factor, params.occlusion_radius > 0.0);
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vct trace params"),
             contents: bytemuck::bytes_of(&params),
@@ -108,11 +110,13 @@ impl ConeTrace {
             &module,
             &[&bind_layout, &svo.sample_layout],
         );
-        let (occlusion, bind_group) = Self::bind(ctx, &bind_layout, &params, planes);
+        let (occlusion, bind_group) =
+            Self::bind(ctx, &bind_layout, (&params, occlusion_view), planes);
         Self {
             occlusion,
             params,
             factor,
+            occlusion_view,
             pipeline,
             bind_layout,
             bind_group,
@@ -123,10 +127,19 @@ impl ConeTrace {
     fn bind(
         ctx: &FrameContext,
         bind_layout: &wgpu::BindGroupLayout,
-        params: &wgpu::Buffer,
+        (params, occlusion_view): (&wgpu::Buffer, bool),
         planes: &wgpu::Buffer,
     ) -> (wgpu::Buffer, wgpu::BindGroup) {
-        let occlusion = ctx.pixel_buffer("vct occlusion");
+        let occlusion = if occlusion_view {
+            ctx.pixel_buffer("vct occlusion")
+        } else {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vct occlusion (unused)"),
+                size: 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
         let views = [&ctx.gbuffer.position, &ctx.gbuffer.normal]
             .map(|t| t.create_view(&Default::default()));
         let mut resources = vec![
@@ -143,8 +156,8 @@ impl ConeTrace {
 
     /// Rebuilds the output for `ctx`'s new size, writing the filters' new `planes`.
     pub fn resize(&mut self, ctx: &FrameContext, planes: &wgpu::Buffer) {
-        (self.occlusion, self.bind_group) =
-            Self::bind(ctx, &self.bind_layout, &self.params, planes);
+        let params = (&self.params, self.occlusion_view);
+        (self.occlusion, self.bind_group) = Self::bind(ctx, &self.bind_layout, params, planes);
         self.size = ctx.size();
     }
 

@@ -15,10 +15,12 @@ use wgpu::util::DeviceExt;
 
 use super::{light::ProxyLight, proxies::GridParams, proxies::ProxyGrid};
 use crate::{
-    common::{filters, layout},
+    common::{
+        filters, layout,
+        random::{hash_unit, pcg_hash},
+    },
     frame::{FrameContext, FrameEncoder},
     shaders,
-    ssil::cpu::hash,
 };
 
 /// `vf/march.wgsl`: the sparse shadow rays through the proxies' voxels.
@@ -297,9 +299,8 @@ pub fn march_cpu(
         return vec![NO_VOXEL; rays];
     }
     let frame = basis(n);
-    let key = hash(pixel.x ^ hash(pixel.y ^ hash(params.seed)));
-    let unit = |v: u32| (v >> 8) as f32 / 16_777_216.0;
-    let (r1, r2) = (unit(key), unit(hash(key)));
+    let key = pcg_hash(pixel.x ^ pcg_hash(pixel.y ^ pcg_hash(params.seed)));
+    let (r1, r2) = (hash_unit(key), hash_unit(pcg_hash(key)));
     let o = p.truncate() + params.offset * n;
     (0..params.rays)
         .map(|k| {
